@@ -1,0 +1,51 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = 'qrm_ros'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test', 'test.*', 'bench']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/config', glob('config/*.yaml')),
+        ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
+    ],
+    install_requires=['setuptools', 'numpy', 'scipy', 'mcap', 'mcap-ros2-support',
+                      'matplotlib'],
+    extras_require={
+        'test': ['pytest', 'flake8', 'pydocstyle', 'rosbags'],
+    },
+    zip_safe=True,
+    maintainer='qrm_ros developers',
+    maintainer_email='qrm-ros-dev@example.com',
+    description='Modified quick-return (shaper) mechanism: kinematics, ROS 2 node, '
+                'MCAP recorder and TR/SR analysis.',
+    license='Apache-2.0',
+    entry_points={
+        'console_scripts': [
+            'qrm_design = qrm_ros.design_table:main',
+            'shaper_sim = qrm_ros.shaper_sim:main',
+            'mcap_recorder = qrm_ros.recorder:main',
+            'qrm_analyze = qrm_ros.analysis:main',
+            'qrm_main = qrm_ros.main_job:main',
+        ],
+    },
+)
