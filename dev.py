@@ -26,6 +26,7 @@ AMENT_PREFIX_PATH is pointed at the venv so the ament index (package share folde
 definitions) works without a ROS installation.
 """
 
+import fcntl
 import hashlib
 import os
 import subprocess
@@ -67,6 +68,13 @@ def ensure_environment():
     if not os.path.exists(os.path.join(BIN, 'python')):
         print(f'dev.py: creating the project environment in {VENV}', flush=True)
         venv.EnvBuilder(with_pip=True).create(VENV)
+    # Several commands may start at once (parallel terminals, CI helpers): one installs.
+    with open(os.path.join(VENV, '.qrm_ros_install.lock'), 'w') as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        _install_if_changed()
+
+
+def _install_if_changed():
     wanted = [_fingerprint([REQUIREMENTS]), _fingerprint(PACKAGE_INPUTS)]
     try:
         with open(STAMP) as handle:
