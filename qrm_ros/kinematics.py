@@ -1,0 +1,462 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+Exact kinematics of the modified quick-return mechanism (pure numpy/scipy, no ROS).
+
+The chain is input shaft -> offset yoke coupling -> flywheel -> crank pin -> slotted lever
+-> ram. Both stages are the same inverted slider-crank, so one function serves both. Every
+quantity is closed form, so published states carry no integration error; conventions and
+equations follow shared/design/mechanism.md (x right, y up, angles counter-clockwise, lever
+angle from the vertical toward +x, ram on a block at height ``ram_height`` above the pivot).
+
+For a positive input speed the slow stroke, which moves the ram toward -x (ram velocity
+< 0), is the cutting stroke; running in reverse makes the cut the fast stroke (TR < 1).
+"""
+
+from dataclasses import dataclass
+import math
+from typing import NamedTuple
+
+import numpy as np
+from scipy import optimize
+from scipy.optimize import elementwise
+
+__all__ = [
+    'Geometry', 'KinematicsError', 'MechanismState', 'SAFE_OFFSET_FRACTION',
+    'check_offset', 'input_angle_for_flywheel_angle', 'offset_for_cutting_speed',
+    'offset_for_speed_ratio', 'offset_for_time_ratio', 'peak_ram_speeds', 'peak_speed_ratio',
+    'reversal_flywheel_angles', 'speed_ratio', 'speed_ratio_eq25', 'state', 'stroke_times',
+    'time_ratio', 'time_ratio_rk4',
+]
+
+TWO_PI = 2.0 * math.pi
+# Fraction of the coupling radius an offset may use in operation: at |offset| = r1 the pin
+# crosses the output axis and the flywheel speed is unbounded; at 0.9 r1 it peaks at 10x.
+SAFE_OFFSET_FRACTION = 0.9
+# Inversions search |offset| <= this fraction of r1 (the open limit, short of the singularity).
+_SEARCH_FRACTION = 1.0 - 1e-9
+# Samples per stroke that bracket the speed extrema before exact root-finding.
+_PEAK_BRACKET_SAMPLES = 48
+
+
+class KinematicsError(ValueError):
+    """A geometry, offset or target the mechanism cannot take; the message names it."""
+
+
+def _as_float(name, value):
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise KinematicsError(f'{name} must be a real number, got {value!r}') from None
+    if not np.all(np.isfinite(array)):
+        raise KinematicsError(f'{name} must be finite, got {value!r}')
+    return float(array) if array.ndim == 0 else array
+
+
+@dataclass(frozen=True, eq=False)
+class Geometry:
+    """
+    Dimensions of the drive, in metres and radians.
+
+    Fields may be numpy arrays (broadcast against offsets and angles) for design sweeps.
+    """
+
+    coupling_radius: float
+    crank_radius: float
+    pivot_distance: float
+    ram_height: float = 0.2
+    crank_phase: float = 0.0
+
+    def __post_init__(self):
+        for name in ('coupling_radius', 'crank_radius', 'pivot_distance', 'ram_height'):
+            value = _as_float(name, getattr(self, name))
+            if np.any(np.asarray(value) <= 0.0):
+                raise KinematicsError(f'{name} must be > 0 m, got {getattr(self, name)!r}')
+            object.__setattr__(self, name, value)
+        object.__setattr__(self, 'crank_phase', _as_float('crank_phase', self.crank_phase))
+        if np.any(np.asarray(self.crank_radius) >= self.pivot_distance):
+            raise KinematicsError(
+                f'crank_radius ({self.crank_radius!r} m) must be smaller than pivot_distance '
+                f'({self.pivot_distance!r} m): otherwise the lever turns fully round instead '
+                'of swinging')
+
+    @classmethod
+    def paper(cls, ram_height=0.2):
+        """Table 1 of the source paper (r1 = 25 mm, r = 50.5 mm, h = 113 mm)."""
+        return cls(coupling_radius=0.025, crank_radius=0.0505, pivot_distance=0.113,
+                   ram_height=ram_height)
+
+    @property
+    def max_safe_offset(self):
+        """Largest |offset| the node accepts (SAFE_OFFSET_FRACTION of the coupling radius)."""
+        return SAFE_OFFSET_FRACTION * self.coupling_radius
+
+    @property
+    def ram_stroke(self):
+        """Distance between the ram's two reversal points (independent of the offset)."""
+        r, h = self.crank_radius, self.pivot_distance
+        return 2.0 * self.ram_height * r / np.sqrt(h * h - r * r)
+
+    def as_dict(self):
+        return {name: getattr(self, name) for name in (
+            'coupling_radius', 'crank_radius', 'pivot_distance', 'ram_height', 'crank_phase')}
+
+
+class MechanismState(NamedTuple):
+    """Positions and rates of every joint at one instant (rad, rad/s, m, m/s, m/s^2)."""
+
+    flywheel_angle: object
+    flywheel_speed: object
+    lever_angle: object
+    lever_speed: object
+    ram_position: object
+    ram_velocity: object
+    ram_acceleration: object
+
+
+def check_offset(geometry, offset, limit=None):
+    """
+    Refuse an offset the coupling cannot turn with; return it as float or array.
+
+    ``limit`` defaults to the coupling radius (the physical limit, exclusive); the node
+    passes ``geometry.max_safe_offset`` (inclusive).
+    """
+    offset = _as_float('offset', offset)
+    if limit is None:
+        bad = np.abs(offset) >= geometry.coupling_radius
+        allowed = f'|offset| < coupling_radius = {_fmt(geometry.coupling_radius)} m'
+    else:
+        bad = np.abs(offset) > limit
+        allowed = f'|offset| <= {_fmt(limit)} m'
+    if np.any(bad):
+        shown = offset if np.ndim(offset) == 0 else np.asarray(offset)[np.asarray(bad)][0]
+        raise KinematicsError(f'offset {shown!r} m is out of range: allowed {allowed}')
+    return offset
+
+
+def _fmt(value):
+    return f'{value:.6g}' if np.ndim(value) == 0 else 'per-element values'
+
+
+def _slot_rates(crank_radius, centre_distance, crank_angle, crank_speed, crank_acceleration,
+                centre_rate=0.0):
+    """
+    Angular rate and acceleration of the line from a slot's centre to a crank pin.
+
+    The pin is at crank_radius (cos a, sin a) from the crank's centre, which sits
+    centre_distance above the slot's centre (which may move at centre_rate). This is the
+    inverted slider-crank of both stages; rates follow from the pin's relative position
+    p, velocity and acceleration: beta' = (p x p') / |p|^2.
+    """
+    cos_a, sin_a = np.cos(crank_angle), np.sin(crank_angle)
+    px = crank_radius * cos_a
+    py = crank_radius * sin_a + centre_distance
+    vx = -crank_radius * sin_a * crank_speed
+    vy = crank_radius * cos_a * crank_speed + centre_rate
+    ax = -px * crank_speed ** 2 - crank_radius * sin_a * crank_acceleration
+    ay = -crank_radius * sin_a * crank_speed ** 2 + px * crank_acceleration
+    norm2 = px * px + py * py
+    cross_v = px * vy - py * vx
+    rate = cross_v / norm2
+    acceleration = (px * ay - py * ax) / norm2 - 2.0 * (px * vx + py * vy) * cross_v / norm2 ** 2
+    return rate, acceleration
+
+
+def state(geometry, offset, input_angle, input_speed, input_acceleration=0.0,
+          offset_rate=0.0):
+    """
+    Exact state of every joint for an input shaft angle, speed and acceleration.
+
+    offset_rate (m/s) adds the flywheel motion caused by a moving offset, so velocities are
+    the true time derivatives of the positions while the offset actuator runs (its own
+    acceleration is taken as zero: it moves at a constant rate or not at all).
+    """
+    offset = check_offset(geometry, offset)
+    r1, r, h = geometry.coupling_radius, geometry.crank_radius, geometry.pivot_distance
+    theta = np.asarray(input_angle, dtype=float)
+    # Output angle = input angle + a bounded correction, so it is as continuous as the input.
+    flywheel_angle = theta + np.arctan2(offset * np.cos(theta), r1 + offset * np.sin(theta))
+    flywheel_speed, flywheel_acc = _slot_rates(r1, offset, theta, input_speed,
+                                               input_acceleration, offset_rate)
+    crank_angle = flywheel_angle + geometry.crank_phase
+    cos_c, sin_c = np.cos(crank_angle), np.sin(crank_angle)
+    lever_angle = np.arctan2(r * cos_c, h + r * sin_c)
+    slot_rate, slot_acc = _slot_rates(r, h, crank_angle, flywheel_speed, flywheel_acc)
+    # The lever angle is measured from the vertical toward +x: the slot's angle, mirrored.
+    lever_speed, lever_acc = -slot_rate, -slot_acc
+    tan_lever = r * cos_c / (h + r * sin_c)
+    sec2 = 1.0 + tan_lever * tan_lever
+    height = geometry.ram_height
+    result = MechanismState(
+        flywheel_angle=flywheel_angle,
+        flywheel_speed=flywheel_speed,
+        lever_angle=lever_angle,
+        lever_speed=lever_speed,
+        ram_position=height * tan_lever,
+        ram_velocity=height * lever_speed * sec2,
+        ram_acceleration=height * sec2 * (lever_acc + 2.0 * lever_speed ** 2 * tan_lever),
+    )
+    if all(np.ndim(value) == 0 for value in result):
+        return MechanismState(*(float(value) for value in result))
+    return MechanismState(*(np.broadcast_arrays(*result)))
+
+
+def input_angle_for_flywheel_angle(geometry, offset, flywheel_angle):
+    """Inverse of the coupling: the input angle that puts the flywheel at flywheel_angle."""
+    offset = check_offset(geometry, offset)
+    r1 = geometry.coupling_radius
+    phi = np.asarray(flywheel_angle, dtype=float)
+    sin_p, cos_p = np.sin(phi), np.cos(phi)
+    pin_distance = offset * sin_p + np.sqrt(r1 * r1 - (offset * cos_p) ** 2)
+    return np.arctan2(pin_distance * sin_p - offset, pin_distance * cos_p)
+
+
+def reversal_flywheel_angles(geometry):
+    """
+    Flywheel angles where the ram reverses: (start of the cut, end of the cut).
+
+    For a positive input speed the cut starts at the ram's +x end (crank at -asin(r/h)) and
+    covers the long arc through +90 degrees to pi + asin(r/h).
+    """
+    half_gap = np.arcsin(geometry.crank_radius / geometry.pivot_distance)
+    return -half_gap - geometry.crank_phase, math.pi + half_gap - geometry.crank_phase
+
+
+def _forward_cut_input_arc(geometry, offset):
+    """Input-shaft angle swept by the cutting stroke when running forward, in (0, 2 pi)."""
+    start, end = reversal_flywheel_angles(geometry)
+    theta_start = input_angle_for_flywheel_angle(geometry, offset, start)
+    theta_end = input_angle_for_flywheel_angle(geometry, offset, end)
+    return np.mod(theta_end - theta_start, TWO_PI)
+
+
+def _check_speed(input_speed):
+    input_speed = _as_float('input_speed', input_speed)
+    if np.any(np.asarray(input_speed) == 0.0):
+        raise KinematicsError('input_speed must be non-zero (rad/s): a stopped shaft has no '
+                              'strokes')
+    return input_speed
+
+
+def stroke_times(geometry, offset, input_speed=1.0):
+    """(cutting time, return time) in seconds at a constant input speed (rad/s)."""
+    input_speed = _check_speed(input_speed)
+    forward_cut = _forward_cut_input_arc(geometry, offset)
+    reverse = np.asarray(input_speed) < 0.0
+    cut_arc = np.where(reverse, TWO_PI - forward_cut, forward_cut)
+    speed = np.abs(input_speed)
+    return _scalar(cut_arc / speed), _scalar((TWO_PI - cut_arc) / speed)
+
+
+def time_ratio(geometry, offset, input_speed=1.0):
+    """
+    Cutting time over return time, exact.
+
+    Time is proportional to the input angle at a constant input speed, so TR is the ratio
+    of the two input arcs between the reversal angles mapped back through the coupling.
+    Only the sign of input_speed matters.
+    """
+    cutting, returning = stroke_times(geometry, offset, input_speed)
+    return _scalar(np.asarray(cutting) / returning)
+
+
+def speed_ratio(geometry, offset, input_speed=1.0):
+    """
+    The paper's speed ratio (eq. 25): ram speed at mid-return over mid-cut (lever vertical).
+
+    Evaluated through the general state (any crank phase); speed_ratio_eq25 is the paper's
+    closed form for crank_phase = 0.
+    """
+    input_speed = _check_speed(input_speed)
+    mid_cut = input_angle_for_flywheel_angle(geometry, offset,
+                                             0.5 * math.pi - geometry.crank_phase)
+    mid_return = input_angle_for_flywheel_angle(geometry, offset,
+                                                -0.5 * math.pi - geometry.crank_phase)
+    cut_speed = np.abs(state(geometry, offset, mid_cut, 1.0).ram_velocity)
+    return_speed = np.abs(state(geometry, offset, mid_return, 1.0).ram_velocity)
+    forward = return_speed / cut_speed
+    return _scalar(np.where(np.asarray(input_speed) < 0.0, 1.0 / forward, forward))
+
+
+def speed_ratio_eq25(geometry, offset):
+    """Paper eq. 25, SR = (h + r)(r1 + d) / ((h - r)(r1 - d)), valid for crank_phase = 0."""
+    offset = check_offset(geometry, offset)
+    r1, r, h = geometry.coupling_radius, geometry.crank_radius, geometry.pivot_distance
+    return _scalar((h + r) * (r1 + offset) / ((h - r) * (r1 - offset)))
+
+
+def _scalar(value):
+    return float(value) if np.ndim(value) == 0 else value
+
+
+def _ram_speed_on_arc(flywheel_angle, offset, r1, r, h, height, phase):
+    geometry = Geometry(r1, r, h, height, phase)
+    theta = input_angle_for_flywheel_angle(geometry, offset, flywheel_angle)
+    return state(geometry, offset, theta, 1.0)
+
+
+def _peak_speeds_forward(geometry, offset):
+    """
+    Largest |ram velocity| on the cut and on the return, per unit input speed.
+
+    Extrema are bracketed on a grid of flywheel angles (where the motion is fastest the
+    flywheel sweeps most angle, so the grid follows the speed peaks), then located exactly
+    where the ram acceleration crosses zero (Chandrupatla's method, vectorised).
+    """
+    offset = np.asarray(check_offset(geometry, offset), dtype=float)
+    shape = np.broadcast_shapes(offset.shape, *(np.shape(v) for v in geometry.as_dict().values()))
+    fields = [np.broadcast_to(np.asarray(v, dtype=float), shape).reshape(-1)
+              for v in [offset] + list(geometry.as_dict().values())]
+    start, end = reversal_flywheel_angles(Geometry(*fields[1:]))
+    fraction = np.linspace(0.0, 1.0, _PEAK_BRACKET_SAMPLES + 1)[1:-1]
+    peaks = []
+    for arc_start, arc_end in ((start, end), (end, start + TWO_PI)):
+        grid = arc_start[:, None] + (arc_end - arc_start)[:, None] * fraction[None, :]
+        args = [f[:, None] for f in fields]
+        geometry_grid = Geometry(*args[1:])
+        theta = input_angle_for_flywheel_angle(geometry_grid, args[0], grid)
+        sampled = state(geometry_grid, args[0], theta, 1.0)
+        speed = np.abs(sampled.ram_velocity)
+        best = speed.max(axis=1)
+        # d|v|/dt changes sign from + to - at a speed maximum: v * a goes + -> -.
+        growth = sampled.ram_velocity * sampled.ram_acceleration
+        rows, cols = np.nonzero((growth[:, :-1] > 0.0) & (growth[:, 1:] <= 0.0))
+        if rows.size:
+            row_args = [f[rows] for f in fields]
+            result = elementwise.find_root(
+                _speed_growth, (grid[rows, cols], grid[rows, cols + 1]), args=tuple(row_args),
+                tolerances={'xatol': 1e-15, 'xrtol': 4 * np.finfo(float).eps})
+            at_root = np.abs(_ram_speed_on_arc(result.x, *row_args).ram_velocity)
+            np.maximum.at(best, rows, at_root)
+        peaks.append(best.reshape(shape))
+    return peaks[0], peaks[1]
+
+
+def _speed_growth(flywheel_angle, offset, r1, r, h, height, phase):
+    sampled = _ram_speed_on_arc(flywheel_angle, offset, r1, r, h, height, phase)
+    return sampled.ram_velocity * sampled.ram_acceleration
+
+
+def peak_ram_speeds(geometry, offset, input_speed=1.0):
+    """(largest cutting speed, largest return speed) in m/s at a constant input speed."""
+    input_speed = _check_speed(input_speed)
+    forward_cut, forward_return = _peak_speeds_forward(geometry, offset)
+    speed = np.abs(input_speed)
+    reverse = np.asarray(input_speed) < 0.0
+    # Reversed, the ram retraces the same path: the forward return becomes the cut.
+    cutting = np.where(reverse, forward_return, forward_cut) * speed
+    returning = np.where(reverse, forward_cut, forward_return) * speed
+    return _scalar(cutting), _scalar(returning)
+
+
+def peak_speed_ratio(geometry, offset, input_speed=1.0):
+    """Largest return speed over largest cutting speed (the peaks need not be mid-stroke)."""
+    cutting, returning = peak_ram_speeds(geometry, offset, input_speed)
+    return _scalar(np.asarray(returning) / cutting)
+
+
+def offset_for_speed_ratio(geometry, speed_ratio_target):
+    """Offset giving a mid-stroke speed ratio (eq. 27; numerical inversion if phased)."""
+    target = _as_float('speed_ratio', speed_ratio_target)
+    if target <= 0.0:
+        raise KinematicsError(f'speed_ratio must be > 0, got {speed_ratio_target!r}')
+    if geometry.crank_phase == 0.0:
+        r1, r, h = geometry.coupling_radius, geometry.crank_radius, geometry.pivot_distance
+        offset = r1 * (target * (h - r) - (h + r)) / (target * (h - r) + (h + r))
+        return check_offset(geometry, offset)
+    return _invert(lambda d: speed_ratio(geometry, d), target, geometry, 'speed_ratio')
+
+
+def offset_for_time_ratio(geometry, time_ratio_target):
+    """Offset giving a wanted time ratio (forward running), by inverting the exact TR."""
+    target = _as_float('time_ratio', time_ratio_target)
+    return _invert(lambda d: time_ratio(geometry, d), target, geometry, 'time_ratio')
+
+
+def offset_for_cutting_speed(geometry, input_speed, cutting_speed):
+    """Offset giving a wanted peak cutting speed (m/s) at an input speed (rad/s)."""
+    input_speed = _check_speed(input_speed)
+    target = _as_float('cutting_speed', cutting_speed)
+    return _invert(lambda d: peak_ram_speeds(geometry, d, input_speed)[0], target, geometry,
+                   'cutting_speed')
+
+
+def _invert(function, target, geometry, name):
+    """
+    Smallest-|offset| solution of function(offset) = target over |offset| < r1.
+
+    Brackets come from a grid dense near the ends (where the mechanism changes fastest);
+    each is then solved to machine precision with Brent's method.
+    """
+    limit = _SEARCH_FRACTION * geometry.coupling_radius
+    offsets = limit * np.sin(np.linspace(-0.5 * math.pi, 0.5 * math.pi, 801))
+    values = np.asarray(function(offsets)) - target
+    exact = np.nonzero(values == 0.0)[0]
+    candidates = [offsets[i] for i in exact]
+    for i in np.nonzero(values[:-1] * values[1:] < 0.0)[0]:
+        candidates.append(optimize.brentq(lambda d: float(function(d)) - target,
+                                          offsets[i], offsets[i + 1], xtol=1e-17,
+                                          rtol=4 * np.finfo(float).eps))
+    if not candidates:
+        low, high = np.min(values) + target, np.max(values) + target
+        raise KinematicsError(
+            f'{name} {target:g} is out of reach: offsets with |offset| < coupling_radius = '
+            f'{geometry.coupling_radius:g} m give {name} from {low:.6g} to {high:.6g}')
+    return float(min(candidates, key=abs))
+
+
+def _flywheel_speed_from_angle(flywheel_angle, offset, r1, input_speed):
+    """Paper eq. (20): the flywheel speed written in terms of its own angle."""
+    sin_p = math.sin(flywheel_angle)
+    pin_distance = offset * sin_p + math.sqrt(r1 * r1 - (offset * math.cos(flywheel_angle)) ** 2)
+    return input_speed * (r1 * r1 - offset * offset + offset * pin_distance * sin_p) / (
+        pin_distance * pin_distance)
+
+
+def time_ratio_rk4(geometry, offset, steps_per_revolution=8192):
+    """
+    Time ratio the paper's way: integrate eq. (20) for the flywheel angle with classic RK4.
+
+    An independent cross-check of time_ratio (it never inverts the coupling). Each reversal
+    is landed on exactly by one last RK4 step taken in the flywheel angle (dt/dphi = 1/phi'),
+    so the only error is RK4's own.
+    """
+    offset = float(check_offset(geometry, offset))
+    r1 = geometry.coupling_radius
+    step = TWO_PI / steps_per_revolution
+
+    def rate(phi):
+        return _flywheel_speed_from_angle(phi, offset, r1, 1.0)
+
+    def duration(phi, target):
+        elapsed = 0.0
+        while True:
+            k1 = rate(phi)
+            k2 = rate(phi + 0.5 * step * k1)
+            k3 = rate(phi + 0.5 * step * k2)
+            k4 = rate(phi + step * k3)
+            following = phi + step * (k1 + 2.0 * k2 + 2.0 * k3 + k4) / 6.0
+            if following >= target:
+                break
+            phi, elapsed = following, elapsed + step
+        gap = target - phi
+        j1 = 1.0 / rate(phi)
+        j2 = 1.0 / rate(phi + 0.5 * gap)
+        j4 = 1.0 / rate(target)
+        return elapsed + gap * (j1 + 4.0 * j2 + j4) / 6.0
+
+    start, end = (float(a) for a in reversal_flywheel_angles(geometry))
+    cutting = duration(start, end)
+    returning = duration(end, start + TWO_PI)
+    return cutting / returning

@@ -1,0 +1,173 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+Stroke reversals, stroke times and peak speeds from a sampled ram trajectory.
+
+One method for every consumer (the node's live diagnostics and the offline analysis): between
+two samples the ram position is the cubic Hermite interpolant of the sampled positions and
+velocities, so reversals, mid-stroke points and speed peaks are located between samples
+(errors of order dt^3 in velocity), never snapped to them. Pure numpy, no ROS.
+
+Sign convention: a stroke whose ram velocity is negative (toward -x) is a cutting stroke; a
+pair is a cutting stroke followed by a return stroke.
+"""
+
+from typing import NamedTuple
+
+import numpy as np
+
+__all__ = ['StrokePairs', 'find_reversals', 'find_stroke_pairs']
+
+
+class StrokePairs(NamedTuple):
+    """Per completed stroke pair (arrays of equal length; times in s, speeds in m/s)."""
+
+    cutting_start: np.ndarray
+    cutting_end: np.ndarray
+    return_end: np.ndarray
+    cutting_time: np.ndarray
+    return_time: np.ndarray
+    time_ratio: np.ndarray
+    peak_cutting_speed: np.ndarray
+    peak_return_speed: np.ndarray
+    mid_cutting_speed: np.ndarray
+    mid_return_speed: np.ndarray
+    speed_ratio: np.ndarray
+    peak_speed_ratio: np.ndarray
+    first_sample: np.ndarray
+    last_sample: np.ndarray
+
+
+def _hermite_velocity_coefficients(step, x0, x1, v0, v1):
+    """Velocity of the Hermite cubic as a quadratic in s = (t - t0) / step: a s^2 + b s + c."""
+    a = (6.0 * (x0 - x1) + 3.0 * step * (v0 + v1)) / step
+    b = (6.0 * (x1 - x0) - step * (4.0 * v0 + 2.0 * v1)) / step
+    return a, b, v0
+
+
+def _hermite_position(s, step, x0, x1, v0, v1):
+    s2, s3 = s * s, s * s * s
+    return ((2 * s3 - 3 * s2 + 1) * x0 + (s3 - 2 * s2 + s) * step * v0
+            + (-2 * s3 + 3 * s2) * x1 + (s3 - s2) * step * v1)
+
+
+def _quadratic_root_in_unit(a, b, c):
+    """The root in [0, 1] of a s^2 + b s + c, given that its values at 0 and 1 differ in sign."""
+    with np.errstate(divide='ignore', invalid='ignore'):
+        disc = np.sqrt(np.maximum(b * b - 4.0 * a * c, 0.0))
+        q = -0.5 * (b + np.where(b >= 0.0, disc, -disc))
+        first = q / a
+        second = c / q
+        linear = -c / b
+    inside = (first >= 0.0) & (first <= 1.0)
+    root = np.where(inside, first, second)
+    root = np.where(np.abs(a) < 1e-12 * (np.abs(b) + np.abs(c)), linear, root)
+    return np.clip(np.nan_to_num(root, nan=0.0), 0.0, 1.0)
+
+
+def find_reversals(time, ram_position, ram_velocity):
+    """
+    Times at which the ram velocity changes sign, and the direction it turns to.
+
+    Returns (times, cut_begins, intervals): cut_begins is True where the ram turns from
+    moving toward +x to moving toward -x (a cutting stroke begins), False where a return
+    begins; intervals holds the index of the sample each reversal follows.
+    A velocity of exactly zero counts as positive, so a reversal landing on a sample is
+    found once.
+    """
+    t = np.asarray(time, dtype=float)
+    x = np.asarray(ram_position, dtype=float)
+    v = np.asarray(ram_velocity, dtype=float)
+    positive = v >= 0.0
+    k = np.nonzero(positive[:-1] != positive[1:])[0]
+    step = t[k + 1] - t[k]
+    a, b, c = _hermite_velocity_coefficients(step, x[k], x[k + 1], v[k], v[k + 1])
+    s = _quadratic_root_in_unit(a, b, c)
+    return t[k] + s * step, positive[k], k
+
+
+def _interval_peak_speed(t, x, v):
+    """Largest |velocity| of the Hermite interpolant on each sample interval."""
+    step = np.diff(t)
+    a, b, c = _hermite_velocity_coefficients(step, x[:-1], x[1:], v[:-1], v[1:])
+    with np.errstate(divide='ignore', invalid='ignore'):
+        s = -b / (2.0 * a)
+    interior = np.isfinite(s) & (s > 0.0) & (s < 1.0)
+    s = np.where(interior, s, 0.0)
+    extremum = np.where(interior, np.abs((a * s + b) * s + c), 0.0)
+    return np.maximum(np.maximum(np.abs(v[:-1]), np.abs(v[1:])), extremum)
+
+
+def _mid_stroke_speeds(t, x, v):
+    """Times and |velocity| where the ram passes x = 0 (lever vertical), between samples."""
+    k = np.nonzero((x[:-1] >= 0.0) != (x[1:] >= 0.0))[0]
+    step = t[k + 1] - t[k]
+    x0, x1, v0, v1 = x[k], x[k + 1], v[k], v[k + 1]
+    with np.errstate(divide='ignore', invalid='ignore'):
+        s = np.clip(np.nan_to_num(x0 / (x0 - x1), nan=0.5), 0.0, 1.0)
+    a, b, c = _hermite_velocity_coefficients(step, x0, x1, v0, v1)
+    for _ in range(8):  # Newton on the cubic; the ram crosses x = 0 at near-peak speed.
+        slope = ((a * s + b) * s + c) * step
+        with np.errstate(divide='ignore', invalid='ignore'):
+            update = _hermite_position(s, step, x0, x1, v0, v1) / slope
+        s = np.clip(s - np.nan_to_num(update), 0.0, 1.0)
+    return t[k] + s * step, np.abs((a * s + b) * s + c)
+
+
+def find_stroke_pairs(time, ram_position, ram_velocity):
+    """Every complete cutting + return stroke pair in a sampled run, with its measurements."""
+    t = np.asarray(time, dtype=float)
+    x = np.asarray(ram_position, dtype=float)
+    v = np.asarray(ram_velocity, dtype=float)
+    empty = np.empty(0)
+    if t.size < 3:
+        return StrokePairs(*([empty] * 12), np.empty(0, int), np.empty(0, int))
+    when, cut_begins, interval = find_reversals(t, x, v)
+    starts = np.nonzero(cut_begins[:-2] & ~cut_begins[1:-1] & cut_begins[2:])[0]
+    cut_start, cut_end, ret_end = when[starts], when[starts + 1], when[starts + 2]
+
+    peak = _interval_peak_speed(t, x, v)
+    cumulative_max = _segment_max(peak, interval)
+    peak_cut = cumulative_max[starts]
+    peak_ret = cumulative_max[starts + 1]
+
+    cross_time, cross_speed = _mid_stroke_speeds(t, x, v)
+    mid_cut = _first_between(cross_time, cross_speed, cut_start, cut_end)
+    mid_ret = _first_between(cross_time, cross_speed, cut_end, ret_end)
+    cutting_time, return_time = cut_end - cut_start, ret_end - cut_end
+    with np.errstate(divide='ignore', invalid='ignore'):
+        return StrokePairs(
+            cutting_start=cut_start, cutting_end=cut_end, return_end=ret_end,
+            cutting_time=cutting_time, return_time=return_time,
+            time_ratio=cutting_time / return_time,
+            peak_cutting_speed=peak_cut, peak_return_speed=peak_ret,
+            mid_cutting_speed=mid_cut, mid_return_speed=mid_ret,
+            speed_ratio=mid_ret / mid_cut, peak_speed_ratio=peak_ret / peak_cut,
+            first_sample=interval[starts], last_sample=interval[starts + 2] + 1)
+
+
+def _segment_max(values, boundaries):
+    """Max of values from each reversal's interval up to (not including) the next one's."""
+    if boundaries.size < 2:
+        return np.empty(0)
+    return np.maximum.reduceat(values, boundaries)[:-1]
+
+
+def _first_between(times, values, start, end):
+    """The value at the first event time inside each (start, end) window; NaN if none."""
+    if times.size == 0:
+        return np.full(start.shape, np.nan)
+    index = np.minimum(np.searchsorted(times, start, side='right'), times.size - 1)
+    found = (times[index] > start) & (times[index] < end)
+    return np.where(found, values[index], np.nan)
