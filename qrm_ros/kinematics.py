@@ -93,7 +93,7 @@ class Geometry:
 
     @classmethod
     def paper(cls, ram_height=0.2):
-        """Table 1 of the source paper (r1 = 25 mm, r = 50.5 mm, h = 113 mm)."""
+        """Return Table 1 of the source article: r1 = 25 mm, r = 50.5 mm, h = 113 mm."""
         return cls(coupling_radius=0.025, crank_radius=0.0505, pivot_distance=0.113,
                    ram_height=ram_height)
 
@@ -273,7 +273,9 @@ def time_ratio(geometry, offset, input_speed=1.0):
 
 def speed_ratio(geometry, offset, input_speed=1.0):
     """
-    The paper's speed ratio (eq. 25): ram speed at mid-return over mid-cut (lever vertical).
+    Return the paper's speed ratio (eq. 25): mid-return over mid-cut ram speed.
+
+    Mid-stroke is where the lever is vertical.
 
     Evaluated through the general state (any crank phase); speed_ratio_eq25 is the paper's
     closed form for crank_phase = 0.

@@ -63,7 +63,7 @@ def _hermite_position(s, step, x0, x1, v0, v1):
 
 
 def _quadratic_root_in_unit(a, b, c):
-    """The root in [0, 1] of a s^2 + b s + c, given that its values at 0 and 1 differ in sign."""
+    """Return the root in [0, 1] of a s^2 + b s + c, whose values at 0 and 1 differ in sign."""
     with np.errstate(divide='ignore', invalid='ignore'):
         disc = np.sqrt(np.maximum(b * b - 4.0 * a * c, 0.0))
         q = -0.5 * (b + np.where(b >= 0.0, disc, -disc))
@@ -78,7 +78,7 @@ def _quadratic_root_in_unit(a, b, c):
 
 def find_reversals(time, ram_position, ram_velocity):
     """
-    Times at which the ram velocity changes sign, and the direction it turns to.
+    Locate where the ram velocity changes sign, and the direction it turns to.
 
     Returns (times, cut_begins, intervals): cut_begins is True where the ram turns from
     moving toward +x to moving toward -x (a cutting stroke begins), False where a return
@@ -110,7 +110,7 @@ def _interval_peak_speed(t, x, v):
 
 
 def _mid_stroke_speeds(t, x, v):
-    """Times and |velocity| where the ram passes x = 0 (lever vertical), between samples."""
+    """Return times and |velocity| where the ram passes x = 0 (lever vertical)."""
     k = np.nonzero((x[:-1] >= 0.0) != (x[1:] >= 0.0))[0]
     step = t[k + 1] - t[k]
     x0, x1, v0, v1 = x[k], x[k + 1], v[k], v[k + 1]
@@ -165,7 +165,7 @@ def _segment_max(values, boundaries):
 
 
 def _first_between(times, values, start, end):
-    """The value at the first event time inside each (start, end) window; NaN if none."""
+    """Return the value at the first event inside each (start, end) window; NaN if none."""
     if times.size == 0:
         return np.full(start.shape, np.nan)
     index = np.minimum(np.searchsorted(times, start, side='right'), times.size - 1)
