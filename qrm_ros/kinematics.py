@@ -140,7 +140,7 @@ def check_offset(geometry, offset, limit=None):
         bad = np.abs(offset) > limit
         allowed = f'|offset| <= {_fmt(limit)} m'
     if np.any(bad):
-        shown = offset if np.ndim(offset) == 0 else np.asarray(offset)[np.asarray(bad)][0]
+        shown = float(np.asarray(offset)[np.asarray(bad)].flat[0]) if np.ndim(offset) else offset
         raise KinematicsError(f'offset {shown!r} m is out of range: allowed {allowed}')
     return offset
 

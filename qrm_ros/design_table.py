@@ -1,0 +1,117 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+Design table of the mechanism: what each coupling offset does to the ram's strokes.
+
+Printed by ``qrm_design`` (and at the end of the main job), straight from the kinematics core,
+so a designer can pick an offset before running anything.
+"""
+
+import argparse
+import math
+import sys
+
+import numpy as np
+
+from qrm_ros import kinematics as kin
+
+DEFAULT_OFFSETS_MM = np.arange(-20.0, 20.0 + 1e-9, 2.5)
+
+
+def design_rows(geometry, offsets, input_speed):
+    """One dict per offset with every figure the table prints, in SI units."""
+    cutting_time, return_time = kin.stroke_times(geometry, offsets, input_speed)
+    peak_cut, peak_return = kin.peak_ram_speeds(geometry, offsets, input_speed)
+    time_ratio = kin.time_ratio(geometry, offsets, input_speed)
+    speed_ratio = kin.speed_ratio(geometry, offsets, input_speed)
+    return [dict(offset=float(offsets[i]),
+                 offset_over_pivot_distance=float(offsets[i] / geometry.pivot_distance),
+                 time_ratio=float(time_ratio[i]), speed_ratio=float(speed_ratio[i]),
+                 peak_speed_ratio=float(peak_return[i] / peak_cut[i]),
+                 cutting_time=float(cutting_time[i]), return_time=float(return_time[i]),
+                 peak_cutting_speed=float(peak_cut[i]), peak_return_speed=float(peak_return[i]))
+            for i in range(len(offsets))]
+
+
+def format_design_table(geometry, offsets, input_speed):
+    lines = [
+        'Modified quick-return mechanism: design table (exact closed form)',
+        f'  coupling radius r1 = {geometry.coupling_radius * 1e3:g} mm, crank radius r = '
+        f'{geometry.crank_radius * 1e3:g} mm, pivot distance h = '
+        f'{geometry.pivot_distance * 1e3:g} mm, ram height H = {geometry.ram_height * 1e3:g} mm,'
+        f' crank phase = {geometry.crank_phase:g} rad',
+        f'  ram stroke = {geometry.ram_stroke * 1e3:.4f} mm; input speed = {input_speed:g} rad/s'
+        f' ({input_speed * 30 / math.pi:.4g} rpm); cutting stroke moves the ram toward -x',
+        '',
+        '  offset   offset/h        TR        SR   peak SR   t_cut   t_ret  v_cut,max  '
+        'v_ret,max',
+        '    [mm]        [-]       [-]       [-]       [-]     [s]     [s]      [m/s]      '
+        '[m/s]',
+    ]
+    for row in design_rows(geometry, offsets, input_speed):
+        lines.append(
+            f'{row["offset"] * 1e3:8.2f} {row["offset_over_pivot_distance"]:+10.5f} '
+            f'{row["time_ratio"]:9.5f} {row["speed_ratio"]:9.5f} {row["peak_speed_ratio"]:9.5f} '
+            f'{row["cutting_time"]:7.4f} {row["return_time"]:7.4f} '
+            f'{row["peak_cutting_speed"]:10.5f} {row["peak_return_speed"]:10.5f}')
+    lines.append('')
+    unity_sr = kin.offset_for_speed_ratio(geometry, 1.0)
+    lines.append(f'  SR = 1 (equal mid-stroke cutting and return speeds) at offset '
+                 f'{unity_sr * 1e3:.6f} mm (eq. 26: -r r1 / h)')
+    for target in (1.0, 2.0, 3.0):
+        try:
+            offset = kin.offset_for_time_ratio(geometry, target)
+            lines.append(f'  TR = {target:g} at offset {offset * 1e3:.6f} mm')
+        except kin.KinematicsError as error:
+            lines.append(f'  TR = {target:g}: {error}')
+    lines.append(f'  offsets accepted by the node: |offset| <= {geometry.max_safe_offset * 1e3:g}'
+                 f' mm ({kin.SAFE_OFFSET_FRACTION:g} x r1)')
+    return '\n'.join(lines)
+
+
+def add_geometry_arguments(parser):
+    paper = kin.Geometry.paper()
+    for name, unit in (('coupling_radius', 'm'), ('crank_radius', 'm'), ('pivot_distance', 'm'),
+                       ('ram_height', 'm'), ('crank_phase', 'rad')):
+        parser.add_argument('--' + name.replace('_', '-'), type=float,
+                            default=getattr(paper, name),
+                            help=f'{name.replace("_", " ")} [{unit}] (default: %(default)s)')
+
+
+def geometry_from_arguments(args):
+    return kin.Geometry(args.coupling_radius, args.crank_radius, args.pivot_distance,
+                        args.ram_height, args.crank_phase)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(
+        prog='qrm_design', description='Print TR and SR over a range of coupling offsets.')
+    add_geometry_arguments(parser)
+    parser.add_argument('--input-speed', type=float, default=2 * math.pi,
+                        help='input shaft speed [rad/s] (default: 2 pi)')
+    parser.add_argument('--offsets-mm', type=float, nargs='+', default=None,
+                        help='offsets to tabulate [mm] (default: -20 to 20 in 2.5 mm steps)')
+    args = parser.parse_args(argv)
+    try:
+        geometry = geometry_from_arguments(args)
+        offsets = (np.asarray(args.offsets_mm) if args.offsets_mm else DEFAULT_OFFSETS_MM) / 1e3
+        print(format_design_table(geometry, offsets, args.input_speed))
+    except kin.KinematicsError as error:
+        print(f'qrm_design: {error}', file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
