@@ -80,13 +80,15 @@ def format_design_table(geometry, offsets, input_speed):
     return '\n'.join(lines)
 
 
-def add_geometry_arguments(parser):
+def add_geometry_arguments(parser, defaults=True):
+    """Add --coupling-radius etc.; defaults are the paper's geometry, or None if not wanted."""
     paper = kin.Geometry.paper()
     for name, unit in (('coupling_radius', 'm'), ('crank_radius', 'm'), ('pivot_distance', 'm'),
                        ('ram_height', 'm'), ('crank_phase', 'rad')):
-        parser.add_argument('--' + name.replace('_', '-'), type=float,
-                            default=getattr(paper, name),
-                            help=f'{name.replace("_", " ")} [{unit}] (default: %(default)s)')
+        default = getattr(paper, name) if defaults else None
+        shown = ' (default: %(default)s)' if defaults else ''
+        parser.add_argument('--' + name.replace('_', '-'), type=float, default=default,
+                            help=f'{name.replace("_", " ")} [{unit}]{shown}')
 
 
 def geometry_from_arguments(args):

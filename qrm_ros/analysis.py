@@ -1,0 +1,372 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+Offline analysis of a recorded run: measured time and speed ratios per offset, vs theory.
+
+``qrm_analyze RUN.mcap`` reads the joint states of a recording (no ROS needed: the mcap
+reader and rosbags' CDR deserializer), splits the run into segments of steady offset and
+input speed, measures every stroke pair in each (qrm_ros.strokes: reversals and peaks located
+between samples), and compares the means with the core's closed form for the geometry stored
+in the file. Output: a table, CSV, JSON and the paper's figures (``--plot DIR``).
+
+Exit status: 0 analysed; 2 the input could not be analysed (one-line reason on stderr);
+3 analysed, but the file was truncated (what was lost is said on stderr).
+"""
+
+import argparse
+import csv
+import json
+import math
+import sys
+from typing import NamedTuple
+
+import numpy as np
+
+from qrm_ros import kinematics as kin
+from qrm_ros.bag_reader import open_run, RunFileError
+from qrm_ros.design_table import add_geometry_arguments
+from qrm_ros.strokes import find_stroke_pairs
+
+JOINT_STATES_TOPIC = '/joint_states'
+JOINT_STATE_TYPE = 'sensor_msgs/msg/JointState'
+GEOMETRY_METADATA = 'qrm_ros.geometry'
+GEOMETRY_FIELDS = ('coupling_radius', 'crank_radius', 'pivot_distance', 'ram_height',
+                   'crank_phase')
+JOINTS = ('input_shaft_joint', 'flywheel_joint', 'lever_joint', 'ram_joint',
+          'coupling_offset_joint')
+# Samples whose offset and input speed differ by less than this (relative) are one setting.
+STEADY_TOLERANCE = 1e-12
+EXIT_BAD_INPUT, EXIT_TRUNCATED = 2, 3
+
+
+class AnalysisError(Exception):
+    """Input that cannot be analysed; the message is the one line the user sees."""
+
+
+class Samples(NamedTuple):
+    """The recorded joint states as arrays (s, rad, rad/s, m, m/s)."""
+
+    time: np.ndarray
+    input_angle: np.ndarray
+    input_speed: np.ndarray
+    flywheel_angle: np.ndarray
+    flywheel_speed: np.ndarray
+    ram_position: np.ndarray
+    ram_velocity: np.ndarray
+    offset: np.ndarray
+    offset_rate: np.ndarray
+
+
+class Recording(NamedTuple):
+    path: str
+    geometry: kin.Geometry
+    samples: Samples
+    problem: object  # str if the file was truncated, else None
+
+
+def _progress(stream, total):
+    """Return a callback drawing a progress bar on an interactive terminal, else a no-op."""
+    if total < 20000 or not stream.isatty():
+        return lambda done: None
+    width = 40
+
+    def update(done):
+        if done % 5000 and done != total:
+            return
+        filled = width * done // total
+        stream.write(f'\rreading joint states [{"#" * filled}{"." * (width - filled)}] '
+                     f'{100 * done // total:3d}%')
+        if done == total:
+            stream.write('\n')
+        stream.flush()
+    return update
+
+
+def _typestore():
+    from rosbags.typesys import get_typestore, Stores
+    return get_typestore(Stores.ROS2_JAZZY)
+
+
+def read_recording(path, geometry_overrides=None, progress_stream=sys.stderr):
+    """Read a run file's geometry and joint states; AnalysisError says what is missing."""
+    try:
+        run = open_run(path)
+    except RunFileError as error:
+        raise AnalysisError(str(error)) from None
+    geometry = _geometry(run.metadata.get(GEOMETRY_METADATA, {}), geometry_overrides or {},
+                         path)
+    topics = run.topics()
+    if topics.get(JOINT_STATES_TOPIC) != JOINT_STATE_TYPE:
+        present = ', '.join(f'{t} ({s})' for t, s in sorted(topics.items())) or 'none'
+        raise AnalysisError(f'{path} has no {JOINT_STATES_TOPIC} topic of type '
+                            f'{JOINT_STATE_TYPE} (topics present: {present})')
+    deserialize = _typestore().deserialize_cdr
+    total = run.message_count(JOINT_STATES_TOPIC) if hasattr(run, 'message_count') else 0
+    progress = _progress(progress_stream, total or 0)
+    stamps, positions, velocities = [], [], []
+    order = None
+    for count, (_, _, _, _, data) in enumerate(run.messages([JOINT_STATES_TOPIC]), 1):
+        message = deserialize(data, JOINT_STATE_TYPE)
+        if order is None or len(message.name) != len(JOINTS):
+            order = _joint_order(message.name, path)
+        stamps.append(message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec)
+        positions.append(message.position[order])
+        velocities.append(message.velocity[order])
+        progress(count)
+    if len(stamps) < 3:
+        raise AnalysisError(f'{path} holds {len(stamps)} {JOINT_STATES_TOPIC} messages: too few '
+                            'to find any stroke')
+    stamp = np.asarray(stamps, dtype=np.int64)
+    position, velocity = np.asarray(positions), np.asarray(velocities)
+    keep = np.concatenate([[True], np.diff(stamp) > 0])  # drop repeats and clock jumps back
+    time = (stamp[keep] - stamp[0]) * 1e-9
+    position, velocity = position[keep], velocity[keep]
+    samples = Samples(time, position[:, 0], velocity[:, 0], position[:, 1], velocity[:, 1],
+                      position[:, 3], velocity[:, 3], position[:, 4], velocity[:, 4])
+    return Recording(path, geometry, samples, run.problem if run.truncated else None)
+
+
+def _joint_order(names, path):
+    try:
+        return np.array([list(names).index(joint) for joint in JOINTS])
+    except ValueError:
+        missing = [joint for joint in JOINTS if joint not in names]
+        raise AnalysisError(f'{path}: joint_states lacks the joints {", ".join(missing)}') \
+            from None
+
+
+def _geometry(stored, overrides, path):
+    values = {}
+    for name in GEOMETRY_FIELDS:
+        if overrides.get(name) is not None:
+            values[name] = overrides[name]
+        elif name in stored:
+            values[name] = float(stored[name])
+    missing = [name for name in GEOMETRY_FIELDS[:4] if name not in values]
+    if missing:
+        options = ' '.join('--' + name.replace('_', '-') for name in missing)
+        raise AnalysisError(f'{path} has no {GEOMETRY_METADATA} metadata for '
+                            f'{", ".join(missing)}: give them with {options}')
+    try:
+        return kin.Geometry(**values)
+    except kin.KinematicsError as error:
+        raise AnalysisError(f'{path}: bad geometry: {error}') from None
+
+
+class Segment(NamedTuple):
+    start: int  # sample indices, end exclusive
+    end: int
+    offset: float
+    input_speed: float
+
+
+def split_segments(samples):
+    """
+    Split into spans of steady offset and input speed; return (segments, transitions).
+
+    A sample is steady when the offset actuator is at rest and the input speed equals its
+    neighbours'; each maximal run of steady samples with one setting is a segment, and what
+    lies between segments is a transition (excluded from the measurement).
+    """
+    offset, speed = samples.offset, samples.input_speed
+    scale = max(1.0, float(np.max(np.abs(speed))))
+    same_speed = np.abs(np.diff(speed)) <= STEADY_TOLERANCE * scale
+    same_offset = np.abs(np.diff(offset)) <= STEADY_TOLERANCE
+    steady = samples.offset_rate == 0.0
+    steady[1:] &= same_speed & same_offset
+    steady[:-1] &= same_speed & same_offset
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], steady.astype(np.int8), [0]])))
+    segments = [Segment(int(a), int(b), float(offset[a]), float(speed[a]))
+                for a, b in zip(edges[::2], edges[1::2]) if b - a >= 2]
+    transitions = []
+    for before, after in zip(segments, segments[1:]):
+        transitions.append({
+            'start_time': float(samples.time[before.end - 1]),
+            'end_time': float(samples.time[after.start]),
+            'offset_from': before.offset, 'offset_to': after.offset,
+            'input_speed_from': before.input_speed, 'input_speed_to': after.input_speed})
+    return segments, transitions
+
+
+def _relative_error(measured, theory):
+    if not (math.isfinite(measured) and math.isfinite(theory)) or theory == 0.0:
+        return None
+    return measured / theory - 1.0
+
+
+def _mean_and_spread(values):
+    values = np.asarray(values, dtype=float)
+    values = values[np.isfinite(values)]
+    if values.size == 0:
+        return None, None
+    spread = float(np.std(values, ddof=1)) if values.size > 1 else 0.0
+    return float(np.mean(values)), spread
+
+
+def measure_segment(samples, segment, geometry):
+    """Measured and theoretical figures of one steady segment, as a JSON-ready dict."""
+    span = slice(segment.start, segment.end)
+    pairs = find_stroke_pairs(samples.time[span], samples.ram_position[span],
+                              samples.ram_velocity[span])
+    row = {
+        'offset': segment.offset,
+        'offset_over_pivot_distance': segment.offset / geometry.pivot_distance,
+        'input_speed': segment.input_speed,
+        'start_time': float(samples.time[segment.start]),
+        'end_time': float(samples.time[segment.end - 1]),
+        'stroke_pairs': int(len(pairs.time_ratio)),
+    }
+    measured = {
+        'time_ratio': pairs.time_ratio, 'speed_ratio': pairs.speed_ratio,
+        'peak_speed_ratio': pairs.peak_speed_ratio, 'cutting_time': pairs.cutting_time,
+        'return_time': pairs.return_time, 'peak_cutting_speed': pairs.peak_cutting_speed,
+        'peak_return_speed': pairs.peak_return_speed}
+    theory = {name: None for name in measured}
+    if segment.input_speed != 0.0 and abs(segment.offset) < geometry.coupling_radius:
+        offset, speed = segment.offset, segment.input_speed
+        theory['cutting_time'], theory['return_time'] = kin.stroke_times(geometry, offset, speed)
+        theory['peak_cutting_speed'], theory['peak_return_speed'] = kin.peak_ram_speeds(
+            geometry, offset, speed)
+        theory['time_ratio'] = kin.time_ratio(geometry, offset, speed)
+        theory['speed_ratio'] = kin.speed_ratio(geometry, offset, speed)
+        theory['peak_speed_ratio'] = theory['peak_return_speed'] / theory['peak_cutting_speed']
+    for name, values in measured.items():
+        mean, spread = _mean_and_spread(values)
+        row[f'{name}_measured'] = mean
+        row[f'{name}_measured_std'] = spread
+        row[f'{name}_theory'] = theory[name]
+        row[f'{name}_relative_error'] = (None if mean is None or theory[name] is None
+                                         else _relative_error(mean, theory[name]))
+    return row
+
+
+class Analysis(NamedTuple):
+    recording: Recording
+    segments: list
+    rows: list
+    transitions: list
+
+
+def analyse(recording):
+    segments, transitions = split_segments(recording.samples)
+    rows = [measure_segment(recording.samples, s, recording.geometry) for s in segments]
+    return Analysis(recording, segments, rows, transitions)
+
+
+def _fmt(value, spec):
+    return '-' if value is None else format(value, spec)
+
+
+def format_table(analysis):
+    recording = analysis.recording
+    geometry = recording.geometry
+    samples = recording.samples
+    lines = [
+        f'{recording.path}: {samples.time.size} joint-state samples over '
+        f'{samples.time[-1]:.3f} s',
+        f'geometry: r1 = {geometry.coupling_radius * 1e3:g} mm, r = '
+        f'{geometry.crank_radius * 1e3:g} mm, h = {geometry.pivot_distance * 1e3:g} mm, '
+        f'H = {geometry.ram_height * 1e3:g} mm, crank phase = {geometry.crank_phase:g} rad',
+        '',
+        ' offset  offset/h    input  pairs |      TR measured  TR theory  rel.err |'
+        '      SR measured  SR theory  rel.err | peak SR measured  theory   rel.err',
+        '   [mm]       [-]  [rad/s]    [-] |                                      |'
+        '                                      |',
+    ]
+    for row in analysis.rows:
+        parts = [f'{row["offset"] * 1e3:7.2f} {row["offset_over_pivot_distance"]:+9.5f} '
+                 f'{row["input_speed"]:8.4f} {row["stroke_pairs"]:6d} |']
+        for name in ('time_ratio', 'speed_ratio', 'peak_speed_ratio'):
+            mean, spread = row[f'{name}_measured'], row[f'{name}_measured_std']
+            measured = '-' if mean is None else f'{mean:8.5f} ± {spread:.1e}'
+            parts.append(f' {measured:>16} {_fmt(row[name + "_theory"], "10.5f")} '
+                         f'{_fmt(row[name + "_relative_error"], "+8.1e")} |')
+        lines.append(''.join(parts).rstrip(' |'))
+    if not analysis.rows:
+        lines.append('  (no segment of steady offset and input speed)')
+    for t in analysis.transitions:
+        lines.append(f'transition {t["start_time"]:.3f}-{t["end_time"]:.3f} s excluded: '
+                     f'offset {t["offset_from"] * 1e3:g} -> {t["offset_to"] * 1e3:g} mm, '
+                     f'input speed {t["input_speed_from"]:g} -> {t["input_speed_to"]:g} rad/s')
+    return '\n'.join(lines)
+
+
+def to_document(analysis):
+    recording = analysis.recording
+    return {
+        'file': recording.path,
+        'truncated': recording.problem,
+        'units': 'SI (m, s, rad, rad/s, m/s); ratios dimensionless',
+        'geometry': recording.geometry.as_dict(),
+        'segments': analysis.rows,
+        'transitions': analysis.transitions,
+    }
+
+
+def write_csv(analysis, path):
+    fields = list(analysis.rows[0]) if analysis.rows else ['offset']
+    with open(path, 'w', newline='') as handle:
+        writer = csv.DictWriter(handle, fieldnames=fields)
+        writer.writeheader()
+        for row in analysis.rows:
+            writer.writerow({k: ('' if v is None else v) for k, v in row.items()})
+
+
+def write_json(analysis, path):
+    with open(path, 'w') as handle:
+        json.dump(to_document(analysis), handle, indent=2, allow_nan=False)
+        handle.write('\n')
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(
+        prog='qrm_analyze',
+        description='Measure time ratio and speed ratio per offset in a recorded run and '
+                    'compare them with the closed form.')
+    parser.add_argument('run', help='recorded run (.mcap) from mcap_recorder')
+    parser.add_argument('--csv', metavar='FILE', help='write the per-segment table as CSV')
+    parser.add_argument('--json', metavar='FILE', help='write the results as JSON')
+    parser.add_argument('--plot', metavar='DIR', help='write the figures (PNG) into DIR')
+    geometry_group = parser.add_argument_group(
+        'geometry', 'override (or supply, for files without it) the stored geometry')
+    add_geometry_arguments(geometry_group, defaults=False)
+    args = parser.parse_args(argv)
+    overrides = {name: getattr(args, name) for name in GEOMETRY_FIELDS}
+    try:
+        recording = read_recording(args.run, overrides)
+        analysis = analyse(recording)
+        print(format_table(analysis))
+        if args.csv:
+            write_csv(analysis, args.csv)
+        if args.json:
+            write_json(analysis, args.json)
+        if args.plot:
+            from qrm_ros.figures import write_figures
+            for path in write_figures(analysis, args.plot):
+                print(f'figure: {path}')
+    except AnalysisError as error:
+        print(f'qrm_analyze: error: {error}', file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except OSError as error:
+        print(f'qrm_analyze: error: {error.filename or ""}: {error.strerror}', file=sys.stderr)
+        return EXIT_BAD_INPUT
+    if recording.problem:
+        print(f'qrm_analyze: warning: {args.run} is truncated: {recording.problem}; the '
+              'figures above cover what was whole', file=sys.stderr)
+        return EXIT_TRUNCATED
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

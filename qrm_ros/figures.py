@@ -1,0 +1,188 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+Figures of an analysed run, after the source paper's Figs. 10-12.
+
+Theory curves come from the kinematics core for the recording's geometry (their lines carry
+gid 'theory' so tests can compare them with the core); measured points come from the run.
+Every axis is labelled with its unit so a figure reads without the table.
+"""
+
+import math
+import os
+
+import matplotlib
+matplotlib.use('Agg')
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from qrm_ros import kinematics as kin  # noqa: E402
+
+THEORY = 'theory'
+CURVE_POINTS = 400
+
+
+def _offset_axis(geometry):
+    limit = geometry.max_safe_offset
+    return np.linspace(-limit, limit, CURVE_POINTS)
+
+
+def _directions(analysis):
+    return sorted({math.copysign(1.0, row['input_speed']) for row in analysis.rows
+                   if row['input_speed'] != 0.0}, reverse=True) or [1.0]
+
+
+def _measured(analysis, key):
+    rows = [r for r in analysis.rows if r[f'{key}_measured'] is not None]
+    x = np.array([r['offset_over_pivot_distance'] for r in rows])
+    y = np.array([r[f'{key}_measured'] for r in rows])
+    spread = np.array([r[f'{key}_measured_std'] for r in rows])
+    return x, y, spread
+
+
+def time_ratio_figure(analysis):
+    geometry = analysis.recording.geometry
+    offsets = _offset_axis(geometry)
+    figure, axes = plt.subplots(figsize=(8, 5.5))
+    for sign in _directions(analysis):
+        label = 'theory (closed form)' + (', reverse running' if sign < 0 else '')
+        axes.plot(offsets / geometry.pivot_distance, kin.time_ratio(geometry, offsets, sign),
+                  color='C0' if sign > 0 else 'C2', gid=THEORY, label=label)
+    x, y, spread = _measured(analysis, 'time_ratio')
+    axes.errorbar(x, y, yerr=spread, fmt='o', color='C3', capsize=3,
+                  label='measured (mean ± s.d. over stroke pairs)')
+    axes.axhline(1.0, color='0.6', linewidth=0.8)
+    axes.set_xlabel('offset / pivot distance, δ/h [-]')
+    axes.set_ylabel('time ratio TR = cutting time / return time [-]')
+    axes.set_yscale('log')
+    axes.set_title(f'Time ratio against offset (cf. paper Fig. 10); r = '
+                   f'{geometry.crank_radius * 1e3:g} mm, h = {geometry.pivot_distance * 1e3:g}'
+                   f' mm, r1 = {geometry.coupling_radius * 1e3:g} mm')
+    axes.grid(True, which='both', alpha=0.3)
+    axes.legend()
+    return figure
+
+
+def speed_ratio_figure(analysis):
+    geometry = analysis.recording.geometry
+    offsets = _offset_axis(geometry)
+    figure, axes = plt.subplots(figsize=(8, 5.5))
+    sign = _directions(analysis)[0]
+    x_theory = offsets / geometry.pivot_distance
+    axes.plot(x_theory, kin.speed_ratio(geometry, offsets, sign), color='C0', gid=THEORY,
+              label='mid-stroke SR, theory (eq. 25)')
+    axes.plot(x_theory, kin.peak_speed_ratio(geometry, offsets, sign), color='C1',
+              linestyle='--', gid=THEORY, label='peak SR, theory')
+    for key, marker, color, label in (('speed_ratio', 'o', 'C3', 'mid-stroke SR, measured'),
+                                      ('peak_speed_ratio', 's', 'C4', 'peak SR, measured')):
+        x, y, spread = _measured(analysis, key)
+        axes.errorbar(x, y, yerr=spread, fmt=marker, color=color, capsize=3, label=label,
+                      markerfacecolor='none' if marker == 's' else color)
+    unity = kin.offset_for_speed_ratio(geometry, 1.0) / geometry.pivot_distance
+    axes.axhline(1.0, color='0.6', linewidth=0.8)
+    axes.axvline(unity, color='0.6', linewidth=0.8, linestyle=':',
+                 label=f'SR = 1 at δ/h = {unity:.4f} (eq. 26)')
+    axes.set_yscale('log')
+    axes.set_xlabel('offset / pivot distance, δ/h [-]')
+    axes.set_ylabel('speed ratio SR = return speed / cutting speed [-]')
+    axes.set_title('Speed ratio against offset (cf. paper Fig. 11)')
+    axes.grid(True, which='both', alpha=0.3)
+    axes.legend()
+    return figure
+
+
+def _one_revolution(samples, row):
+    """Indices of the first whole input revolution inside a segment (or the whole segment)."""
+    span = np.flatnonzero((samples.time >= row['start_time']) & (samples.time <= row['end_time']))
+    unwrapped = np.unwrap(samples.input_angle[span])
+    travelled = np.abs(unwrapped - unwrapped[0])
+    return span[travelled <= 2 * math.pi], unwrapped[travelled <= 2 * math.pi]
+
+
+def _input_angle_grid():
+    return np.linspace(0.0, 2 * math.pi, CURVE_POINTS)
+
+
+def flywheel_speed_figure(analysis):
+    geometry = analysis.recording.geometry
+    samples = analysis.recording.samples
+    figure, axes = plt.subplots(figsize=(8, 5.5))
+    theta = _input_angle_grid()
+    for index, row in enumerate(analysis.rows):
+        color = f'C{index % 10}'
+        label = f'δ = {row["offset"] * 1e3:g} mm'
+        axes.plot(np.degrees(theta), kin.state(geometry, row['offset'], theta,
+                                               row['input_speed']).flywheel_speed,
+                  color=color, gid=THEORY, label=f'{label}, theory')
+        chosen, _ = _one_revolution(samples, row)
+        angle = np.mod(samples.input_angle[chosen], 2 * math.pi)
+        axes.plot(np.degrees(angle), samples.flywheel_speed[chosen], '.', color=color,
+                  markersize=3, label=f'{label}, recorded')
+    axes.set_xlabel('input shaft angle θ [deg]')
+    axes.set_ylabel('flywheel speed ω2 [rad/s]')
+    axes.set_xlim(0, 360)
+    axes.set_title('Flywheel speed over one input revolution (cf. paper Fig. 12)')
+    axes.grid(True, alpha=0.3)
+    axes.legend(fontsize='small', ncol=2)
+    return figure
+
+
+def ram_motion_figure(analysis):
+    geometry = analysis.recording.geometry
+    samples = analysis.recording.samples
+    figure, (top, bottom) = plt.subplots(2, 1, figsize=(8, 8), sharex=True)
+    theta = _input_angle_grid()
+    for index, row in enumerate(analysis.rows):
+        color = f'C{index % 10}'
+        label = f'δ = {row["offset"] * 1e3:g} mm'
+        state = kin.state(geometry, row['offset'], theta, row['input_speed'])
+        top.plot(np.degrees(theta), state.ram_position * 1e3, color=color, gid=THEORY,
+                 label=label)
+        bottom.plot(np.degrees(theta), state.ram_velocity, color=color, gid=THEORY)
+        chosen, _ = _one_revolution(samples, row)
+        angle = np.degrees(np.mod(samples.input_angle[chosen], 2 * math.pi))
+        top.plot(angle, samples.ram_position[chosen] * 1e3, '.', color=color, markersize=3)
+        bottom.plot(angle, samples.ram_velocity[chosen], '.', color=color, markersize=3)
+    top.set_ylabel('ram position x [mm]')
+    bottom.set_ylabel('ram velocity v [m/s] (< 0: cutting)')
+    bottom.set_xlabel('input shaft angle θ [deg]')
+    bottom.set_xlim(0, 360)
+    top.set_title('Ram position and velocity over one input revolution (lines: theory, '
+                  'dots: recorded)')
+    for axes in (top, bottom):
+        axes.grid(True, alpha=0.3)
+    top.legend(fontsize='small', ncol=2)
+    return figure
+
+
+FIGURES = {
+    'fig10_time_ratio.png': time_ratio_figure,
+    'fig11_speed_ratio.png': speed_ratio_figure,
+    'fig12_flywheel_speed.png': flywheel_speed_figure,
+    'ram_motion.png': ram_motion_figure,
+}
+
+
+def write_figures(analysis, directory):
+    """Write every figure as PNG into directory (created); return the paths."""
+    os.makedirs(directory, exist_ok=True)
+    paths = []
+    for name, build in FIGURES.items():
+        figure = build(analysis)
+        path = os.path.join(directory, name)
+        figure.tight_layout()
+        figure.savefig(path, dpi=110)
+        plt.close(figure)
+        paths.append(path)
+    return paths
