@@ -75,11 +75,14 @@ class Recording(NamedTuple):
     problem: object  # str if the file was truncated, else None
 
 
-def _progress(stream, total):
+def _progress(stream, count_messages):
     """Return a callback drawing a progress bar on an interactive terminal, else a no-op."""
-    if total < 20000 or not stream.isatty():
+    if not stream.isatty():
         return lambda done: None
+    total = count_messages()
     width = 40
+    if total < 20000:
+        return lambda done: None
 
     def update(done):
         if done % 5000 and done != total:
@@ -112,8 +115,7 @@ def read_recording(path, geometry_overrides=None, progress_stream=sys.stderr):
         raise AnalysisError(f'{path} has no {JOINT_STATES_TOPIC} topic of type '
                             f'{JOINT_STATE_TYPE} (topics present: {present})')
     deserialize = _typestore().deserialize_cdr
-    total = run.message_count(JOINT_STATES_TOPIC) if hasattr(run, 'message_count') else 0
-    progress = _progress(progress_stream, total or 0)
+    progress = _progress(progress_stream, lambda: run.message_count(JOINT_STATES_TOPIC))
     stamps, positions, velocities = [], [], []
     order = None
     for count, (_, _, _, _, data) in enumerate(run.messages([JOINT_STATES_TOPIC]), 1):

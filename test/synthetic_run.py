@@ -1,0 +1,91 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+Synthetic recorded runs for tests, written without ROS (mcap Writer + rosbags' serializer).
+
+The joint states are the kinematics core's exact states along a schedule of offsets that the
+offset actuator moves between at a constant rate, sampled at a fixed rate: what shaper_sim
+publishes, but made in microseconds and independent of the node and the recorder.
+"""
+
+import math
+
+import numpy as np
+
+from qrm_ros import kinematics as kin
+
+JOINT_NAMES = ['input_shaft_joint', 'flywheel_joint', 'lever_joint', 'ram_joint',
+               'coupling_offset_joint']
+
+
+def schedule_states(geometry, offsets, hold=4.0, offset_rate=0.01, input_speed=2 * math.pi,
+                    rate=100.0, start_angle=0.3):
+    """Return (time, input_angle, offset, offset_velocity, state) along an offset schedule."""
+    knots_t, knots_d = [0.0], [offsets[0]]
+    for previous, following in zip(offsets, offsets[1:]):
+        knots_t += [knots_t[-1] + hold, knots_t[-1] + hold + abs(following - previous)
+                    / offset_rate]
+        knots_d += [previous, following]
+    knots_t.append(knots_t[-1] + hold)
+    knots_d.append(offsets[-1])
+    time = np.arange(0.0, knots_t[-1], 1.0 / rate)
+    offset = np.interp(time, knots_t, knots_d)
+    slope = np.diff(knots_d) / np.diff(knots_t)
+    offset_velocity = slope[np.clip(np.searchsorted(knots_t, time, side='right') - 1, 0,
+                                    slope.size - 1)]
+    input_angle = start_angle + input_speed * time
+    state = kin.state(geometry, offset, input_angle, input_speed, 0.0, offset_velocity)
+    wrapped = np.mod(input_angle + math.pi, 2 * math.pi) - math.pi
+    return time, wrapped, offset, offset_velocity, state
+
+
+def write_run(path, geometry, offsets, with_geometry=True, joint_states_topic='/joint_states',
+              start_ns=1_700_000_000_000_000_000, chunk_size=256 * 1024, **schedule):
+    """Write a synthetic run as a ros2-profile MCAP file; return the number of messages."""
+    from mcap.writer import Writer
+    from rosbags.typesys import get_typestore, Stores
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    type_name = 'sensor_msgs/msg/JointState'
+    JointState = store.types[type_name]
+    Header = store.types['std_msgs/msg/Header']
+    Time = store.types['builtin_interfaces/msg/Time']
+    time, input_angle, offset, offset_velocity, state = schedule_states(geometry, offsets,
+                                                                        **schedule)
+    speed = schedule.get('input_speed', 2 * math.pi)
+    with open(path, 'wb') as handle:
+        writer = Writer(handle, chunk_size=chunk_size)
+        writer.start(profile='ros2', library='qrm_ros test synthetic_run')
+        text, _ = store.generate_msgdef(type_name, ros_version=2)
+        schema = writer.register_schema(type_name, 'ros2msg', text.encode())
+        channel = writer.register_channel(joint_states_topic, 'cdr', schema)
+        if with_geometry:
+            writer.add_metadata('qrm_ros.geometry', {k: repr(float(v)) for k, v in
+                                                     geometry.as_dict().items()})
+        for i, t in enumerate(time):
+            stamp_ns = start_ns + int(round(t * 1e9))
+            message = JointState(
+                header=Header(stamp=Time(sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9),
+                              frame_id='shaper_base'),
+                name=JOINT_NAMES,
+                position=np.array([input_angle[i], state.flywheel_angle[i],
+                                   state.lever_angle[i], state.ram_position[i], offset[i]]),
+                velocity=np.array([speed, state.flywheel_speed[i], state.lever_speed[i],
+                                   state.ram_velocity[i], offset_velocity[i]]),
+                effort=np.array([], dtype=float))
+            data = store.serialize_cdr(message, type_name)
+            writer.add_message(channel, log_time=stamp_ns + 250_000, publish_time=stamp_ns,
+                               data=bytes(data), sequence=i)
+        writer.finish()
+    return len(time)

@@ -1,0 +1,211 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+Offline analysis against the closed form, on synthetic runs written without ROS.
+
+The synthetic joint states are the core's exact states sampled at 100 Hz, so the measured
+ratios may differ from theory only by the stroke finder's interpolation error, bounded by
+(|w| dt)^3 = 2.5e-4 at 2 pi rad/s and 100 Hz (test_strokes derives that bound).
+"""
+
+import json
+import math
+import os
+
+import numpy as np
+import pytest
+
+from qrm_ros import analysis, figures
+from qrm_ros import kinematics as kin
+from synthetic_run import schedule_states, write_run
+
+PAPER = kin.Geometry.paper()
+SCHEDULE = [-0.015, -0.0111725663716814, 0.0, 0.008, 0.015]
+TOLERANCE = (2 * math.pi * 0.01) ** 3
+
+
+def samples_for(offsets, input_speed=2 * math.pi, **kwargs):
+    time, angle, offset, offset_velocity, state = schedule_states(
+        PAPER, offsets, input_speed=input_speed, **kwargs)
+    return analysis.Samples(time, angle, np.full_like(time, input_speed), state.flywheel_angle,
+                            state.flywheel_speed, state.ram_position, state.ram_velocity,
+                            offset, offset_velocity)
+
+
+@pytest.fixture(scope='module')
+def schedule_analysis():
+    recording = analysis.Recording('synthetic', PAPER, samples_for(SCHEDULE), None)
+    return analysis.analyse(recording)
+
+
+def test_segments_are_exactly_the_commanded_offsets(schedule_analysis):
+    assert [row['offset'] for row in schedule_analysis.rows] == SCHEDULE
+    assert len(schedule_analysis.transitions) == len(SCHEDULE) - 1
+    for row in schedule_analysis.rows:
+        assert row['stroke_pairs'] >= 3
+
+
+@pytest.mark.parametrize('name', ['time_ratio', 'speed_ratio', 'peak_speed_ratio'])
+def test_measured_ratios_match_closed_form(schedule_analysis, name):
+    function = {'time_ratio': kin.time_ratio, 'speed_ratio': kin.speed_ratio,
+                'peak_speed_ratio': kin.peak_speed_ratio}[name]
+    for row in schedule_analysis.rows:
+        expected = function(PAPER, row['offset'])
+        assert row[f'{name}_theory'] == pytest.approx(expected, rel=1e-12)
+        assert row[f'{name}_measured'] == pytest.approx(expected, rel=TOLERANCE)
+        assert abs(row[f'{name}_relative_error']) < TOLERANCE
+
+
+def test_unity_speed_ratio_offset_measures_one(schedule_analysis):
+    row = schedule_analysis.rows[1]
+    assert row['speed_ratio_measured'] == pytest.approx(1.0, rel=TOLERANCE)
+
+
+def test_stroke_times_and_speeds_match_closed_form(schedule_analysis):
+    for row in schedule_analysis.rows:
+        cutting, returning = kin.stroke_times(PAPER, row['offset'], 2 * math.pi)
+        assert row['cutting_time_measured'] == pytest.approx(cutting, rel=TOLERANCE)
+        assert row['return_time_measured'] == pytest.approx(returning, rel=TOLERANCE)
+        peak_cut, peak_ret = kin.peak_ram_speeds(PAPER, row['offset'], 2 * math.pi)
+        assert row['peak_cutting_speed_measured'] == pytest.approx(peak_cut, rel=TOLERANCE)
+        assert row['peak_return_speed_measured'] == pytest.approx(peak_ret, rel=TOLERANCE)
+
+
+def test_reverse_running_gives_the_inverse_ratios():
+    recording = analysis.Recording('reverse', PAPER, samples_for([0.01], input_speed=-2 * math.pi),
+                                   None)
+    (row,) = analysis.analyse(recording).rows
+    assert row['time_ratio_measured'] == pytest.approx(1 / kin.time_ratio(PAPER, 0.01),
+                                                       rel=TOLERANCE)
+    assert row['time_ratio_measured'] < 1.0
+
+
+def test_figures_are_written_and_theory_curves_are_the_core(schedule_analysis, tmp_path):
+    paths = figures.write_figures(schedule_analysis, str(tmp_path))
+    assert sorted(os.path.basename(p) for p in paths) == sorted(figures.FIGURES)
+    for path in paths:
+        with open(path, 'rb') as handle:
+            assert handle.read(8) == b'\x89PNG\r\n\x1a\n'
+        assert os.path.getsize(path) > 20_000
+
+    def theory_lines(figure):
+        return [line for axes in figure.axes for line in axes.get_lines()
+                if line.get_gid() == figures.THEORY]
+
+    h = PAPER.pivot_distance
+    tr_lines = theory_lines(figures.time_ratio_figure(schedule_analysis))
+    x, y = tr_lines[0].get_data()
+    checked = [kin.time_ratio_rk4(PAPER, d) for d in x[::50] * h]  # the paper's method
+    np.testing.assert_allclose(y[::50], checked, rtol=1e-9)
+    mid, peak = theory_lines(figures.speed_ratio_figure(schedule_analysis))
+    x, y = mid.get_data()
+    r1, r = PAPER.coupling_radius, PAPER.crank_radius
+    np.testing.assert_allclose(y, (h + r) * (r1 + x * h) / ((h - r) * (r1 - x * h)), rtol=1e-12)
+    x, y = peak.get_data()
+    np.testing.assert_allclose(y, kin.peak_speed_ratio(PAPER, x * h), rtol=1e-12)
+    for line, row in zip(theory_lines(figures.flywheel_speed_figure(schedule_analysis)),
+                         schedule_analysis.rows):
+        theta, omega2 = line.get_data()
+        theta = np.radians(theta)
+        d = row['offset']
+        eq4 = 2 * math.pi * r1 * (r1 + d * np.sin(theta)) / (r1 ** 2 + d ** 2
+                                                             + 2 * r1 * d * np.sin(theta))
+        np.testing.assert_allclose(omega2, eq4, rtol=1e-12)
+    lines = theory_lines(figures.ram_motion_figure(schedule_analysis))
+    assert len(lines) == 2 * len(schedule_analysis.rows)
+
+
+def run_main(args, capsys):
+    code = analysis.main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    assert 'Traceback' not in err
+    return code, out, err
+
+
+def test_file_round_trip_json_and_csv(tmp_path, capsys):
+    path = tmp_path / 'run.mcap'
+    write_run(path, PAPER, [-0.01, 0.01], hold=3.0)
+    code, out, err = run_main([path, '--json', tmp_path / 'r.json', '--csv', tmp_path / 'r.csv',
+                               '--plot', tmp_path / 'figs'], capsys)
+    assert code == 0, err
+    assert '-10.00' in out and '10.00' in out
+    document = json.loads((tmp_path / 'r.json').read_text())
+    assert document['geometry']['crank_radius'] == 0.0505
+    offsets = [segment['offset'] for segment in document['segments']]
+    assert offsets == [-0.01, 0.01]
+    for segment in document['segments']:
+        for key in ('offset', 'input_speed', 'stroke_pairs', 'time_ratio_measured',
+                    'time_ratio_theory', 'speed_ratio_measured', 'speed_ratio_theory',
+                    'peak_speed_ratio_measured', 'peak_speed_ratio_theory'):
+            assert key in segment
+        assert segment['input_speed'] == pytest.approx(2 * math.pi)
+        assert segment['time_ratio_measured'] == pytest.approx(
+            kin.time_ratio(PAPER, segment['offset']), rel=TOLERANCE)
+    rows = (tmp_path / 'r.csv').read_text().splitlines()
+    assert len(rows) == 3 and rows[0].startswith('offset,')
+    assert len(list((tmp_path / 'figs').iterdir())) == len(figures.FIGURES)
+
+
+def test_missing_file(tmp_path, capsys):
+    code, _, err = run_main([tmp_path / 'nothing.mcap'], capsys)
+    assert code == analysis.EXIT_BAD_INPUT
+    assert 'does not exist' in err and len(err.strip().splitlines()) == 1
+
+
+def test_not_an_mcap_file(tmp_path, capsys):
+    path = tmp_path / 'notes.mcap'
+    path.write_text('just some text\n')
+    code, _, err = run_main([path], capsys)
+    assert code == analysis.EXIT_BAD_INPUT
+    assert 'not an MCAP file' in err
+
+
+def test_truncated_file_is_analysed_up_to_what_is_whole(tmp_path, capsys):
+    path = tmp_path / 'run.mcap'
+    write_run(path, PAPER, [0.0, 0.01], hold=3.0, chunk_size=16 * 1024)
+    data = path.read_bytes()
+    cut = tmp_path / 'cut.mcap'
+    cut.write_bytes(data[:int(len(data) * 0.8)])
+    code, out, err = run_main([cut], capsys)
+    assert code == analysis.EXIT_TRUNCATED
+    assert 'truncated' in err
+    assert '0.00' in out  # the first offset's strokes were whole
+
+
+def test_file_without_joint_states(tmp_path, capsys):
+    path = tmp_path / 'run.mcap'
+    write_run(path, PAPER, [0.0], joint_states_topic='/other_states')
+    code, _, err = run_main([path], capsys)
+    assert code == analysis.EXIT_BAD_INPUT
+    assert 'no /joint_states topic' in err and '/other_states' in err
+
+
+def test_file_without_geometry_needs_options(tmp_path, capsys):
+    path = tmp_path / 'run.mcap'
+    write_run(path, PAPER, [0.005], with_geometry=False, hold=3.0)
+    code, _, err = run_main([path], capsys)
+    assert code == analysis.EXIT_BAD_INPUT
+    assert 'no qrm_ros.geometry metadata' in err and '--coupling-radius' in err
+    code, out, err = run_main([path, '--coupling-radius', 0.025, '--crank-radius', 0.0505,
+                               '--pivot-distance', 0.113, '--ram-height', 0.2], capsys)
+    assert code == 0, err
+    assert '5.00' in out
+
+
+def test_bad_geometry_option(tmp_path, capsys):
+    path = tmp_path / 'run.mcap'
+    write_run(path, PAPER, [0.0], hold=2.0)
+    code, _, err = run_main([path, '--crank-radius', 0.5], capsys)
+    assert code == analysis.EXIT_BAD_INPUT
+    assert 'crank_radius' in err and 'pivot_distance' in err
