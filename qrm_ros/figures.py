@@ -103,7 +103,7 @@ def speed_ratio_figure(analysis):
 
 
 def _one_revolution(samples, row):
-    """Indices of the first whole input revolution inside a segment (or the whole segment)."""
+    """Return the samples of the first whole input revolution inside a segment."""
     span = np.flatnonzero((samples.time >= row['start_time']) & (samples.time <= row['end_time']))
     unwrapped = np.unwrap(samples.input_angle[span])
     travelled = np.abs(unwrapped - unwrapped[0])
