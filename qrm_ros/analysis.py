@@ -47,6 +47,8 @@ JOINTS = ('input_shaft_joint', 'flywheel_joint', 'lever_joint', 'ram_joint',
           'coupling_offset_joint')
 # Samples whose offset and input speed differ by less than this (relative) are one setting.
 STEADY_TOLERANCE = 1e-12
+# Shortest steady run worth measuring (a stroke pair needs several samples anyway).
+MIN_SEGMENT_SAMPLES = 3
 EXIT_BAD_INPUT, EXIT_TRUNCATED = 2, 3
 
 
@@ -177,27 +179,33 @@ def split_segments(samples):
     """
     Split into spans of steady offset and input speed; return (segments, transitions).
 
-    A sample is steady when the offset actuator is at rest and the input speed equals its
-    neighbours'; each maximal run of steady samples with one setting is a segment, and what
-    lies between segments is a transition (excluded from the measurement).
+    A segment is a maximal run of samples that share one offset and one input speed with
+    the offset actuator at rest (a ramp changes the speed at every sample, so its samples
+    never form a run); what lies between segments is a transition, excluded from the
+    measurement and reported.
     """
     offset, speed = samples.offset, samples.input_speed
     scale = max(1.0, float(np.max(np.abs(speed))))
-    same_speed = np.abs(np.diff(speed)) <= STEADY_TOLERANCE * scale
-    same_offset = np.abs(np.diff(offset)) <= STEADY_TOLERANCE
+    changed = ((np.abs(np.diff(offset)) > STEADY_TOLERANCE)
+               | (np.abs(np.diff(speed)) > STEADY_TOLERANCE * scale))
     steady = samples.offset_rate == 0.0
-    steady[1:] &= same_speed & same_offset
-    steady[:-1] &= same_speed & same_offset
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], steady.astype(np.int8), [0]])))
+    starts = np.flatnonzero(np.concatenate([[True], changed | (steady[1:] != steady[:-1])]))
+    ends = np.append(starts[1:], offset.size)
     segments = [Segment(int(a), int(b), float(offset[a]), float(speed[a]))
-                for a, b in zip(edges[::2], edges[1::2]) if b - a >= 2]
+                for a, b in zip(starts, ends) if steady[a] and b - a >= MIN_SEGMENT_SAMPLES]
     transitions = []
     for before, after in zip(segments, segments[1:]):
+        changes = []
+        if after.offset != before.offset:
+            changes.append(f'offset {before.offset * 1e3:g} -> {after.offset * 1e3:g} mm')
+        if after.input_speed != before.input_speed:
+            changes.append(f'input speed {before.input_speed:g} -> {after.input_speed:g} rad/s')
         transitions.append({
             'start_time': float(samples.time[before.end - 1]),
             'end_time': float(samples.time[after.start]),
             'offset_from': before.offset, 'offset_to': after.offset,
-            'input_speed_from': before.input_speed, 'input_speed_to': after.input_speed})
+            'input_speed_from': before.input_speed, 'input_speed_to': after.input_speed,
+            'change': ', '.join(changes) or 'interruption'})
     return segments, transitions
 
 
@@ -267,7 +275,8 @@ def analyse(recording):
 
 
 def _fmt(value, spec):
-    return '-' if value is None else format(value, spec)
+    width = spec.lstrip('+-').split('.')[0]
+    return format('-', '>' + width) if value is None else format(value, spec)
 
 
 def format_table(analysis):
@@ -294,13 +303,12 @@ def format_table(analysis):
             measured = '-' if mean is None else f'{mean:8.5f} ± {spread:.1e}'
             parts.append(f' {measured:>16} {_fmt(row[name + "_theory"], "10.5f")} '
                          f'{_fmt(row[name + "_relative_error"], "+8.1e")} |')
-        lines.append(''.join(parts).rstrip(' |'))
+        lines.append(''.join(parts)[:-2])
     if not analysis.rows:
         lines.append('  (no segment of steady offset and input speed)')
     for t in analysis.transitions:
         lines.append(f'transition {t["start_time"]:.3f}-{t["end_time"]:.3f} s excluded: '
-                     f'offset {t["offset_from"] * 1e3:g} -> {t["offset_to"] * 1e3:g} mm, '
-                     f'input speed {t["input_speed_from"]:g} -> {t["input_speed_to"]:g} rad/s')
+                     f'{t["change"]}')
     return '\n'.join(lines)
 
 
