@@ -31,6 +31,7 @@ import sys
 import time
 
 from qrm_ros import analysis
+from qrm_ros import kinematics as kin
 from qrm_ros.figures import write_figures
 
 SIM_NODE = '/shaper_sim'
@@ -153,6 +154,14 @@ def run(options):
         raise MainJobError(f'--input-speed must be finite and non-zero, got '
                            f'{options.input_speed}')
     offsets = [value / 1e3 for value in options.offsets_mm]
+    geometry = kin.Geometry.paper()  # shaper_sim's default geometry
+    for offset in offsets:
+        try:
+            kin.check_offset(geometry, offset, geometry.max_safe_offset)
+        except kin.KinematicsError:
+            raise MainJobError(f'--offsets-mm: {offset * 1e3:g} mm is outside what shaper_sim '
+                               f'accepts, |offset| <= {geometry.max_safe_offset * 1e3:g} mm'
+                               ) from None
     folder = os.path.join(options.output_dir,
                           datetime.now().strftime('qrm_%Y%m%d_%H%M%S_%f')[:-3])
     os.makedirs(folder)
