@@ -50,6 +50,7 @@ STEADY_TOLERANCE = 1e-12
 # Shortest steady run worth measuring (a stroke pair needs several samples anyway).
 MIN_SEGMENT_SAMPLES = 3
 EXIT_BAD_INPUT, EXIT_TRUNCATED = 2, 3
+PROGRESS_MIN_MESSAGES = 20000
 
 
 class AnalysisError(Exception):
@@ -77,18 +78,11 @@ class Recording(NamedTuple):
     problem: object  # str if the file was truncated, else None
 
 
-def _progress(stream, count_messages):
-    """Return a callback drawing a progress bar on an interactive terminal, else a no-op."""
-    if not stream.isatty():
-        return lambda done: None
-    total = count_messages()
+def _progress(stream, total):
+    """Return a callback drawing a progress bar of `total` messages on stream."""
     width = 40
-    if total < 20000:
-        return lambda done: None
 
     def update(done):
-        if done % 5000 and done != total:
-            return
         filled = width * done // total
         stream.write(f'\rreading joint states [{"#" * filled}{"." * (width - filled)}] '
                      f'{100 * done // total:3d}%')
@@ -117,25 +111,39 @@ def read_recording(path, geometry_overrides=None, progress_stream=sys.stderr):
         raise AnalysisError(f'{path} has no {JOINT_STATES_TOPIC} topic of type '
                             f'{JOINT_STATE_TYPE} (topics present: {present})')
     deserialize = _typestore().deserialize_cdr
-    progress = _progress(progress_stream, lambda: run.message_count(JOINT_STATES_TOPIC))
+    progress = total = None
+    if progress_stream.isatty():  # a bar only for a person watching, and only on long files
+        total = run.message_count(JOINT_STATES_TOPIC)
+        if total >= PROGRESS_MIN_MESSAGES:
+            progress = _progress(progress_stream, total)
     stamps, positions, velocities = [], [], []
-    order = None
-    for count, (_, _, _, _, data) in enumerate(run.messages([JOINT_STATES_TOPIC]), 1):
+    names = None
+    # The hot loop of a long file: one decode and three appends per message.
+    for count, (_, _, _, _, data) in enumerate(
+            run.messages([JOINT_STATES_TOPIC], log_time_order=False), 1):  # sorted below
         message = deserialize(data, JOINT_STATE_TYPE)
-        if order is None or len(message.name) != len(JOINTS):
-            order = _joint_order(message.name, path)
-        stamps.append(message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec)
-        positions.append(message.position[order])
-        velocities.append(message.velocity[order])
-        progress(count)
+        if message.name != names:
+            if names is not None:
+                raise AnalysisError(f'{path}: the joints of {JOINT_STATES_TOPIC} change during '
+                                    f'the run ({names} then {message.name})')
+            names = message.name
+        stamp = message.header.stamp
+        stamps.append(stamp.sec * 1_000_000_000 + stamp.nanosec)
+        positions.append(message.position)
+        velocities.append(message.velocity)
+        if progress is not None and (count % 5000 == 0 or count == total):
+            progress(count)
     if len(stamps) < 3:
         raise AnalysisError(f'{path} holds {len(stamps)} {JOINT_STATES_TOPIC} messages: too few '
                             'to find any stroke')
+    joint_order = _joint_order(names, path)
     stamp = np.asarray(stamps, dtype=np.int64)
-    position, velocity = np.asarray(positions), np.asarray(velocities)
-    keep = np.concatenate([[True], np.diff(stamp) > 0])  # drop repeats and clock jumps back
+    order = np.argsort(stamp, kind='stable')
+    stamp = stamp[order]
+    keep = np.concatenate([[True], np.diff(stamp) > 0])  # a stamp published twice counts once
     time = (stamp[keep] - stamp[0]) * 1e-9
-    position, velocity = position[keep], velocity[keep]
+    position = np.asarray(positions)[order][keep][:, joint_order]
+    velocity = np.asarray(velocities)[order][keep][:, joint_order]
     samples = Samples(time, position[:, 0], velocity[:, 0], position[:, 1], velocity[:, 1],
                       position[:, 3], velocity[:, 3], position[:, 4], velocity[:, 4])
     return Recording(path, geometry, samples, run.problem if run.truncated else None)

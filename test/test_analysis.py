@@ -19,6 +19,7 @@ ratios may differ from theory only by the stroke finder's interpolation error, b
 (|w| dt)^3 = 2.5e-4 at 2 pi rad/s and 100 Hz (test_strokes derives that bound).
 """
 
+import io
 import json
 import math
 import os
@@ -209,3 +210,22 @@ def test_bad_geometry_option(tmp_path, capsys):
     code, _, err = run_main([path, '--crank-radius', 0.5], capsys)
     assert code == analysis.EXIT_BAD_INPUT
     assert 'crank_radius' in err and 'pivot_distance' in err
+
+
+class Terminal(io.StringIO):
+    def isatty(self):
+        return True
+
+
+def test_progress_bar_only_on_a_terminal_and_long_files(tmp_path, monkeypatch):
+    path = tmp_path / 'run.mcap'
+    count = write_run(path, PAPER, [0.0], hold=60.0)
+    terminal, pipe = Terminal(), io.StringIO()
+    analysis.read_recording(str(path), progress_stream=pipe)
+    analysis.read_recording(str(path), progress_stream=terminal)
+    assert pipe.getvalue() == '' and terminal.getvalue() == ''  # too short for a bar
+    monkeypatch.setattr(analysis, 'PROGRESS_MIN_MESSAGES', 100)
+    analysis.read_recording(str(path), progress_stream=terminal)
+    bar = terminal.getvalue()
+    assert bar.startswith('\rreading joint states [') and bar.endswith('] 100%\n')
+    assert bar.count('\r') == count // 5000 + 1

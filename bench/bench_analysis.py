@@ -1,0 +1,136 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+Benchmark: the whole offline analysis against a bare rosbags read of the same messages.
+
+Writes a synthetic one-hour, 100 Hz run (joint states and ram twist from the kinematics core,
+through the recorder's own MCAP writer), then times, alternately and several times each:
+``qrm_analyze``'s work (read, decode, segment, measure; no figures) and rosbags' AnyReader
+reading and deserializing the same joint-state messages. Prints the medians and the ratio
+(target: analysis <= 1.5 x the bare read).
+
+    python3 dev.py run python bench/bench_analysis.py [--hours 1] [--repeats 3]
+"""
+
+import argparse
+import math
+import os
+from pathlib import Path
+import statistics
+import tempfile
+import time
+
+import numpy as np
+
+from qrm_ros import analysis
+from qrm_ros import kinematics as kin
+from qrm_ros.recorder import COMPRESSIONS, McapRunFile
+
+JOINTS = ['input_shaft_joint', 'flywheel_joint', 'lever_joint', 'ram_joint',
+          'coupling_offset_joint']
+
+
+def write_synthetic_run(path, seconds, rate=100.0):
+    """Write a run with an offset schedule through the recorder's writer; return messages."""
+    from rosbags.typesys import get_typestore, Stores
+    store = get_typestore(Stores.ROS2_JAZZY)
+    types = store.types
+    geometry = kin.Geometry.paper()
+    schedule = np.array([-0.015, -0.01, -0.005, 0.0, 0.005, 0.01, 0.015])
+    hold = seconds / schedule.size
+    run_file = McapRunFile(str(path), COMPRESSIONS['zstd'], 1_000_000_000)  # the default
+    joint_channel = run_file.add_channel('/joint_states', 'sensor_msgs/msg/JointState', [], '')
+    twist_channel = run_file.add_channel('/ram/twist', 'geometry_msgs/msg/TwistStamped', [], '')
+    run_file.add_metadata('qrm_ros.geometry', {k: repr(float(v)) for k, v in
+                                               geometry.as_dict().items()})
+    speed = 2 * math.pi
+    start_ns = 1_800_000_000_000_000_000
+    block = 36_000
+    count = int(seconds * rate)
+    for first in range(0, count, block):
+        t = np.arange(first, min(first + block, count)) / rate
+        offset = schedule[np.minimum((t // hold).astype(int), schedule.size - 1)]
+        state = kin.state(geometry, offset, speed * t, speed)
+        angle = np.mod(speed * t + math.pi, 2 * math.pi) - math.pi
+        for i, seconds_in in enumerate(t):
+            ns = start_ns + int(round(seconds_in * 1e9))
+            header = types['std_msgs/msg/Header'](
+                stamp=types['builtin_interfaces/msg/Time'](sec=ns // 10**9, nanosec=ns % 10**9),
+                frame_id='shaper_base')
+            joints = types['sensor_msgs/msg/JointState'](
+                header=header, name=JOINTS,
+                position=np.array([angle[i], state.flywheel_angle[i], state.lever_angle[i],
+                                   state.ram_position[i], offset[i]]),
+                velocity=np.array([speed, state.flywheel_speed[i], state.lever_speed[i],
+                                   state.ram_velocity[i], 0.0]),
+                effort=np.zeros(0))
+            vector = types['geometry_msgs/msg/Vector3']
+            twist = types['geometry_msgs/msg/TwistStamped'](
+                header=header, twist=types['geometry_msgs/msg/Twist'](
+                    linear=vector(x=state.ram_velocity[i], y=0.0, z=0.0),
+                    angular=vector(x=0.0, y=0.0, z=0.0)))
+            run_file.add_message(joint_channel, ns + 200_000, ns, bytes(
+                store.serialize_cdr(joints, 'sensor_msgs/msg/JointState')))
+            run_file.add_message(twist_channel, ns + 210_000, ns, bytes(
+                store.serialize_cdr(twist, 'geometry_msgs/msg/TwistStamped')))
+    run_file.finish()
+    return 2 * count
+
+
+def analyse(path):
+    result = analysis.analyse(analysis.read_recording(str(path)))
+    return sum(row['stroke_pairs'] for row in result.rows)
+
+
+def rosbags_read(path):
+    from rosbags.highlevel import AnyReader
+    count = 0
+    with AnyReader([Path(path)]) as reader:
+        connections = [c for c in reader.connections if c.topic == '/joint_states']
+        for connection, _, raw in reader.messages(connections=connections):
+            reader.deserialize(raw, connection.msgtype)
+            count += 1
+    return count
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split('\n')[1])
+    parser.add_argument('--hours', type=float, default=1.0)
+    parser.add_argument('--repeats', type=int, default=3)
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as folder:
+        path = os.path.join(folder, 'hour.mcap')
+        start = time.perf_counter()
+        messages = write_synthetic_run(path, args.hours * 3600.0)
+        print(f'wrote {messages} messages ({os.path.getsize(path) / 1e6:.1f} MB) in '
+              f'{time.perf_counter() - start:.1f} s through McapRunFile')
+        ours, bare = [], []
+        for _ in range(args.repeats):
+            start = time.perf_counter()
+            pairs = analyse(path)
+            ours.append(time.perf_counter() - start)
+            start = time.perf_counter()
+            read = rosbags_read(path)
+            bare.append(time.perf_counter() - start)
+        ours_median, bare_median = statistics.median(ours), statistics.median(bare)
+        print(f'qrm_analyze (read + decode + segment + measure, {pairs} stroke pairs): '
+              f'{ours_median:.2f} s (median of {args.repeats})')
+        print(f'rosbags AnyReader read + deserialize of the same {read} joint states: '
+              f'{bare_median:.2f} s (median of {args.repeats})')
+        print(f'ratio analysis / bare rosbags read: {ours_median / bare_median:.2f}x '
+              '(target <= 1.5x)')
+
+
+if __name__ == '__main__':
+    main()
