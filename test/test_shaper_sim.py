@@ -1,0 +1,396 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+The shaper_sim node in-process, over real rclpy and DDS (no mocks).
+
+Diagnostics are driven through ShaperSimNode.publish_at with synthetic 100 Hz stamps (the
+timer does exactly that with the node clock), so those checks are deterministic and fast;
+services, pause and simulated time go through a spinning executor.
+"""
+
+import math
+import threading
+import time
+
+from diagnostic_msgs.msg import DiagnosticArray
+import pytest
+from qrm_ros.kinematics import peak_speed_ratio, speed_ratio, state, time_ratio
+from qrm_ros.shaper_sim import JOINT_NAMES, PARAMETERS, ShaperSimNode
+from rcl_interfaces.msg import ParameterType
+from rcl_interfaces.srv import DescribeParameters
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64
+from std_srvs.srv import SetBool, Trigger
+
+NS = 1_000_000_000
+R1, R, H_PIVOT = 0.025, 0.0505, 0.113
+
+
+@pytest.fixture(scope='module')
+def context():
+    context = Context()
+    rclpy.init(context=context)
+    yield context
+    rclpy.shutdown(context=context)
+
+
+class Harness:
+    """A shaper_sim node and a probe node (subscribers, clients) on a background executor."""
+
+    def __init__(self, context, spin_shaper=True, **overrides):
+        self.shaper = ShaperSimNode(context=context, parameter_overrides=[
+            Parameter(name, value=value) for name, value in overrides.items()])
+        self.probe = Node('probe', context=context)
+        self.joint_states, self.diagnostics = [], []
+        self.probe.create_subscription(JointState, 'joint_states', self.joint_states.append,
+                                       1000)
+        self.probe.create_subscription(DiagnosticArray, '/diagnostics',
+                                       self.diagnostics.append, 1000)
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(self.probe)
+        if spin_shaper:
+            self.executor.add_node(self.shaper)
+        self.running = True
+        self.thread = threading.Thread(target=self._spin, daemon=True)
+        self.thread.start()
+
+    def _spin(self):
+        while self.running:
+            self.executor.spin_once(timeout_sec=0.02)
+
+    def wait_for(self, predicate, timeout=10.0, what='condition'):
+        deadline = time.monotonic() + timeout
+        while not predicate():
+            assert time.monotonic() < deadline, f'timed out after {timeout} s waiting for {what}'
+            time.sleep(0.005)
+
+    def call(self, service_type, name, request):
+        client = self.probe.create_client(service_type, name)
+        assert client.wait_for_service(timeout_sec=10.0), name
+        future = client.call_async(request)
+        self.wait_for(future.done, what=f'{name} response')
+        self.probe.destroy_client(client)
+        return future.result()
+
+    def close(self):
+        self.running = False
+        self.thread.join(timeout=5.0)
+        self.executor.shutdown()
+        self.shaper.destroy_node()
+        self.probe.destroy_node()
+
+
+@pytest.fixture
+def harness(context):
+    made = []
+
+    def make(**kwargs):
+        made.append(Harness(context, **kwargs))
+        return made[-1]
+    yield make
+    for item in made:
+        item.close()
+
+
+def all_finite(message):
+    return all(map(math.isfinite, list(message.position) + list(message.velocity)))
+
+
+# Parameters -------------------------------------------------------------------------------
+
+def test_parameters_are_declared_with_units_ranges_and_read_only_flags(harness):
+    h = harness(spin_shaper=True)
+    request = DescribeParameters.Request(names=list(PARAMETERS))
+    descriptors = {d.name: d for d in h.call(
+        DescribeParameters, '/shaper_sim/describe_parameters', request).descriptors}
+    read_only = {name for name, d in descriptors.items() if d.read_only}
+    assert read_only == {'coupling_radius', 'crank_radius', 'pivot_distance', 'ram_height',
+                         'crank_phase', 'publish_rate'}
+    for name, spec in PARAMETERS.items():
+        assert f'[{spec.unit}]' in descriptors[name].description or not spec.unit
+        assert descriptors[name].additional_constraints.startswith('allowed: ')
+    offset_range = descriptors['coupling_offset'].floating_point_range[0]
+    assert (offset_range.from_value, offset_range.to_value) == (-0.9 * R1, 0.9 * R1)
+    assert descriptors['frame_id'].type == ParameterType.PARAMETER_STRING
+    defaults = {name: h.shaper.get_parameter(name).value for name in PARAMETERS}
+    assert defaults == {name: spec.default for name, spec in PARAMETERS.items()}
+    assert (defaults['coupling_radius'], defaults['crank_radius'],
+            defaults['pivot_distance']) == (R1, R, H_PIVOT)
+
+
+# name, value, words every reason must contain (besides the name and the value's repr).
+REFUSALS = [
+    ('coupling_offset', 0.03, ['[-0.0225, 0.0225] m', 'max_safe_offset']),
+    ('coupling_offset', -0.0230, ['[-0.0225, 0.0225] m']),
+    ('coupling_offset', 0.025, ['[-0.0225, 0.0225] m']),
+    ('coupling_offset', math.nan, ['not finite', '[-0.0225, 0.0225] m']),
+    ('coupling_offset', math.inf, ['not finite']),
+    ('coupling_offset', 'abc', ['floating-point', '[-0.0225, 0.0225] m']),
+    ('coupling_offset', True, ['floating-point']),
+    ('coupling_offset', [0.01], ['floating-point']),
+    ('offset_rate_limit', 0.0, ['[1e-06, 1] m/s']),
+    ('offset_rate_limit', -0.001, ['[1e-06, 1] m/s']),
+    ('input_acceleration_limit', 0.0, ['[0.001, 100000] rad/s^2']),
+    ('input_acceleration_limit', -math.inf, ['not finite']),
+    ('input_speed', 61.0, ['[-60, 60] rad/s', 'max_input_speed']),
+    ('input_speed', -math.inf, ['not finite']),
+    ('max_input_speed', 0.0, ['[0.001, 10000] rad/s']),
+    ('max_input_speed', 5.0, ['below |input_speed| = 6.28319 rad/s']),
+    ('publish_rate', 50.0, ['read-only', 'it stays 100.0']),
+    ('crank_radius', 0.2, ['read-only', 'must be smaller than pivot_distance']),
+    ('coupling_radius', 0.03, ['read-only']),
+    ('frame_id', '', ['non-empty string']),
+    ('frame_id', 3.0, ['non-empty string']),
+]
+
+
+@pytest.mark.parametrize('name, value, words', REFUSALS,
+                         ids=[f'{n}={v!r}' for n, v, _ in REFUSALS])
+def test_bad_values_are_refused_with_a_reason_and_change_nothing(harness, name, value, words):
+    h = harness(spin_shaper=False)
+    before = {n: h.shaper.get_parameter(n).value for n in PARAMETERS}
+    commands = (h.shaper.stepper.speed_command, h.shaper.stepper.offset_command)
+    result, = h.shaper.set_parameters([Parameter(name, value=value)])
+    assert not result.successful
+    assert result.reason.startswith(f'{name} = {value!r} refused: ')
+    for word in words:
+        assert word in result.reason
+    assert {n: h.shaper.get_parameter(n).value for n in PARAMETERS} == before
+    assert (h.shaper.stepper.speed_command, h.shaper.stepper.offset_command) == commands
+
+
+def test_the_on_set_callback_refuses_too(harness):
+    # rclpy's own path (descriptor checks, then on-set callbacks) without this node's
+    # front check: cross-parameter rules still refuse, with the same reason.
+    h = harness(spin_shaper=False)
+    result = Node.set_parameters_atomically(h.shaper, [Parameter('input_speed', value=70.0)])
+    assert not result.successful and 'input_speed = 70.0 refused' in result.reason
+    assert h.shaper.get_parameter('input_speed').value == 2 * math.pi
+
+
+def test_accepted_values_reach_the_stepper(harness):
+    h = harness(spin_shaper=False)
+    results = h.shaper.set_parameters([
+        Parameter('coupling_offset', value=0.0225), Parameter('input_speed', value=-3),
+        Parameter('offset_rate_limit', value=0.01),
+        Parameter('input_acceleration_limit', value=50.0),
+        Parameter('frame_id', value='shaper_table')])
+    assert all(r.successful for r in results), [r.reason for r in results]
+    stepper = h.shaper.stepper
+    assert (stepper.offset_command, stepper.speed_command) == (0.0225, -3.0)
+    assert (stepper.offset_rate_limit, stepper.input_acceleration_limit) == (0.01, 50.0)
+    # An integer for a double parameter is taken as that double (`ros2 param set ... 0`).
+    assert h.shaper.get_parameter('input_speed').type_ == Parameter.Type.DOUBLE
+    # Raising the limit and the speed together is one consistent change.
+    result = h.shaper.set_parameters_atomically([Parameter('max_input_speed', value=100.0),
+                                                 Parameter('input_speed', value=90.0)])
+    assert result.successful, result.reason
+    assert stepper.speed_command == 90.0
+
+
+def test_bad_start_up_values_are_refused_with_a_reason(context):
+    for overrides, words in [
+            ({'coupling_offset': 0.024}, ['coupling_offset', '0.024', '[-0.0225, 0.0225]']),
+            ({'crank_radius': 0.12}, ['crank_radius', '0.12', 'pivot_distance']),
+            ({'input_speed': 80.0}, ['input_speed = 80.0', '[-60, 60]']),
+            ({'publish_rate': 100}, ['publish_rate', 'decimal point'])]:
+        with pytest.raises(ValueError) as error:
+            ShaperSimNode(context=context, parameter_overrides=[
+                Parameter(name, value=value) for name, value in overrides.items()])
+        for word in words:
+            assert word in str(error.value)
+
+
+# Publishing and diagnostics ---------------------------------------------------------------
+
+def run_ticks(node, start_ns, seconds, rate=100.0, jitter_ns=1_000_000, seed=7):
+    """Publish at about `rate` with deterministic jitter (as a loaded timer would)."""
+    stamps, now, period = [], start_ns, int(NS / rate)
+    for i in range(int(seconds * rate)):
+        now += period + (i * 7919 + seed) % (2 * jitter_ns + 1) - jitter_ns
+        assert node.publish_at(now)
+        stamps.append(now)
+    return stamps
+
+
+def pair_values(message):
+    status, = message.status
+    values = {}
+    for item in status.values:
+        values[item.key] = item.value if item.key.endswith('steady') else float(item.value)
+        assert item.key.endswith('steady') or math.isfinite(values[item.key])
+    return values
+
+
+# TR and SR from 100 Hz samples (100 per turn, stamps jittered by +-1 ms): reversals, mid
+# strokes and peaks are located between samples, and measured 2e-5 from the exact values;
+# the tolerance leaves a 5x margin. Sampled exactly at reversals it would be ~1e-2.
+RATIO_TOLERANCE = 1e-4
+PERIOD_TOLERANCE = 1e-5  # s, on cutting + return time = one input turn
+
+
+@pytest.mark.parametrize('offset, speed', [(0.0, 2 * math.pi), (0.01, 2 * math.pi),
+                                           (-0.015, 2 * math.pi), (0.01, -2 * math.pi)])
+def test_diagnostics_match_the_closed_form_for_a_steady_offset(harness, offset, speed):
+    h = harness(spin_shaper=False, coupling_offset=offset, input_speed=speed)
+    run_ticks(h.shaper, 5000 * NS, 3.5)
+    h.wait_for(lambda: len(h.diagnostics) >= 2, what='two stroke-pair diagnostics')
+    geometry = h.shaper.geometry
+    for message in h.diagnostics:
+        values = pair_values(message)
+        assert message.status[0].name == 'shaper_sim: stroke pair'
+        assert values['offset_steady'] == 'true' and values['input_speed_steady'] == 'true'
+        assert values['coupling_offset'] == offset and values['input_speed'] == speed
+        assert values['cutting_time'] + values['return_time'] == pytest.approx(
+            2 * math.pi / abs(speed), abs=PERIOD_TOLERANCE)
+        assert values['time_ratio'] == pytest.approx(time_ratio(geometry, offset, speed),
+                                                     rel=RATIO_TOLERANCE)
+        assert values['speed_ratio'] == pytest.approx(speed_ratio(geometry, offset, speed),
+                                                      rel=RATIO_TOLERANCE)
+        assert values['peak_speed_ratio'] == pytest.approx(
+            peak_speed_ratio(geometry, offset, speed), rel=RATIO_TOLERANCE)
+        assert values['time_ratio_theory'] == pytest.approx(time_ratio(geometry, offset, speed),
+                                                            rel=1e-14)
+        # Independent closed forms (design note): eq. 28 at zero offset, eq. 25 for SR.
+        if offset == 0.0:
+            gap = 2 * math.asin(R / H_PIVOT)
+            assert values['time_ratio'] == pytest.approx(
+                (math.pi + gap) / (math.pi - gap), rel=RATIO_TOLERANCE)
+        forward_sr = (H_PIVOT + R) * (R1 + offset) / ((H_PIVOT - R) * (R1 - offset))
+        expected_sr = forward_sr if speed > 0 else 1 / forward_sr
+        assert values['speed_ratio'] == pytest.approx(expected_sr, rel=RATIO_TOLERANCE)
+        if speed < 0:  # reversed, the cut is the fast stroke: TR is the forward's inverse
+            assert values['time_ratio'] < 1.0
+            assert values['time_ratio'] == pytest.approx(
+                1.0 / time_ratio(geometry, offset, -speed), rel=RATIO_TOLERANCE)
+        assert values['cutting_time'] == pytest.approx(values['time_ratio']
+                                                       * values['return_time'])
+
+
+def test_a_moving_offset_is_flagged_and_nothing_is_ever_non_finite(harness):
+    h = harness(spin_shaper=False, coupling_offset=-0.02, offset_rate_limit=0.01)
+    h.shaper.set_parameters([Parameter('coupling_offset', value=0.0225)])  # 4.25 s of travel
+    run_ticks(h.shaper, 10 * NS, 6.0)
+    h.wait_for(lambda: len(h.diagnostics) >= 4 and len(h.joint_states) >= 600,
+               what='diagnostics and joint states')
+    steady = [pair_values(m)['offset_steady'] for m in h.diagnostics]
+    assert steady[:3] == ['false'] * 3 and steady[-1] == 'true'
+    assert all(all_finite(m) for m in h.joint_states)
+    assert h.joint_states[-1].position[4] == 0.0225
+
+
+def test_published_state_is_the_core_closed_form_at_the_stamp(harness):
+    h = harness(spin_shaper=False, coupling_offset=0.005)
+    h.shaper.set_parameters([Parameter('coupling_offset', value=0.012),
+                             Parameter('input_speed', value=9.0)])
+    stamps = run_ticks(h.shaper, 77 * NS, 1.0)
+    h.wait_for(lambda: len(h.joint_states) == len(stamps), what='every joint state')
+    geometry = h.shaper.geometry
+    for message, stamp in zip(h.joint_states, stamps):
+        assert list(message.name) == list(JOINT_NAMES)
+        assert message.header.stamp.sec * NS + message.header.stamp.nanosec == stamp
+        assert message.header.frame_id == 'shaper_base'
+        angle, flywheel, lever, ram, offset = message.position
+        speed, flywheel_speed, lever_speed, ram_velocity, offset_rate = message.velocity
+        expected = state(geometry, offset, angle, speed, 0.0, offset_rate)
+        assert -math.pi <= angle < math.pi and -math.pi <= flywheel < math.pi
+        assert math.remainder(flywheel - expected.flywheel_angle, 2 * math.pi) == \
+            pytest.approx(0.0, abs=1e-12)
+        assert (lever, ram) == pytest.approx((expected.lever_angle, expected.ram_position),
+                                             abs=1e-15)
+        assert (flywheel_speed, lever_speed, ram_velocity) == pytest.approx(
+            (expected.flywheel_speed, expected.lever_speed, expected.ram_velocity),
+            rel=1e-12, abs=1e-15)
+
+
+def test_time_going_back_is_survived(harness):
+    h = harness(spin_shaper=False)
+    run_ticks(h.shaper, 100 * NS, 0.5)
+    held = h.shaper.stepper.input_angle
+    assert h.shaper.publish_at(3 * NS)  # simulated clock restarted
+    assert h.shaper.stepper.input_angle == held and h.shaper.stepper.time_resets == 1
+    assert not h.shaper.publish_at(3 * NS)  # a repeated stamp is not republished
+    assert not h.shaper.publish_at(0)  # simulated time not started yet
+
+
+# Services, pause, topic command, simulated time ---------------------------------------------
+
+def test_pause_holds_and_resume_continues_from_the_held_state(harness):
+    h = harness()
+    h.wait_for(lambda: len(h.joint_states) >= 5, what='joint states')
+    response = h.call(SetBool, '/shaper_sim/pause', SetBool.Request(data=True))
+    assert response.success and response.message == 'paused'
+    count = len(h.joint_states)
+    held = h.shaper.stepper.input_angle
+    time.sleep(0.2)  # would be 20 ticks
+    assert len(h.joint_states) == count and h.shaper.stepper.input_angle == held
+    assert h.call(SetBool, '/shaper_sim/pause', SetBool.Request(data=False)).success
+    h.wait_for(lambda: len(h.joint_states) > count + 2, what='joint states after resuming')
+    resumed = h.joint_states[count]
+    assert resumed.position[0] == held  # the pause's 0.2 s do not count
+
+
+def test_reset_returns_to_the_parameters(harness):
+    h = harness(coupling_offset=0.004)
+    h.wait_for(lambda: len(h.joint_states) >= 3, what='joint states')
+    h.shaper.set_parameters([Parameter('input_speed', value=3.0)])
+    response = h.call(Trigger, '/shaper_sim/reset', Trigger.Request())
+    assert response.success and 'input speed 3.0 rad/s' in response.message
+    # The first sample after the reset has angle 0 at speed 3 (the start had 2 pi rad/s).
+    h.wait_for(lambda: any(m.velocity[0] == 3.0 for m in h.joint_states),
+               what='joint states after reset')
+    first = next(m for m in h.joint_states if m.velocity[0] == 3.0)
+    assert first.position[0] == 0.0 and first.position[4] == 0.004
+
+
+def test_speed_command_topic_accepts_good_values_and_ignores_bad_ones(harness):
+    h = harness(spin_shaper=True)
+    publisher = h.probe.create_publisher(Float64, 'input_speed_cmd', 10)
+    h.wait_for(lambda: publisher.get_subscription_count() > 0, what='subscriber')
+    for bad in (math.nan, math.inf, -61.0):
+        publisher.publish(Float64(data=bad))
+    publisher.publish(Float64(data=-12.5))
+    h.wait_for(lambda: h.shaper.stepper.speed_command == -12.5, what='speed command')
+    for bad in (math.nan, 1e9):
+        publisher.publish(Float64(data=bad))
+    count = len(h.joint_states)
+    h.wait_for(lambda: len(h.joint_states) > count + 3, what='more joint states')
+    assert h.shaper.stepper.speed_command == -12.5
+    # The limit may not drop below the command in force.
+    result, = h.shaper.set_parameters([Parameter('max_input_speed', value=10.0)])
+    assert not result.successful and 'speed command in force' in result.reason
+
+
+def test_use_sim_time_stamps_follow_clock(harness):
+    h = harness(use_sim_time=True)
+    clock = h.probe.create_publisher(Clock, '/clock', 10)
+    start = 1234 * NS
+    published = []
+    deadline = time.monotonic() + 10.0
+    stamp = start
+    while len(h.joint_states) < 20 and time.monotonic() < deadline:
+        stamp += 10_000_000
+        clock.publish(Clock(clock=rclpy.time.Time(nanoseconds=stamp).to_msg()))
+        published.append(stamp)
+        time.sleep(0.002)
+    assert len(h.joint_states) >= 20, 'no joint states on simulated time'
+    stamps = [m.header.stamp.sec * NS + m.header.stamp.nanosec for m in h.joint_states]
+    assert all(s in published for s in stamps)
+    assert stamps == sorted(stamps)

@@ -1,0 +1,262 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+The shaper_sim executable as its own process, over real DDS.
+
+Parameters are changed through the node's parameter services (rcl_interfaces SetParameters,
+what `ros2 param set` calls). Everything checked is derived here independently: the input
+angle from the piecewise-linear speed profile, the offset from its rate limit, the other
+joints from the kinematics core at the published angle, speed and offset.
+"""
+
+import math
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+
+from ament_index_python.packages import get_package_share_directory
+import pytest
+from qrm_ros.kinematics import Geometry, state
+from rcl_interfaces.srv import GetParameters, SetParameters
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter, parameter_value_to_python
+from sensor_msgs.msg import JointState
+
+NS = 1_000_000_000
+RATE = 100.0  # Hz, the default publish_rate
+ACCELERATION_LIMIT = 20.0  # rad/s^2, config/shaper.yaml
+OFFSET_RATE_LIMIT = 0.005  # m/s, config/shaper.yaml
+
+
+def executable():
+    found = shutil.which('shaper_sim')
+    found = found or os.path.join(os.path.dirname(sys.executable), 'shaper_sim')
+    assert os.path.exists(found), 'the shaper_sim console script is not installed'
+    return found
+
+
+class Process:
+    """shaper_sim started from its installed parameter file, output kept in files."""
+
+    def __init__(self, *arguments):
+        self.output = tempfile.TemporaryFile(mode='w+')
+        parameters = os.path.join(get_package_share_directory('qrm_ros'), 'config',
+                                  'shaper.yaml')
+        self.process = subprocess.Popen(
+            [executable(), '--ros-args', '--params-file', parameters, *arguments],
+            stdout=self.output, stderr=subprocess.STDOUT, text=True)
+
+    def stop(self, signal_number=signal.SIGINT, timeout=10.0):
+        """Send signal_number (None: just wait) and return (exit code, output)."""
+        if signal_number is not None and self.process.poll() is None:
+            self.process.send_signal(signal_number)
+        try:
+            code = self.process.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait()
+            raise
+        self.output.seek(0)
+        return code, self.output.read()
+
+
+class Probe:
+    """Subscriber and parameter clients in this process, spun on a background thread."""
+
+    def __init__(self):
+        self.context = Context()
+        rclpy.init(context=self.context)
+        self.node = Node('process_probe', context=self.context)
+        self.messages = []
+        self.node.create_subscription(JointState, 'joint_states', self.messages.append, 1000)
+        self.set_client = self.node.create_client(SetParameters, '/shaper_sim/set_parameters')
+        self.get_client = self.node.create_client(GetParameters, '/shaper_sim/get_parameters')
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.running = True
+        self.thread = threading.Thread(target=self._spin, daemon=True)
+        self.thread.start()
+
+    def _spin(self):
+        while self.running:
+            self.executor.spin_once(timeout_sec=0.02)
+
+    def wait_for(self, predicate, timeout=15.0, what='condition'):
+        deadline = time.monotonic() + timeout
+        while not predicate():
+            assert time.monotonic() < deadline, f'timed out after {timeout} s waiting for {what}'
+            time.sleep(0.005)
+
+    def call(self, client, request):
+        assert client.wait_for_service(timeout_sec=15.0), client.srv_name
+        future = client.call_async(request)
+        self.wait_for(future.done, what=f'{client.srv_name} response')
+        return future.result()
+
+    def set_parameter(self, name, value):
+        """One parameter per request, as `ros2 param set` sends it."""
+        request = SetParameters.Request(
+            parameters=[Parameter(name, value=value).to_parameter_msg()])
+        result, = self.call(self.set_client, request).results
+        return result
+
+    def get_parameters(self, names):
+        response = self.call(self.get_client, GetParameters.Request(names=names))
+        return {name: parameter_value_to_python(value)
+                for name, value in zip(names, response.values)}
+
+    def close(self):
+        self.running = False
+        self.thread.join(timeout=5.0)
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.shutdown(context=self.context)
+
+
+@pytest.fixture
+def probe():
+    made = Probe()
+    yield made
+    made.close()
+
+
+def stamp_ns(message):
+    return message.header.stamp.sec * NS + message.header.stamp.nanosec
+
+
+def wrapped(angle):
+    return math.remainder(angle, 2 * math.pi)
+
+
+# name, value, text the reason must contain besides "<name> = <value!r> refused: ".
+BAD_VALUES = [
+    ('coupling_offset', 0.03, '[-0.0225, 0.0225] m'),
+    ('coupling_offset', -0.024, '[-0.0225, 0.0225] m'),
+    ('coupling_offset', math.nan, 'not finite'),
+    ('coupling_offset', math.inf, 'not finite'),
+    ('coupling_offset', 'far', 'floating-point'),
+    ('coupling_offset', False, 'floating-point'),
+    ('offset_rate_limit', 0.0, '[1e-06, 1] m/s'),
+    ('offset_rate_limit', -0.5, '[1e-06, 1] m/s'),
+    ('input_acceleration_limit', 0.0, '[0.001, 100000] rad/s^2'),
+    ('input_speed', 60.5, '[-60, 60] rad/s'),
+    ('input_speed', -math.inf, 'not finite'),
+    ('max_input_speed', 1.0, 'below |input_speed| = 8 rad/s'),
+    ('publish_rate', 1000.0, 'read-only'),
+    ('pivot_distance', 0.04, 'crank_radius (0.0505 m) must be smaller than pivot_distance'),
+    ('frame_id', '', 'non-empty string'),
+]
+
+
+def test_process_publishes_a_continuous_exact_state_and_refuses_bad_values(probe):
+    node = Process('-p', 'input_speed:=4.0')
+    try:
+        probe.wait_for(lambda: len(probe.messages) >= 50, what='first joint states')
+        assert probe.set_parameter('coupling_offset', 0.01).successful
+        assert probe.set_parameter('input_speed', 8.0).successful
+        refusals = {(name, repr(value)): probe.set_parameter(name, value)
+                    for name, value, _ in BAD_VALUES}
+        count = len(probe.messages)
+        # The offset needs 2 s to travel 10 mm at 5 mm/s; keep going until it has arrived.
+        probe.wait_for(lambda: len(probe.messages) > count + 30
+                       and probe.messages[-1].position[4] == 0.01,
+                       what='the offset to arrive and publishing to continue')
+        values = probe.get_parameters([name for name, _, _ in BAD_VALUES])
+        messages = list(probe.messages)
+    finally:
+        code, output = node.stop()
+    assert code == 0 and 'Traceback' not in output, output
+
+    for name, value, words in BAD_VALUES:
+        result = refusals[(name, repr(value))]
+        assert not result.successful, (name, value)
+        assert result.reason.startswith(f'{name} = {value!r} refused: '), result.reason
+        assert words in result.reason, result.reason
+    assert values['coupling_offset'] == 0.01 and values['input_speed'] == 8.0
+    assert values['publish_rate'] == RATE and values['frame_id'] == 'shaper_base'
+
+    # Rate: every tick arrived, stamps strictly increasing, mean rate within 10 % (a loaded
+    # two-core machine delays single ticks; the timer does not drift).
+    stamps = [stamp_ns(m) for m in messages]
+    assert all(b > a for a, b in zip(stamps, stamps[1:]))
+    rate = (len(stamps) - 1) / ((stamps[-1] - stamps[0]) / NS)
+    assert rate == pytest.approx(RATE, rel=0.1)
+
+    geometry = Geometry.paper()
+    speeds_seen = set()
+    for before, after in zip(messages, messages[1:]):
+        dt = (stamp_ns(after) - stamp_ns(before)) / NS
+        (angle0, *_, offset0), (angle1, *_, offset1) = before.position, after.position
+        speed0, speed1 = before.velocity[0], after.velocity[0]
+        speeds_seen.add(speed1)
+        # Input angle: the exact integral of a speed that ramps at the limit (possibly
+        # reaching its command inside the interval) -- up to float rounding.
+        ramp_time = min(abs(speed1 - speed0) / ACCELERATION_LIMIT, dt)
+        expected = 0.5 * (speed0 + speed1) * ramp_time + speed1 * (dt - ramp_time)
+        assert abs(wrapped(angle1 - angle0 - expected)) < 1e-9
+        # Offset: moves no faster than its rate limit.
+        assert abs(offset1 - offset0) <= OFFSET_RATE_LIMIT * dt * (1 + 1e-9)
+        # Every other joint is continuous: its move over the interval matches the
+        # trapezoid of its published velocities within 5 % of the largest possible move
+        # (smooth motion at 100 samples per turn stays below 1 %; a 1 mm offset step would
+        # jump the flywheel by 0.04 rad, about half a tick's move).
+        for joint in (1, 2, 3):
+            move = after.position[joint] - before.position[joint]
+            if joint == 1:
+                move = wrapped(move)
+            fastest = max(abs(before.velocity[joint]), abs(after.velocity[joint]))
+            trapezoid = 0.5 * (before.velocity[joint] + after.velocity[joint]) * dt
+            assert abs(move - trapezoid) <= 0.05 * fastest * dt + 1e-12, (joint, after)
+    assert {4.0, 8.0} <= speeds_seen and len(speeds_seen) > 3  # ramped, not jumped
+
+    # Published state = the core's closed form at the published angle, speed and offset.
+    for message in messages:
+        angle, flywheel, lever, ram, offset = message.position
+        speed, flywheel_speed, lever_speed, ram_velocity, offset_rate = message.velocity
+        assert all(map(math.isfinite, list(message.position) + list(message.velocity)))
+        exact = state(geometry, offset, angle, speed, 0.0, offset_rate)
+        assert abs(wrapped(flywheel - exact.flywheel_angle)) < 1e-12
+        assert (lever, ram) == pytest.approx((exact.lever_angle, exact.ram_position),
+                                             abs=1e-15)
+        assert (flywheel_speed, lever_speed, ram_velocity) == pytest.approx(
+            (exact.flywheel_speed, exact.lever_speed, exact.ram_velocity), rel=1e-12,
+            abs=1e-15)
+
+
+@pytest.mark.parametrize('signal_number', [signal.SIGINT, signal.SIGTERM],
+                         ids=['SIGINT', 'SIGTERM'])
+def test_process_stops_cleanly(probe, signal_number):
+    node = Process()
+    try:
+        probe.wait_for(lambda: len(probe.messages) >= 3, what='first joint states')
+    finally:
+        code, output = node.stop(signal_number)
+    assert code == 0, output
+    assert 'Traceback' not in output, output
+
+
+def test_process_refuses_a_bad_start_up_value_and_exits_2():
+    node = Process('-p', 'coupling_offset:=0.024')
+    code, output = node.stop(None, timeout=30.0)
+    assert code == 2
+    assert 'Traceback' not in output
+    assert 'coupling_offset' in output and '0.024' in output and '[-0.0225, 0.0225]' in output
