@@ -101,18 +101,20 @@ class Conductor:
         infos = self.node.get_subscriptions_info_by_topic('/joint_states')
         return any(info.node_name == RECORDER_NODE for info in infos)
 
-    def set_offset(self, offset):
+    def set_parameters(self, **values):
+        """Set shaper_sim parameters (floats) as `ros2 param set` does; raise if refused."""
         from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
         from rcl_interfaces.srv import SetParameters
         request = SetParameters.Request(parameters=[Parameter(
-            name='coupling_offset',
-            value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=offset))])
+            name=name, value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE,
+                                            double_value=float(value)))
+            for name, value in values.items()])
         future = self.set_client.call_async(request)
         self.wait_for(future.done, 10.0, 'the answer of /shaper_sim/set_parameters')
-        result = future.result().results[0]
-        if not result.successful:
-            raise MainJobError(f'/shaper_sim refused coupling_offset = {offset} m: '
-                               f'{result.reason}')
+        for name, result in zip(values, future.result().results):
+            if not result.successful:
+                raise MainJobError(f'/shaper_sim refused {name} = {values[name]}: '
+                                   f'{result.reason}')
 
     def steady_pairs_at(self, offset, since):
         """Count steady stroke pairs at an offset that began after `since` (epoch s)."""
@@ -194,7 +196,7 @@ def run(options):
         # Pairs that began before the recorder was surely receiving do not count.
         recording_since = time.time() + RECORDER_SETTLE_TIME
         for offset in offsets:
-            conductor.set_offset(offset)
+            conductor.set_parameters(coupling_offset=offset)
             started = time.monotonic()
             conductor.wait_for(lambda: conductor.steady_pairs_at(
                 offset, recording_since) >= options.pairs,
