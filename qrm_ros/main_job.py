@@ -116,12 +116,14 @@ class Conductor:
                 raise MainJobError(f'/shaper_sim refused {name} = {values[name]}: '
                                    f'{result.reason}')
 
-    def steady_pairs_at(self, offset, since):
-        """Count steady stroke pairs at an offset that began after `since` (epoch s)."""
+    def steady_pairs_at(self, offset, since, input_speed=None):
+        """Count steady stroke pairs at an offset (and speed) that began after `since` (s)."""
         return sum(1 for pair in self.pairs
                    if pair.get('offset_steady') == 'true'
                    and pair.get('input_speed_steady') == 'true'
                    and float(pair.get('coupling_offset', 'nan')) == offset
+                   and (input_speed is None
+                        or float(pair.get('input_speed', 'nan')) == input_speed)
                    and float(pair.get('pair_start', '-inf')) >= since)
 
     def close(self):

@@ -156,6 +156,18 @@ class ShaperStepper:
         self._offset = self._offset_command = offset
         self._stamp_ns = None
 
+    def restore(self, stamp_ns, input_angle, input_speed, offset):
+        """
+        Take a recorded state as the present one, at its stamp (to replay a logged run).
+
+        Commands equal the state until set; stepping on from here repeats, bit for bit, what
+        the stepper that produced the state did, given the same commands at the same stamps.
+        """
+        input_angle = _finite('input_angle', input_angle, 'rad')
+        self.reset(input_speed, offset)
+        self._input_angle = wrap_angle(input_angle)
+        self._stamp_ns = int(stamp_ns)
+
     def resync(self):
         """Hold the state: the next step starts a new time base (used after a pause)."""
         self._stamp_ns = None

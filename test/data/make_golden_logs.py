@@ -1,0 +1,85 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+Regenerate the golden logs in this folder (real shaper_sim and mcap_recorder processes).
+
+    python3 dev.py run python test/data/make_golden_logs.py [NAME ...]
+
+Each run starts the node at its first setting, records, changes the settings through the
+node's parameter service (as `ros2 param set` does), and moves on after enough steady stroke
+pairs at each setting (from the node's diagnostics). Parameter changes only: their
+/parameter_events carry the node-clock stamp the replay test needs.
+"""
+
+import math
+import os
+import sys
+import tempfile
+import time
+
+from qrm_ros.main_job import _start, _stop, Conductor, MainJobError, RECORDER_SETTLE_TIME
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+TWO_PI = 2 * math.pi
+# name -> list of settings (offset m, input speed rad/s, steady stroke pairs to record)
+RUNS = {
+    'steady_positive_offset': [(0.010, TWO_PI, 3)],
+    'steady_negative_offset': [(-0.010, TWO_PI, 3)],
+    'offset_and_speed_change': [(0.0, TWO_PI, 2), (0.012, TWO_PI, 2), (0.012, 9.0, 3),
+                                (-0.008, TWO_PI, 2)],
+}
+
+
+def record(name, settings):
+    path = os.path.join(HERE, name + '.mcap')
+    if os.path.exists(path):
+        os.remove(path)
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
+               ROS_DOMAIN_ID=os.environ.get('ROS_DOMAIN_ID', '142'))
+    os.environ.update(env)
+    logs = tempfile.mkdtemp(prefix='golden_')
+    offset, speed, _ = settings[0]
+    sim = _start('shaper_sim', ['-p', f'coupling_offset:={offset!r}', '-p',
+                                f'input_speed:={speed!r}', '-p', 'offset_rate_limit:=0.02'],
+                 os.path.join(logs, 'shaper_sim.log'), env)
+    recorder = None
+    conductor = Conductor()
+    try:
+        conductor.wait_for(conductor.set_client.service_is_ready, 30.0, 'shaper_sim')
+        recorder = _start('recorder', ['-p', f'output:={path}'],
+                          os.path.join(logs, 'mcap_recorder.log'), env)
+        conductor.wait_for(conductor.recorder_subscribed, 30.0, 'mcap_recorder')
+        since = time.time() + RECORDER_SETTLE_TIME
+        for offset, speed, pairs in settings:
+            conductor.set_parameters(coupling_offset=offset, input_speed=speed)
+            conductor.wait_for(lambda: conductor.steady_pairs_at(offset, since, speed) >= pairs,
+                               60.0, f'{pairs} steady pairs at {offset} m, {speed} rad/s')
+    finally:
+        conductor.close()
+        if recorder is not None:
+            _stop(recorder)
+        _stop(sim)
+    print(f'{path}: {os.path.getsize(path)} bytes (logs in {logs})')
+
+
+def main(names):
+    for name in names or RUNS:
+        try:
+            record(name, RUNS[name])
+        except MainJobError as error:
+            sys.exit(f'make_golden_logs: {name}: {error}')
+
+
+if __name__ == '__main__':
+    main(sys.argv[1:])
