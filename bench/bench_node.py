@@ -27,13 +27,14 @@ thresholds are asserted (targets: max rate >= 0.9 x bare, CPU at 1 kHz <= 1.2 x 
 
 import argparse
 from array import array
-import fcntl
 import os
 import shutil
 import statistics
 import subprocess
 import sys
 import time
+
+from qrm_ros.ros_isolation import isolate_ros_traffic
 
 RATES = [100.0, 200.0, 500.0, 1000.0, 2000.0, 3000.0, 5000.0]
 SUSTAINED_MISSED_FRACTION = 0.01
@@ -68,19 +69,6 @@ def bare_main(rate):
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
-
-
-def claim_domain():
-    """Take a ROS domain no test run holds (same lock files as test/conftest.py)."""
-    for domain in range(100, 10, -1):
-        handle = open(f'/tmp/qrm_ros_test_domain_{domain}.lock', 'w')
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            handle.close()
-            continue
-        return domain, handle
-    raise RuntimeError('no free ROS domain id')
 
 
 def cpu_seconds(pid):
@@ -193,10 +181,7 @@ def main():
     args = parser.parse_args()
     if args.bare:
         return bare_main(args.bare)
-    if 'ROS_DOMAIN_ID' not in os.environ:
-        domain, lock = claim_domain()
-        os.environ['ROS_DOMAIN_ID'] = str(domain)
-    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    isolate_ros_traffic(os.environ)
     probe = Probe()
     runs = []
     for index in range(args.repeat):

@@ -27,7 +27,6 @@ messages (bytes and timestamps from the recorded file) in the same run:
 """
 
 import argparse
-import fcntl
 import os
 import signal
 import statistics
@@ -36,24 +35,10 @@ import sys
 import tempfile
 import time
 
+from bench_node import cpu_seconds
+from qrm_ros.ros_isolation import isolate_ros_traffic
+
 RATE_HZ = 1000.0
-
-
-def _cpu_seconds(pid):
-    with open(f'/proc/{pid}/stat') as handle:
-        fields = handle.read().rsplit(')', 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
-
-
-def _claim_domain():
-    for domain in range(101, 200):
-        handle = open(f'/tmp/qrm_ros_test_domain_{domain}.lock', 'w')
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            return domain, handle
-        except OSError:
-            handle.close()
-    raise RuntimeError('no free ROS domain id')
 
 
 def publish(seconds):
@@ -139,9 +124,9 @@ def one_run(seconds, folder, env):
     publisher = subprocess.Popen([sys.executable, __file__, '--publish', str(seconds)],
                                  stdout=subprocess.PIPE, text=True, env=env)
     assert publisher.stdout.readline().strip() == 'started'
-    cpu_start, wall_start = _cpu_seconds(recorder.pid), time.monotonic()
+    cpu_start, wall_start = cpu_seconds(recorder.pid), time.monotonic()
     offered = publisher.stdout.readline().split()
-    cpu_used, wall = _cpu_seconds(recorder.pid) - cpu_start, time.monotonic() - wall_start
+    cpu_used, wall = cpu_seconds(recorder.pid) - cpu_start, time.monotonic() - wall_start
     publisher.wait(30)
     recorder.send_signal(signal.SIGINT)
     assert recorder.wait(30) == 0, open(logs.name).read()
@@ -168,8 +153,8 @@ def main():
     args = parser.parse_args()
     if args.publish is not None:
         return publish(args.publish)
-    domain, lock = _claim_domain()
-    env = dict(os.environ, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    env = dict(os.environ)
+    isolate_ros_traffic(env)
     results = []
     with tempfile.TemporaryDirectory() as folder:
         for index in range(args.runs):
@@ -190,7 +175,6 @@ def main():
     print(f'median write throughput vs raw mcap.Writer, same bytes, same run: write path '
           f'{median("write_ratio"):.2f}x, end to end (whole recorder process per CPU second) '
           f'{median("end_to_end_ratio"):.2f}x')
-    lock.close()
     return 0
 
 

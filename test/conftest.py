@@ -14,40 +14,20 @@
 """
 Test-session set-up shared by every test module.
 
-Each pytest run takes a ROS domain no other concurrent run on this machine holds (an flock on
-a file per domain), and limits discovery to localhost, so parallel runs and other ROS
-traffic never cross. Subprocesses inherit the environment.
+Each pytest run takes a ROS domain no other concurrent run on this machine holds and limits
+discovery to localhost (qrm_ros.ros_isolation), so parallel runs and other ROS traffic never
+cross. Subprocesses inherit the environment.
 """
 
-import fcntl
 import os
 
 import pytest
 
-_DOMAIN_RANGE = range(11, 101)
-_domain_lock = None
-
-
-def _claim_domain():
-    global _domain_lock
-    start = os.getpid() % len(_DOMAIN_RANGE)
-    for index in range(len(_DOMAIN_RANGE)):
-        domain = _DOMAIN_RANGE[(start + index) % len(_DOMAIN_RANGE)]
-        handle = open(f'/tmp/qrm_ros_test_domain_{domain}.lock', 'w')
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            handle.close()
-            continue
-        _domain_lock = handle
-        return domain
-    raise RuntimeError('no free ROS domain id for this test run')
+from qrm_ros.ros_isolation import isolate_ros_traffic
 
 
 def pytest_configure(config):
-    os.environ['ROS_DOMAIN_ID'] = str(_claim_domain())
-    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-    os.environ.pop('ROS_STATIC_PEERS', None)
+    isolate_ros_traffic(os.environ)
     os.environ.setdefault('RCUTILS_LOGGING_BUFFERED_STREAM', '1')
     config.addinivalue_line('markers', 'slow: longer end-to-end test (-m "not slow" skips)')
 
