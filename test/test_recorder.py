@@ -40,6 +40,8 @@ import pytest
 from qrm_ros.bag_reader import open_run, RunFileError
 import yaml
 
+from ros_probe import BackgroundSpinner, call
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 PUBLISHER = os.path.join(HERE, 'test_recorder_publisher.py')
 REAL_SIM = importlib.util.find_spec('qrm_ros.shaper_sim') is not None
@@ -109,7 +111,6 @@ class Listener:
 
     def __init__(self):
         import rclpy
-        from rclpy.executors import SingleThreadedExecutor
         from rclpy.qos import QoSProfile, ReliabilityPolicy
         from rcl_interfaces.srv import GetParameters, SetParameters
         self.context = rclpy.Context()
@@ -125,17 +126,7 @@ class Listener:
                 raw=True)
         self.get_client = self.node.create_client(GetParameters, '/shaper_sim/get_parameters')
         self.set_client = self.node.create_client(SetParameters, '/shaper_sim/set_parameters')
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self.thread = threading.Thread(target=self._spin, daemon=True)
-        self.thread.start()
-
-    def _spin(self):
-        while self.context.ok():
-            try:
-                self.executor.spin_once(timeout_sec=0.05)
-            except Exception:  # the context was shut down under us
-                return
+        self.spinner = BackgroundSpinner(self.context, self.node)
 
     def _take(self, topic, data):
         with self.lock:
@@ -158,19 +149,12 @@ class Listener:
             time.sleep(0.05)
 
     def call(self, client, request, timeout=5.0):
-        assert client.wait_for_service(timeout_sec=timeout), client.srv_name
-        future = client.call_async(request)
-        deadline = time.monotonic() + timeout
-        while not future.done() and time.monotonic() < deadline:
-            time.sleep(0.01)
-        assert future.done(), f'{client.srv_name} did not answer'
-        return future.result()
+        return call(client, request, timeout)
 
     def close(self):
-        self.executor.shutdown()
+        self.spinner.stop()
         self.node.destroy_node()
         self.context.try_shutdown()
-        self.thread.join(2.0)
 
 
 def _message_class(type_name):

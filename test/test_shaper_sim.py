@@ -20,7 +20,6 @@ services, pause and simulated time go through a spinning executor.
 """
 
 import math
-import threading
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -31,13 +30,14 @@ from rcl_interfaces.msg import ParameterType
 from rcl_interfaces.srv import DescribeParameters
 import rclpy
 from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, Trigger
+
+from ros_probe import BackgroundSpinner, call, wait_for
 
 NS = 1_000_000_000
 R1, R, H_PIVOT = 0.025, 0.0505, 0.113
@@ -63,36 +63,20 @@ class Harness:
                                        1000)
         self.probe.create_subscription(DiagnosticArray, '/diagnostics',
                                        self.diagnostics.append, 1000)
-        self.executor = SingleThreadedExecutor(context=context)
-        self.executor.add_node(self.probe)
-        if spin_shaper:
-            self.executor.add_node(self.shaper)
-        self.running = True
-        self.thread = threading.Thread(target=self._spin, daemon=True)
-        self.thread.start()
-
-    def _spin(self):
-        while self.running:
-            self.executor.spin_once(timeout_sec=0.02)
+        self.spinner = BackgroundSpinner(context, self.probe,
+                                         *([self.shaper] if spin_shaper else []))
 
     def wait_for(self, predicate, timeout=10.0, what='condition'):
-        deadline = time.monotonic() + timeout
-        while not predicate():
-            assert time.monotonic() < deadline, f'timed out after {timeout} s waiting for {what}'
-            time.sleep(0.005)
+        wait_for(predicate, timeout, what)
 
     def call(self, service_type, name, request):
         client = self.probe.create_client(service_type, name)
-        assert client.wait_for_service(timeout_sec=10.0), name
-        future = client.call_async(request)
-        self.wait_for(future.done, what=f'{name} response')
+        response = call(client, request)
         self.probe.destroy_client(client)
-        return future.result()
+        return response
 
     def close(self):
-        self.running = False
-        self.thread.join(timeout=5.0)
-        self.executor.shutdown()
+        self.spinner.stop()
         self.shaper.destroy_node()
         self.probe.destroy_node()
 

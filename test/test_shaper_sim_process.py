@@ -27,8 +27,6 @@ import signal
 import subprocess
 import sys
 import tempfile
-import threading
-import time
 
 from ament_index_python.packages import get_package_share_directory
 import numpy as np
@@ -37,10 +35,11 @@ from qrm_ros.kinematics import Geometry, state
 from rcl_interfaces.srv import GetParameters, SetParameters
 import rclpy
 from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter, parameter_value_to_python
 from sensor_msgs.msg import JointState
+
+from ros_probe import BackgroundSpinner, call, wait_for
 
 NS = 1_000_000_000
 RATE = 100.0  # Hz, the default publish_rate
@@ -91,27 +90,13 @@ class Probe:
         self.node.create_subscription(JointState, 'joint_states', self.messages.append, 1000)
         self.set_client = self.node.create_client(SetParameters, '/shaper_sim/set_parameters')
         self.get_client = self.node.create_client(GetParameters, '/shaper_sim/get_parameters')
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self.running = True
-        self.thread = threading.Thread(target=self._spin, daemon=True)
-        self.thread.start()
-
-    def _spin(self):
-        while self.running:
-            self.executor.spin_once(timeout_sec=0.02)
+        self.spinner = BackgroundSpinner(self.context, self.node)
 
     def wait_for(self, predicate, timeout=15.0, what='condition'):
-        deadline = time.monotonic() + timeout
-        while not predicate():
-            assert time.monotonic() < deadline, f'timed out after {timeout} s waiting for {what}'
-            time.sleep(0.005)
+        wait_for(predicate, timeout, what)
 
     def call(self, client, request):
-        assert client.wait_for_service(timeout_sec=15.0), client.srv_name
-        future = client.call_async(request)
-        self.wait_for(future.done, what=f'{client.srv_name} response')
-        return future.result()
+        return call(client, request, timeout=15.0)
 
     def set_parameter(self, name, value):
         """One parameter per request, as `ros2 param set` sends it."""
@@ -126,9 +111,7 @@ class Probe:
                 for name, value in zip(names, response.values)}
 
     def close(self):
-        self.running = False
-        self.thread.join(timeout=5.0)
-        self.executor.shutdown()
+        self.spinner.stop()
         self.node.destroy_node()
         rclpy.shutdown(context=self.context)
 
