@@ -15,7 +15,7 @@
 The MCAP recorder against real processes and DDS, checked with independent readers.
 
 The recorder runs as its own process next to a publisher (the real shaper_sim when it is
-installed, else test_recorder_publisher.py, which waits for its subscribers so counts match
+installed, else stand_in_publisher.py, which waits for its subscribers so counts match
 exactly) and a parallel rclpy subscriber in this process. Files are read back with mcap +
 mcap-ros2-support, with rosbags (its MCAP storage reader, and AnyReader on a rosbag2 folder
 made from the file's own rosbag2 record), and with qrm_ros.bag_reader.
@@ -43,7 +43,7 @@ import yaml
 from ros_probe import BackgroundSpinner, call
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-PUBLISHER = os.path.join(HERE, 'test_recorder_publisher.py')
+PUBLISHER = os.path.join(HERE, 'stand_in_publisher.py')
 REAL_SIM = importlib.util.find_spec('qrm_ros.shaper_sim') is not None
 TYPES = {'/joint_states': 'sensor_msgs/msg/JointState',
          '/ram/twist': 'geometry_msgs/msg/TwistStamped',
