@@ -19,7 +19,7 @@ number of subscribers matched every topic before publishing, so a recorder and a
 subscriber see exactly the same messages. Prints 'published <n>' after each batch and keeps
 serving (parameters, reliable resends) until SIGINT/SIGTERM.
 
-    python test_recorder_publisher.py COUNT RATE_HZ SUBSCRIBERS [--forever]
+    python stand_in_publisher.py COUNT RATE_HZ SUBSCRIBERS [--forever]
 """
 
 import signal
