@@ -28,10 +28,9 @@ setup(
         ('share/' + package_name + '/config', glob('config/*.yaml')),
         ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
     ],
-    install_requires=['setuptools', 'numpy', 'scipy', 'mcap', 'mcap-ros2-support',
-                      'matplotlib'],
+    install_requires=['setuptools', 'numpy', 'scipy', 'mcap', 'rosbags', 'matplotlib'],
     extras_require={
-        'test': ['pytest', 'flake8', 'pydocstyle', 'rosbags'],
+        'test': ['pytest', 'flake8', 'pydocstyle', 'mcap-ros2-support', 'pyyaml'],
     },
     zip_safe=True,
     maintainer='qrm_ros developers',
