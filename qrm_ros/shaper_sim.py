@@ -316,7 +316,12 @@ class ShaperSimNode(Node):
     def set_parameters_atomically(self, parameter_list):
         """Check our parameters first, so every refusal gets this node's full reason."""
         parameter_list = [self._coerced(p) for p in parameter_list]
-        reason = self._refusal(parameter_list)
+        unknown = [p.name for p in parameter_list if not self.has_parameter(p.name)]
+        # rclpy's own refusal of an undeclared name names none ("parameter(s): []").
+        reason = unknown and (
+            f'{", ".join(unknown)}: no such parameter of {self.get_name()}; its parameters: '
+            f'{", ".join(sorted(PARAMETERS))}')
+        reason = reason or self._refusal(parameter_list)
         if reason:
             self.get_logger().warning(reason)
             return SetParametersResult(successful=False, reason=reason)

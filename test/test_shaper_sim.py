@@ -160,6 +160,15 @@ def test_bad_values_are_refused_with_a_reason_and_change_nothing(harness, name, 
     assert (h.shaper.stepper.speed_command, h.shaper.stepper.offset_command) == commands
 
 
+def test_an_undeclared_name_is_refused_naming_it(harness):
+    h = harness(spin_shaper=False)
+    result, = h.shaper.set_parameters([Parameter('coupling_ofset', value=0.01)])
+    assert not result.successful
+    assert result.reason.startswith('coupling_ofset: no such parameter of shaper_sim')
+    assert 'coupling_offset' in result.reason
+    assert not h.shaper.has_parameter('coupling_ofset')
+
+
 def test_the_on_set_callback_refuses_too(harness):
     # rclpy's own path (descriptor checks, then on-set callbacks) without this node's
     # front check: cross-parameter rules still refuse, with the same reason.
