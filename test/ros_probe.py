@@ -18,10 +18,29 @@ Tests never sleep for a fixed time: they wait for a condition with a timeout, wh
 under test (or probing them) are spun on a daemon thread.
 """
 
+import os
+import shutil
 import threading
 import time
 
+from ament_index_python.packages import get_package_prefix, PackageNotFoundError
 from rclpy.executors import SingleThreadedExecutor
+
+
+def installed_executable(name):
+    """
+    Path of a qrm_ros console script, or None.
+
+    Looked up where `ros2 run` looks first (<prefix>/lib/qrm_ros, the colcon layout), then on
+    PATH (a pip install puts the scripts in the environment's bin/).
+    """
+    try:
+        found = os.path.join(get_package_prefix('qrm_ros'), 'lib', 'qrm_ros', name)
+    except PackageNotFoundError:
+        found = None
+    if found and os.access(found, os.X_OK):
+        return found
+    return shutil.which(name)
 
 
 def wait_for(predicate, timeout=10.0, what='condition'):

@@ -26,7 +26,6 @@ import importlib.util
 import json
 import os
 import resource
-import shutil
 import signal
 import subprocess
 import sys
@@ -40,7 +39,7 @@ import pytest
 from qrm_ros.bag_reader import open_run, RunFileError
 import yaml
 
-from ros_probe import BackgroundSpinner, call
+from ros_probe import BackgroundSpinner, call, installed_executable
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 PUBLISHER = os.path.join(HERE, 'stand_in_publisher.py')
@@ -56,7 +55,7 @@ GEOMETRY = ['coupling_radius', 'crank_radius', 'pivot_distance', 'ram_height', '
 
 
 def _recorder_command(*parameters):
-    executable = shutil.which('mcap_recorder')
+    executable = installed_executable('mcap_recorder')
     command = [executable] if executable else [sys.executable, '-m', 'qrm_ros.recorder']
     command += ['--ros-args']
     for parameter in parameters:
@@ -66,7 +65,7 @@ def _recorder_command(*parameters):
 
 def _publisher_command(count, rate, subscribers, forever=False):
     if REAL_SIM:
-        return [shutil.which('shaper_sim') or 'shaper_sim']
+        return [installed_executable('shaper_sim') or 'shaper_sim']
     return [sys.executable, PUBLISHER, str(count), str(rate), str(subscribers)] + (
         ['--forever'] if forever else [])
 
@@ -74,11 +73,14 @@ def _publisher_command(count, rate, subscribers, forever=False):
 class Process:
     """A child process with its output in files, stopped by pid only."""
 
+    started = []  # every one, so a failing test leaves none running (see no_leftovers)
+
     def __init__(self, command, folder, name, **kwargs):
         self.out_path = os.path.join(folder, name + '.out')
         self.err_path = os.path.join(folder, name + '.err')
         with open(self.out_path, 'w') as out, open(self.err_path, 'w') as err:
             self.popen = subprocess.Popen(command, stdout=out, stderr=err, **kwargs)
+        Process.started.append(self)
 
     def output(self):
         with open(self.out_path) as out, open(self.err_path) as err:
@@ -104,6 +106,17 @@ class Process:
             self.popen.wait()
             raise AssertionError(f'{self.popen.args[0]} ignored signal {number}:\n'
                                  + self.output())
+
+
+@pytest.fixture(autouse=True)
+def no_leftovers():
+    """Kill what a test started and did not stop (e.g. it failed before its finally)."""
+    yield
+    while Process.started:
+        popen = Process.started.pop().popen
+        if popen.poll() is None:
+            popen.kill()
+            popen.wait()
 
 
 class Listener:

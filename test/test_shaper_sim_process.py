@@ -22,10 +22,8 @@ joints from the kinematics core at the published angle, speed and offset.
 
 import math
 import os
-import shutil
 import signal
 import subprocess
-import sys
 import tempfile
 
 from ament_index_python.packages import get_package_share_directory
@@ -39,7 +37,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter, parameter_value_to_python
 from sensor_msgs.msg import JointState
 
-from ros_probe import BackgroundSpinner, call, wait_for
+from ros_probe import BackgroundSpinner, call, installed_executable, wait_for
 
 NS = 1_000_000_000
 RATE = 100.0  # Hz, the default publish_rate
@@ -48,9 +46,8 @@ OFFSET_RATE_LIMIT = 0.005  # m/s, config/shaper.yaml
 
 
 def executable():
-    found = shutil.which('shaper_sim')
-    found = found or os.path.join(os.path.dirname(sys.executable), 'shaper_sim')
-    assert os.path.exists(found), 'the shaper_sim console script is not installed'
+    found = installed_executable('shaper_sim')
+    assert found, 'the shaper_sim console script is not installed (lib/qrm_ros nor PATH)'
     return found
 
 
