@@ -99,8 +99,13 @@ class Geometry:
 
     @property
     def max_safe_offset(self):
-        """Largest |offset| the node accepts (SAFE_OFFSET_FRACTION of the coupling radius)."""
-        return SAFE_OFFSET_FRACTION * self.coupling_radius
+        """
+        Largest |offset| the node accepts (SAFE_OFFSET_FRACTION of the coupling radius).
+
+        Rounded to 15 significant digits, so limits read 0.0225, not 0.022500000000000003.
+        """
+        limit = SAFE_OFFSET_FRACTION * self.coupling_radius
+        return float(f'{limit:.15g}') if np.ndim(limit) == 0 else limit
 
     @property
     def ram_stroke(self):

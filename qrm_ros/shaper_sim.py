@@ -285,10 +285,16 @@ class ShaperSimNode(Node):
         try:
             self._values[name] = self.declare_parameter(name, spec.default, descriptor).value
         except (InvalidParameterTypeException, InvalidParameterValueException) as error:
-            kind = ' (a double: write it with a decimal point, e.g. 100.0)' if isinstance(
-                error, InvalidParameterTypeException) and isinstance(spec.default, float) else ''
-            raise ValueError(f'start-up value of {name} refused: {error}; allowed: '
-                             f'{_allowed(name, values, geometry)}{kind}') from None
+            # rclpy's own wording names no allowed range; give this node's reason instead.
+            given = self._parameter_overrides.get(name)
+            reason = given is not None and refusal_reason(name, given.value, values, geometry)
+            wrong_type = isinstance(error, InvalidParameterTypeException)
+            if wrong_type and isinstance(spec.default, float):
+                reason = (f'{name} = {given.value!r} refused: must be a double, written with a '
+                          f'decimal point (e.g. {spec.default!r}); allowed: '
+                          f'{_allowed(name, values, geometry)}')
+            raise ValueError(reason or f'{name}: {error}; allowed: '
+                             f'{_allowed(name, values, geometry)}') from None
 
     # Parameters ---------------------------------------------------------------------------
 
@@ -399,8 +405,13 @@ class ShaperSimNode(Node):
     # Stepping and publishing --------------------------------------------------------------
 
     def _on_timer(self):
-        if not self._paused:
-            self.publish_at(self.get_clock().now().nanoseconds)
+        if self._paused:
+            return
+        stamp_ns = self.get_clock().now().nanoseconds
+        if stamp_ns == 0:
+            self.get_logger().info('use_sim_time is true and no /clock has arrived yet: '
+                                   'waiting for it', throttle_duration_sec=_WARNING_PERIOD)
+        self.publish_at(stamp_ns)
 
     def publish_at(self, stamp_ns):
         """

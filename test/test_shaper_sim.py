@@ -111,7 +111,8 @@ def test_parameters_are_declared_with_units_ranges_and_read_only_flags(harness):
         assert f'[{spec.unit}]' in descriptors[name].description or not spec.unit
         assert descriptors[name].additional_constraints.startswith('allowed: ')
     offset_range = descriptors['coupling_offset'].floating_point_range[0]
-    assert (offset_range.from_value, offset_range.to_value) == (-0.9 * R1, 0.9 * R1)
+    # 0.9 r1, shown as 0.0225 (not 0.022500000000000003) in descriptors and messages.
+    assert (offset_range.from_value, offset_range.to_value) == (-0.0225, 0.0225)
     assert descriptors['frame_id'].type == ParameterType.PARAMETER_STRING
     defaults = {name: h.shaper.get_parameter(name).value for name in PARAMETERS}
     assert defaults == {name: spec.default for name, spec in PARAMETERS.items()}
@@ -200,15 +201,19 @@ def test_accepted_values_reach_the_stepper(harness):
 
 def test_bad_start_up_values_are_refused_with_a_reason(context):
     for overrides, words in [
-            ({'coupling_offset': 0.024}, ['coupling_offset', '0.024', '[-0.0225, 0.0225]']),
+            ({'coupling_offset': 0.024}, ['coupling_offset = 0.024 refused',
+                                          '[-0.0225, 0.0225]']),
             ({'crank_radius': 0.12}, ['crank_radius', '0.12', 'pivot_distance']),
-            ({'input_speed': 80.0}, ['input_speed = 80.0', '[-60, 60]']),
-            ({'publish_rate': 100}, ['publish_rate', 'decimal point'])]:
+            ({'input_speed': 80.0}, ['input_speed = 80.0 refused', '[-60, 60]']),
+            ({'offset_rate_limit': -1.0}, ['offset_rate_limit = -1.0 refused', '[1e-06, 1]']),
+            ({'publish_rate': 100}, ['publish_rate = 100 refused', 'decimal point',
+                                     'e.g. 100.0'])]:
         with pytest.raises(ValueError) as error:
             ShaperSimNode(context=context, parameter_overrides=[
                 Parameter(name, value=value) for name, value in overrides.items()])
         for word in words:
             assert word in str(error.value)
+        assert 'Invalid parameter' not in str(error.value)  # this node's words, not rclpy's
 
 
 # Publishing and diagnostics ---------------------------------------------------------------
