@@ -25,9 +25,13 @@ Exit status: 0 analysed; 2 the input could not be analysed (one-line reason on s
 """
 
 import argparse
+import concurrent.futures
+import contextlib
 import csv
 import json
 import math
+import multiprocessing
+import os
 import sys
 from typing import NamedTuple
 
@@ -51,6 +55,10 @@ STEADY_TOLERANCE = 1e-12
 MIN_SEGMENT_SAMPLES = 3
 EXIT_BAD_INPUT, EXIT_TRUNCATED = 2, 3
 PROGRESS_MIN_MESSAGES = 20000
+PROGRESS_STEP = 5000
+# Long runs are decoded in parallel worker processes, one per core (up to MAX_WORKERS).
+PARALLEL_MIN_MESSAGES = 100_000
+MAX_WORKERS = 8
 
 
 class AnalysisError(Exception):
@@ -86,9 +94,10 @@ def _progress(stream, total):
         filled = width * done // total
         stream.write(f'\rreading joint states [{"#" * filled}{"." * (width - filled)}] '
                      f'{100 * done // total:3d}%')
-        if done == total:
+        if done >= total:
             stream.write('\n')
         stream.flush()
+    update.total = total
     return update
 
 
@@ -110,17 +119,70 @@ def read_recording(path, geometry_overrides=None, progress_stream=sys.stderr):
         present = ', '.join(f'{t} ({s})' for t, s in sorted(topics.items())) or 'none'
         raise AnalysisError(f'{path} has no {JOINT_STATES_TOPIC} topic of type '
                             f'{JOINT_STATE_TYPE} (topics present: {present})')
+    total = run.message_count(JOINT_STATES_TOPIC)
+    progress = None
+    if progress_stream.isatty() and total >= PROGRESS_MIN_MESSAGES:
+        progress = _progress(progress_stream, total)  # a bar only for a person, on long files
+    workers = min(os.cpu_count() or 1, MAX_WORKERS) if total >= PARALLEL_MIN_MESSAGES else 1
+    spans = run.time_spans(workers)
+    if len(spans) == 1:
+        counter = _Counter()
+        parts = [_decode_span(path, None, None, counter, progress)]
+    else:
+        parts = _decode_in_parallel(path, spans, progress)
+    names = parts[0][0]
+    for part in parts[1:]:
+        if part[0] is not None and part[0] != names:
+            raise AnalysisError(f'{path}: the joints of {JOINT_STATES_TOPIC} change during '
+                                f'the run ({names} then {part[0]})')
+    stamp = np.concatenate([part[1] for part in parts])
+    if stamp.size < 3:
+        raise AnalysisError(f'{path} holds {stamp.size} {JOINT_STATES_TOPIC} messages: too few '
+                            'to find any stroke')
+    joint_order = _joint_order(names, path)
+    order = np.argsort(stamp, kind='stable')  # the spans and the file order are not sorted
+    stamp = stamp[order]
+    keep = np.concatenate([[True], np.diff(stamp) > 0])  # a stamp published twice counts once
+    time = (stamp[keep] - stamp[0]) * 1e-9
+    position = np.concatenate([part[2] for part in parts])[order][keep][:, joint_order]
+    velocity = np.concatenate([part[3] for part in parts])[order][keep][:, joint_order]
+    samples = Samples(time, position[:, 0], velocity[:, 0], position[:, 1], velocity[:, 1],
+                      position[:, 3], velocity[:, 3], position[:, 4], velocity[:, 4])
+    return Recording(path, geometry, samples, run.problem if run.truncated else None)
+
+
+class _Counter:
+    """Messages decoded so far (a shared multiprocessing.Value in worker processes)."""
+
+    def __init__(self):
+        self.value = 0
+
+    def get_lock(self):
+        return contextlib.nullcontext()
+
+
+_worker_counter = None
+
+
+def _start_worker(counter):
+    global _worker_counter
+    _worker_counter = counter
+
+
+def _decode_span(path, starting_at, ending_before, counter=None, progress=None):
+    """
+    Decode the joint states of a log-time span: (names, stamps, positions, velocities).
+
+    The hot loop of a long file: one decode and three appends per message.
+    """
+    counter = counter or _worker_counter
     deserialize = _typestore().deserialize_cdr
-    progress = total = None
-    if progress_stream.isatty():  # a bar only for a person watching, and only on long files
-        total = run.message_count(JOINT_STATES_TOPIC)
-        if total >= PROGRESS_MIN_MESSAGES:
-            progress = _progress(progress_stream, total)
     stamps, positions, velocities = [], [], []
     names = None
-    # The hot loop of a long file: one decode and three appends per message.
-    for count, (_, _, _, _, data) in enumerate(
-            run.messages([JOINT_STATES_TOPIC], log_time_order=False), 1):  # sorted below
+    run = open_run(path)
+    messages = run.messages([JOINT_STATES_TOPIC], log_time_order=False,  # sorted later
+                            starting_at=starting_at, ending_before=ending_before)
+    for count, (_, _, _, _, data) in enumerate(messages, 1):
         message = deserialize(data, JOINT_STATE_TYPE)
         if message.name != names:
             if names is not None:
@@ -131,22 +193,34 @@ def read_recording(path, geometry_overrides=None, progress_stream=sys.stderr):
         stamps.append(stamp.sec * 1_000_000_000 + stamp.nanosec)
         positions.append(message.position)
         velocities.append(message.velocity)
-        if progress is not None and (count % 5000 == 0 or count == total):
-            progress(count)
-    if len(stamps) < 3:
-        raise AnalysisError(f'{path} holds {len(stamps)} {JOINT_STATES_TOPIC} messages: too few '
-                            'to find any stroke')
-    joint_order = _joint_order(names, path)
-    stamp = np.asarray(stamps, dtype=np.int64)
-    order = np.argsort(stamp, kind='stable')
-    stamp = stamp[order]
-    keep = np.concatenate([[True], np.diff(stamp) > 0])  # a stamp published twice counts once
-    time = (stamp[keep] - stamp[0]) * 1e-9
-    position = np.asarray(positions)[order][keep][:, joint_order]
-    velocity = np.asarray(velocities)[order][keep][:, joint_order]
-    samples = Samples(time, position[:, 0], velocity[:, 0], position[:, 1], velocity[:, 1],
-                      position[:, 3], velocity[:, 3], position[:, 4], velocity[:, 4])
-    return Recording(path, geometry, samples, run.problem if run.truncated else None)
+        if count % PROGRESS_STEP == 0:
+            with counter.get_lock():
+                counter.value += PROGRESS_STEP
+            if progress is not None:
+                progress(counter.value)
+    if progress is not None:
+        progress(run.message_count(JOINT_STATES_TOPIC))
+    return (names, np.asarray(stamps, dtype=np.int64),
+            np.asarray(positions).reshape(-1, len(names or JOINTS)),
+            np.asarray(velocities).reshape(-1, len(names or JOINTS)))
+
+
+def _decode_in_parallel(path, spans, progress):
+    """Decode spans in worker processes (long runs: decoding is per-message Python work)."""
+    context = multiprocessing.get_context('spawn')  # no fork of a process that may hold DDS
+    counter = context.Value('q', 0)
+    with concurrent.futures.ProcessPoolExecutor(len(spans), mp_context=context,
+                                                initializer=_start_worker,
+                                                initargs=(counter,)) as pool:
+        futures = [pool.submit(_decode_span, path, start, end) for start, end in spans]
+        while not all(future.done() for future in futures):
+            concurrent.futures.wait(futures, timeout=0.2)
+            if progress is not None:
+                progress(min(counter.value, progress.total - 1))
+        parts = [future.result() for future in futures]
+    if progress is not None:
+        progress(progress.total)
+    return parts
 
 
 def _joint_order(names, path):

@@ -101,6 +101,7 @@ class Run:
         reader = SeekingReader(handle)
         self._schemas = dict(summary.schemas)
         self._channels = dict(summary.channels)
+        self._chunk_start_times = sorted(c.message_start_time for c in summary.chunk_indexes)
         if summary.statistics is not None:
             self._counts = dict(summary.statistics.channel_message_counts)
         try:
@@ -186,11 +187,25 @@ class Run:
                 return schema.data.decode('utf-8')
         raise KeyError(schema_name)
 
-    def messages(self, topics=None, log_time_order=True):
+    def time_spans(self, count):
+        """
+        Split the run's log time into at most `count` spans holding about equal chunk counts.
+
+        Returns [(starting_at, ending_before), ...] in ns, None for an open end: the bounds
+        for messages(), e.g. to decode the spans in parallel. An unindexed run is one span.
+        """
+        starts = self._chunk_start_times if self._indexed else []
+        cuts = sorted({starts[len(starts) * k // count] for k in range(1, count)} - {starts[0]}
+                      ) if count > 1 and len(starts) > 1 else []
+        bounds = [None] + cuts + [None]
+        return list(zip(bounds[:-1], bounds[1:]))
+
+    def messages(self, topics=None, log_time_order=True, starting_at=None, ending_before=None):
         """
         Yield (topic, schema_name, log_time_ns, publish_time_ns, data).
 
         ``topics``: names to keep ('joint_states' and '/joint_states' both work); None = all.
+        ``starting_at`` / ``ending_before``: log-time bounds in ns (None: open).
         Messages come in log-time order through the chunk index, or with log_time_order=False
         in file order, streamed (faster: no index, no merge); an unfinished file is always
         streamed in file order, which the recorder writes in log time.
@@ -200,12 +215,14 @@ class Run:
                   if wanted is None or c.topic in wanted}
         if not labels:
             return
-        if self._indexed and log_time_order:
+        bounded = starting_at is not None or ending_before is not None
+        if self._indexed and (log_time_order or bounded):
             with open(self.path, 'rb') as handle:
                 reader = SeekingReader(handle)
                 try:
                     for _, channel, message in reader.iter_messages(
                             topics=sorted({topic for topic, _ in labels.values()}),
+                            starting_at=starting_at, ending_before=ending_before,
                             log_time_order=log_time_order):
                         topic, schema = labels[channel.id]
                         yield topic, schema, message.log_time, message.publish_time, \
@@ -213,8 +230,11 @@ class Run:
                 except _DAMAGE as error:
                     raise RunFileError(f'{self.path!r}: damaged chunk ({error})') from None
             return
+        low = -1 if starting_at is None else starting_at
+        high = float('inf') if ending_before is None else ending_before
         for record in self._records():
-            if isinstance(record, Message) and record.channel_id in labels:
+            if (isinstance(record, Message) and record.channel_id in labels
+                    and low <= record.log_time < high):
                 topic, schema = labels[record.channel_id]
                 yield topic, schema, record.log_time, record.publish_time, record.data
 

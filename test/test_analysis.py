@@ -229,3 +229,16 @@ def test_progress_bar_only_on_a_terminal_and_long_files(tmp_path, monkeypatch):
     bar = terminal.getvalue()
     assert bar.startswith('\rreading joint states [') and bar.endswith('] 100%\n')
     assert bar.count('\r') == count // 5000 + 1
+
+
+def test_parallel_decoding_gives_the_same_samples_as_serial(tmp_path, monkeypatch):
+    path = tmp_path / 'run.mcap'
+    write_run(path, PAPER, [-0.01, 0.01], hold=15.0, chunk_size=16 * 1024)
+    serial = analysis.read_recording(str(path)).samples
+    monkeypatch.setattr(analysis, 'PARALLEL_MIN_MESSAGES', 0)
+    monkeypatch.setattr(analysis.os, 'cpu_count', lambda: 3)
+    spans = analysis.open_run(str(path)).time_spans(3)
+    assert len(spans) == 3  # really split
+    parallel = analysis.read_recording(str(path)).samples
+    for name, values in serial._asdict().items():
+        np.testing.assert_array_equal(getattr(parallel, name), values, err_msg=name)
