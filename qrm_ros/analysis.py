@@ -54,6 +54,8 @@ STEADY_TOLERANCE = 1e-12
 # Shortest steady run worth measuring (a stroke pair needs several samples anyway).
 MIN_SEGMENT_SAMPLES = 3
 EXIT_BAD_INPUT, EXIT_TRUNCATED = 2, 3
+# Below this, the between-sample interpolation can miss sharp speed peaks (large offsets).
+MIN_SAMPLES_PER_REVOLUTION = 60
 PROGRESS_MIN_MESSAGES = 20000
 PROGRESS_STEP = 5000
 # Long runs are decoded in parallel worker processes, one per core (up to MAX_WORKERS).
@@ -318,7 +320,11 @@ def measure_segment(samples, segment, geometry):
         'start_time': float(samples.time[segment.start]),
         'end_time': float(samples.time[segment.end - 1]),
         'stroke_pairs': int(len(pairs.time_ratio)),
+        'samples_per_revolution': None,
     }
+    if segment.input_speed != 0.0:
+        step = float(np.median(np.diff(samples.time[span])))
+        row['samples_per_revolution'] = 2 * math.pi / (abs(segment.input_speed) * step)
     measured = {
         'time_ratio': pairs.time_ratio, 'speed_ratio': pairs.speed_ratio,
         'peak_speed_ratio': pairs.peak_speed_ratio, 'cutting_time': pairs.cutting_time,
@@ -388,6 +394,14 @@ def format_table(analysis):
         lines.append(''.join(parts)[:-2])
     if not analysis.rows:
         lines.append('  (no segment of steady offset and input speed)')
+    for row in analysis.rows:
+        per_turn = row['samples_per_revolution']
+        if per_turn is not None and per_turn < MIN_SAMPLES_PER_REVOLUTION:
+            lines.append(
+                f'warning: offset {row["offset"] * 1e3:g} mm at {row["input_speed"]:g} rad/s '
+                f'has only {per_turn:.0f} samples per input revolution (fewer than '
+                f'{MIN_SAMPLES_PER_REVOLUTION}): reversals and peaks between samples are '
+                'uncertain; record at a higher publish_rate')
     for t in analysis.transitions:
         lines.append(f'transition {t["start_time"]:.3f}-{t["end_time"]:.3f} s excluded: '
                      f'{t["change"]}')

@@ -242,3 +242,15 @@ def test_parallel_decoding_gives_the_same_samples_as_serial(tmp_path, monkeypatc
     parallel = analysis.read_recording(str(path)).samples
     for name, values in serial._asdict().items():
         np.testing.assert_array_equal(getattr(parallel, name), values, err_msg=name)
+
+
+def test_coarse_sampling_is_flagged(capsys):
+    coarse = analysis.Recording('coarse', PAPER, samples_for([0.01], rate=25.0), None)
+    fine = analysis.Recording('fine', PAPER, samples_for([0.01], rate=100.0), None)
+    (coarse_row,) = analysis.analyse(coarse).rows
+    (fine_row,) = analysis.analyse(fine).rows
+    assert coarse_row['samples_per_revolution'] == pytest.approx(25.0)
+    assert fine_row['samples_per_revolution'] == pytest.approx(100.0)
+    assert 'only 25 samples per input revolution' in analysis.format_table(
+        analysis.analyse(coarse))
+    assert 'warning' not in analysis.format_table(analysis.analyse(fine))
