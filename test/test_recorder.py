@@ -39,7 +39,7 @@ import pytest
 from qrm_ros.bag_reader import open_run, RunFileError
 import yaml
 
-from ros_probe import BackgroundSpinner, call, installed_executable
+from ros_probe import BackgroundSpinner, call, installed_executable, wait_for
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 PUBLISHER = os.path.join(HERE, 'stand_in_publisher.py')
@@ -286,10 +286,8 @@ def test_real_run_matches_parallel_subscriber_and_independent_readers(tmp_path, 
     publisher = Process(_publisher_command(300, 100.0, 2), str(tmp_path), 'publisher')
     try:
         command = listener.node.create_publisher(Float64, 'input_speed_cmd', 10)
-        deadline = time.monotonic() + 15.0
-        while command.get_subscription_count() < 3 and time.monotonic() < deadline:
-            time.sleep(0.05)
-        assert command.get_subscription_count() >= 3, recorder.output()
+        wait_for(lambda: command.get_subscription_count() >= 3, 15.0,
+                 'input_speed_cmd subscribers (sim, recorder, listener)')
         speeds = [3.0, 3.5, 4.0, 4.5, 5.0]
         for speed in speeds:
             command.publish(Float64(data=speed))
@@ -301,19 +299,15 @@ def test_real_run_matches_parallel_subscriber_and_independent_readers(tmp_path, 
         request.parameters = [Parameter(name='coupling_offset', value=ParameterValue(
             type=ParameterType.PARAMETER_DOUBLE, double_value=0.012))]
         assert listener.call(listener.set_client, request).results[0].successful
-        deadline = time.monotonic() + 5.0
-        while not any(b'coupling_offset' in data for data in listener.messages(
-                '/parameter_events')) and time.monotonic() < deadline:
-            time.sleep(0.02)
+        wait_for(lambda: any(b'coupling_offset' in data for data in listener.messages(
+            '/parameter_events')), 5.0, 'the coupling_offset parameter event')
         request = GetParameters.Request()
         request.names = GEOMETRY
         geometry = [v.double_value for v in listener.call(listener.get_client, request).values]
         if REAL_SIM:  # it reports a stroke pair about once per input turn: wait for two
             wanted = len(listener.messages('/diagnostics')) + 2
-            deadline = time.monotonic() + 10.0
-            while (len(listener.messages('/diagnostics')) < wanted
-                   and time.monotonic() < deadline):
-                time.sleep(0.05)
+            wait_for(lambda: len(listener.messages('/diagnostics')) >= wanted, 10.0,
+                     'two more stroke-pair diagnostics')
         else:
             assert publisher.wait_for_output('published 300', 15.0), publisher.output()
         if not REAL_SIM:
@@ -425,9 +419,8 @@ def test_sigterm_finishes_the_file(tmp_path, listener):
     publisher = Process(_publisher_command(0, 100.0, 2, forever=True), str(tmp_path),
                         'publisher')
     try:
-        deadline = time.monotonic() + 15.0
-        while len(listener.messages('/joint_states')) < 100 and time.monotonic() < deadline:
-            time.sleep(0.05)
+        wait_for(lambda: len(listener.messages('/joint_states')) >= 100, 15.0,
+                 '100 joint states at the listener')
         assert recorder.stop(signal.SIGTERM) == 0, recorder.output()
     finally:
         publisher.stop()
@@ -450,9 +443,8 @@ def test_sigkill_loses_at_most_one_chunk_duration(tmp_path, listener):
     publisher = Process(_publisher_command(0, 100.0, 2, forever=True), str(tmp_path),
                         'publisher')
     try:
-        deadline = time.monotonic() + 15.0
-        while len(listener.messages('/joint_states')) < 150 and time.monotonic() < deadline:
-            time.sleep(0.05)
+        wait_for(lambda: len(listener.messages('/joint_states')) >= 150, 15.0,
+                 '150 joint states at the listener')
         killed_ns = time.time_ns()
         recorder.stop(signal.SIGKILL)
     finally:
