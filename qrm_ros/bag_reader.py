@@ -29,7 +29,7 @@ to its last whole record, so every complete chunk counts and a partly written on
 import os
 import struct
 
-from mcap.exceptions import InvalidMagic, McapError
+from mcap.exceptions import EndOfFile, McapError
 from mcap.reader import SeekingReader
 from mcap.records import Channel, DataEnd, Footer, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
@@ -120,12 +120,8 @@ class Run:
                 for record in reader.records:
                     last_whole = handle.tell()
                     yield record
-            except _DAMAGE as error:
-                size = os.fstat(handle.fileno()).st_size
-                self._stopped = (last_whole, size, error)
-            except Exception as error:  # zstandard / lz4 raise their own error types
-                size = os.fstat(handle.fileno()).st_size
-                self._stopped = (last_whole, size, error)
+            except Exception as error:  # _DAMAGE, and zstandard / lz4's own error types
+                self._stopped = (last_whole, os.fstat(handle.fileno()).st_size, error)
 
     def _scan_definitions(self):
         self._indexed = False
@@ -151,10 +147,10 @@ class Run:
             self.problem = ('the file ends inside its summary (the recorder was stopped while '
                             'finishing it); every message was read from the data section')
             return
-        last_whole, size, error = self._stopped or (size_of(self.path), size_of(self.path), None)
-        damaged = isinstance(error, InvalidMagic) or (
-            error is not None and not isinstance(error, McapError) and 'EndOfFile' not in
-            type(error).__name__)
+        # Without a footer the stream always stops on an error: EndOfFile where the file was
+        # cut short, anything else where a record is damaged.
+        last_whole, size, error = self._stopped
+        damaged = not isinstance(error, EndOfFile)
         lost = size - last_whole
         self.problem = (
             'the file was not finished (the recorder was killed, lost power or ran out of '
@@ -244,10 +240,6 @@ class Run:
         return sum(count for cid, count in self._counts.items()
                    if cid in self._channels
                    and (wanted is None or self._channels[cid].topic in wanted))
-
-
-def size_of(path):
-    return os.path.getsize(path)
 
 
 def open_run(path):

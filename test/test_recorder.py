@@ -566,3 +566,16 @@ def test_reader_reads_unfinished_files_up_to_the_last_whole_chunk(tmp_path):
         assert run.truncated and run.problem, cut
         assert [m[4] for m in run.messages(['x'])] == [
             i.to_bytes(4, 'little') for i in range(complete * 20)], cut
+
+
+def test_reader_stops_at_a_damaged_chunk_of_an_unfinished_file(tmp_path):
+    path = tmp_path / 'full.mcap'
+    ends = _synthetic_run(path)
+    data = bytearray(path.read_bytes()[:ends[2]])  # three whole chunks, no summary
+    inside = ends[0] + 100  # the second chunk's compressed records (its index follows them)
+    data[inside:inside + 8] = b'\xff' * 8
+    damaged = tmp_path / 'damaged.mcap'
+    damaged.write_bytes(bytes(data))
+    run = open_run(damaged)
+    assert run.truncated and 'damaged' in run.problem
+    assert [m[4] for m in run.messages()] == [i.to_bytes(4, 'little') for i in range(20)]
