@@ -30,6 +30,8 @@ import numpy as np  # noqa: E402
 from qrm_ros import kinematics as kin  # noqa: E402
 
 THEORY = 'theory'
+THEORY_FAMILY = 'theory-family'
+OTHER_CRANK_RADII = (0.01, 0.03, 0.07)  # m, dashed theory curves in the TR figure
 CURVE_POINTS = 400
 
 
@@ -56,9 +58,22 @@ def time_ratio_figure(analysis):
     offsets = _offset_axis(geometry)
     figure, axes = plt.subplots(figsize=(8, 5.5))
     for sign in _directions(analysis):
-        label = 'theory (closed form)' + (', reverse running' if sign < 0 else '')
+        label = (f'theory (closed form), r = {geometry.crank_radius * 1e3:g} mm'
+                 + (', reverse running' if sign < 0 else ''))
         axes.plot(offsets / geometry.pivot_distance, kin.time_ratio(geometry, offsets, sign),
                   color='C0' if sign > 0 else 'C2', gid=THEORY, label=label)
+    # The paper's Fig. 10 shows a family of crank radii: other strokes, same machine.
+    for crank_radius in OTHER_CRANK_RADII:
+        if crank_radius != geometry.crank_radius and crank_radius < geometry.pivot_distance:
+            other = kin.Geometry(geometry.coupling_radius, crank_radius,
+                                 geometry.pivot_distance, geometry.ram_height,
+                                 geometry.crank_phase)
+            x, y = offsets / geometry.pivot_distance, kin.time_ratio(other, offsets)
+            axes.plot(x, y, color='0.6', linewidth=0.9, linestyle='--', gid=THEORY_FAMILY,
+                      label='theory, other crank radii' if crank_radius == OTHER_CRANK_RADII[0]
+                      else None)
+            axes.annotate(f'r = {crank_radius * 1e3:g} mm', (x[-1], y[-1]), fontsize='small',
+                          color='0.4', xytext=(3, 0), textcoords='offset points', va='center')
     x, y, spread = _measured(analysis, 'time_ratio')
     axes.errorbar(x, y, yerr=spread, fmt='o', color='C3', capsize=3,
                   label='measured (mean ± s.d. over stroke pairs)')
@@ -66,9 +81,9 @@ def time_ratio_figure(analysis):
     axes.set_xlabel('offset / pivot distance, δ/h [-]')
     axes.set_ylabel('time ratio TR = cutting time / return time [-]')
     axes.set_yscale('log')
-    axes.set_title(f'Time ratio against offset (cf. paper Fig. 10); r = '
-                   f'{geometry.crank_radius * 1e3:g} mm, h = {geometry.pivot_distance * 1e3:g}'
-                   f' mm, r1 = {geometry.coupling_radius * 1e3:g} mm')
+    axes.set_title(f'Time ratio against offset (cf. paper Fig. 10); h = '
+                   f'{geometry.pivot_distance * 1e3:g} mm, r1 = '
+                   f'{geometry.coupling_radius * 1e3:g} mm')
     axes.grid(True, which='both', alpha=0.3)
     axes.legend()
     return figure

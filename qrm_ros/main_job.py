@@ -37,7 +37,9 @@ from qrm_ros.figures import write_figures
 SIM_NODE = '/shaper_sim'
 RECORDER_NODE = 'mcap_recorder'
 PAIR_STATUS = 'shaper_sim: stroke pair'
-DEFAULT_OFFSETS_MM = [-15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0]
+# Both signs, and the offset of equal mid-stroke speeds (SR = 1, paper eq. 26: -r r1 / h).
+UNITY_SPEED_RATIO_MM = kin.offset_for_speed_ratio(kin.Geometry.paper(), 1.0) * 1e3
+DEFAULT_OFFSETS_MM = [-15.0, UNITY_SPEED_RATIO_MM, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0]
 # Margin after the recorder's subscription appears before its data is surely flowing.
 RECORDER_SETTLE_TIME = 0.5
 
@@ -136,7 +138,8 @@ def _options(argv):
         prog='qrm_main', description='Run shaper_sim through a schedule of coupling offsets, '
         'record it to MCAP and report measured vs theoretical time and speed ratios.')
     parser.add_argument('--offsets-mm', type=float, nargs='+', default=DEFAULT_OFFSETS_MM,
-                        help='offset schedule [mm] (default: %(default)s)')
+                        help='offset schedule [mm] (default: -15, -r r1/h = '
+                        f'{UNITY_SPEED_RATIO_MM:.4f} (SR = 1), -10, -5, 0, 5, 10, 15)')
     parser.add_argument('--input-speed', type=float, default=2 * math.pi,
                         help='input shaft speed [rad/s] (default: 2 pi = 60 rpm)')
     parser.add_argument('--pairs', type=int, default=3,

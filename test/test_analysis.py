@@ -109,6 +109,14 @@ def test_figures_are_written_and_theory_curves_are_the_core(schedule_analysis, t
     x, y = tr_lines[0].get_data()
     checked = [kin.time_ratio_rk4(PAPER, d) for d in x[::50] * h]  # the paper's method
     np.testing.assert_allclose(y[::50], checked, rtol=1e-9)
+    family = [line for axes in figures.time_ratio_figure(schedule_analysis).axes
+              for line in axes.get_lines() if line.get_gid() == figures.THEORY_FAMILY]
+    assert len(family) == len(figures.OTHER_CRANK_RADII)
+    for line, crank_radius in zip(family, figures.OTHER_CRANK_RADII):
+        other = kin.Geometry(PAPER.coupling_radius, crank_radius, PAPER.pivot_distance)
+        x, y = line.get_data()
+        checked = [kin.time_ratio_rk4(other, d) for d in x[::80] * h]
+        np.testing.assert_allclose(y[::80], checked, rtol=1e-9)
     mid, peak = theory_lines(figures.speed_ratio_figure(schedule_analysis))
     x, y = mid.get_data()
     r1, r = PAPER.coupling_radius, PAPER.crank_radius
