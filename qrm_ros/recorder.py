@@ -40,12 +40,13 @@ import time
 
 from ament_index_python.packages import get_package_share_directory, PackageNotFoundError
 from mcap.writer import CompressionType, Writer
-from rcl_interfaces.msg import ParameterDescriptor, ParameterType
+from rcl_interfaces.msg import ParameterDescriptor
 from rcl_interfaces.srv import GetParameters, ListParameters
 import rclpy
 from rclpy.exceptions import NameValidationException, ParameterException
 import rclpy.executors
 from rclpy.node import Node
+from rclpy.parameter import parameter_value_to_python
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile,
                        ReliabilityPolicy)
 from rclpy.signals import SignalHandlerOptions
@@ -205,36 +206,13 @@ def adapted_request_qos(offered_profiles):
     return qos, ('; '.join(warnings) or None)
 
 
-def parameter_value_to_python(value):
-    """Plain Python value of an rcl_interfaces/ParameterValue (None if not set)."""
-    kind = value.type
-    if kind == ParameterType.PARAMETER_BOOL:
-        return bool(value.bool_value)
-    if kind == ParameterType.PARAMETER_INTEGER:
-        return int(value.integer_value)
-    if kind == ParameterType.PARAMETER_DOUBLE:
-        return float(value.double_value)
-    if kind == ParameterType.PARAMETER_STRING:
-        return str(value.string_value)
-    if kind == ParameterType.PARAMETER_BYTE_ARRAY:
-        return [int.from_bytes(b, 'little') if isinstance(b, bytes) else int(b)
-                for b in value.byte_array_value]
-    if kind == ParameterType.PARAMETER_BOOL_ARRAY:
-        return [bool(v) for v in value.bool_array_value]
-    if kind == ParameterType.PARAMETER_INTEGER_ARRAY:
-        return [int(v) for v in value.integer_array_value]
-    if kind == ParameterType.PARAMETER_DOUBLE_ARRAY:
-        return [float(v) for v in value.double_array_value]
-    if kind == ParameterType.PARAMETER_STRING_ARRAY:
-        return [str(v) for v in value.string_array_value]
-    return None
-
-
 def _json_value(value):
     # Non-finite floats have no JSON spelling; keep them readable rather than invalid JSON.
     def clean(item):
         if isinstance(item, float) and not math.isfinite(item):
             return repr(item)
+        if isinstance(item, bytes):  # a byte-array parameter's elements
+            return int.from_bytes(item, 'little')
         return item
     if isinstance(value, list):
         return json.dumps([clean(v) for v in value])
@@ -430,6 +408,14 @@ class McapRunFile:
         return {info[0]: self._counts[cid] for cid, info in self._channel_info.items()}
 
 
+def _seconds_in(name, value, low, high):
+    """Return a duration parameter as float, or refuse it naming the allowed range."""
+    if (isinstance(value, bool) or not isinstance(value, (int, float))
+            or not math.isfinite(value) or not low <= value <= high):
+        raise RecorderError(f'parameter {name}={value!r} s is outside [{low:g}, {high:g}] s')
+    return float(value)
+
+
 class Recorder(Node):
     """Subscribes (serialized) to the configured topics as they appear and writes them."""
 
@@ -492,22 +478,16 @@ class Recorder(Node):
         if value['compression'] not in COMPRESSIONS:
             raise RecorderError(f'parameter compression={value["compression"]!r} is not one of '
                                 f'{", ".join(COMPRESSIONS)}')
-        low, high = MAX_CHUNK_DURATION_RANGE
-        duration = value['max_chunk_duration']
-        if (isinstance(duration, bool) or not isinstance(duration, (int, float))
-                or not math.isfinite(duration) or not low <= duration <= high):
-            raise RecorderError(f'parameter max_chunk_duration={duration!r} s is outside '
-                                f'[{low}, {high}] s')
-        value['max_chunk_duration'] = float(duration)
+        value['max_chunk_duration'] = _seconds_in('max_chunk_duration',
+                                                  value['max_chunk_duration'],
+                                                  *MAX_CHUNK_DURATION_RANGE)
         topics = value['topics']
         if (not isinstance(topics, list) or not topics
                 or not all(isinstance(t, str) and t for t in topics)):
             raise RecorderError(f'parameter topics={topics!r} must be a non-empty list of topic '
                                 'names')
-        wait = value['sim_wait_timeout']
-        if (isinstance(wait, bool) or not isinstance(wait, (int, float))
-                or not math.isfinite(wait) or not 0.0 <= wait <= 3600.0):
-            raise RecorderError(f'parameter sim_wait_timeout={wait!r} s is outside [0, 3600] s')
+        value['sim_wait_timeout'] = _seconds_in('sim_wait_timeout', value['sim_wait_timeout'],
+                                                0.0, 3600.0)
         return value
 
     def _guarded(self, callback):

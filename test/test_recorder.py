@@ -477,6 +477,20 @@ def test_existing_output_is_refused(tmp_path):
     assert output.read_bytes() == b'precious'
 
 
+@pytest.mark.parametrize('parameter, words', [
+    ('max_chunk_duration:=0.0', ['max_chunk_duration=0.0', '[0.001, 3600] s']),
+    ('sim_wait_timeout:=-1.0', ['sim_wait_timeout=-1.0', '[0, 3600] s']),
+    ('compression:=gzip', ["compression='gzip'", 'zstd, lz4, none']),
+])
+def test_bad_settings_are_refused_naming_the_allowed_values(tmp_path, parameter, words):
+    output = tmp_path / 'run.mcap'
+    recorder = Process(_recorder_command(f'output:={output}', parameter), str(tmp_path),
+                       'recorder')
+    recorder.popen.wait(15)
+    _check_one_line_error(recorder, *words)
+    assert not output.exists()
+
+
 def test_unwritable_output_gives_one_clear_line(tmp_path):
     blocker = tmp_path / 'not_a_folder'
     blocker.write_text('')
