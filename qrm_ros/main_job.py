@@ -50,11 +50,11 @@ class MainJobError(Exception):
 
 def _start(module, ros_arguments, log_path, env):
     """Start a package executable as its own process (works in a venv and under colcon)."""
-    log = open(log_path, 'w')
     command = [sys.executable, '-c', f'import sys; from qrm_ros.{module} import main; '
                'sys.exit(main())', '--ros-args'] + ros_arguments
-    return subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, env=env,
-                            start_new_session=True)
+    with open(log_path, 'w') as log:  # the child keeps its own copy of the descriptor
+        return subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, env=env,
+                                start_new_session=True)
 
 
 def _stop(process, timeout=15.0):
