@@ -40,15 +40,12 @@ import numpy as np
 from qrm_ros import kinematics as kin
 from qrm_ros.bag_reader import open_run, RunFileError
 from qrm_ros.design_table import add_geometry_arguments
+from qrm_ros import names
+from qrm_ros.names import absolute_topic, GEOMETRY_METADATA, JOINT_NAMES, JOINT_STATE_TYPE
 from qrm_ros.strokes import find_stroke_pairs
 
-JOINT_STATES_TOPIC = '/joint_states'
-JOINT_STATE_TYPE = 'sensor_msgs/msg/JointState'
-GEOMETRY_METADATA = 'qrm_ros.geometry'
-GEOMETRY_FIELDS = ('coupling_radius', 'crank_radius', 'pivot_distance', 'ram_height',
-                   'crank_phase')
-JOINTS = ('input_shaft_joint', 'flywheel_joint', 'lever_joint', 'ram_joint',
-          'coupling_offset_joint')
+JOINT_STATES_TOPIC = absolute_topic(names.JOINT_STATES_TOPIC)
+GEOMETRY_FIELDS = kin.Geometry.field_names()
 # Samples whose offset and input speed differ by less than this (relative) are one setting.
 STEADY_TOLERANCE = 1e-12
 # Shortest steady run worth measuring (a stroke pair needs several samples anyway).
@@ -203,8 +200,8 @@ def _decode_span(path, starting_at, ending_before, counter=None, progress=None):
     if progress is not None:
         progress(run.message_count(JOINT_STATES_TOPIC))
     return (names, np.asarray(stamps, dtype=np.int64),
-            np.asarray(positions).reshape(-1, len(names or JOINTS)),
-            np.asarray(velocities).reshape(-1, len(names or JOINTS)))
+            np.asarray(positions).reshape(-1, len(names or JOINT_NAMES)),
+            np.asarray(velocities).reshape(-1, len(names or JOINT_NAMES)))
 
 
 def _decode_in_parallel(path, spans, progress):
@@ -227,9 +224,9 @@ def _decode_in_parallel(path, spans, progress):
 
 def _joint_order(names, path):
     try:
-        return np.array([list(names).index(joint) for joint in JOINTS])
+        return np.array([list(names).index(joint) for joint in JOINT_NAMES])
     except ValueError:
-        missing = [joint for joint in JOINTS if joint not in names]
+        missing = [joint for joint in JOINT_NAMES if joint not in names]
         raise AnalysisError(f'{path}: joint_states lacks the joints {", ".join(missing)}') \
             from None
 

@@ -24,7 +24,7 @@ For a positive input speed the slow stroke, which moves the ram toward -x (ram v
 < 0), is the cutting stroke; running in reverse makes the cut the fast stroke (TR < 1).
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 import math
 from typing import NamedTuple
 
@@ -113,9 +113,13 @@ class Geometry:
         r, h = self.crank_radius, self.pivot_distance
         return 2.0 * self.ram_height * r / np.sqrt(h * h - r * r)
 
+    @classmethod
+    def field_names(cls):
+        """Names of the fields, in order: the node's geometry parameters and metadata keys."""
+        return tuple(field.name for field in fields(cls))
+
     def as_dict(self):
-        return {name: getattr(self, name) for name in (
-            'coupling_radius', 'crank_radius', 'pivot_distance', 'ram_height', 'crank_phase')}
+        return {name: getattr(self, name) for name in self.field_names()}
 
 
 class MechanismState(NamedTuple):

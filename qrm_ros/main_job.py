@@ -33,10 +33,10 @@ import time
 from qrm_ros import analysis
 from qrm_ros import kinematics as kin
 from qrm_ros.figures import write_figures
+from qrm_ros.names import (absolute_topic, DIAGNOSTICS_TOPIC, JOINT_STATES_TOPIC,
+                           RECORDER_NODE_NAME, SIM_NODE_NAME, STROKE_PAIR_STATUS)
 
-SIM_NODE = '/shaper_sim'
-RECORDER_NODE = 'mcap_recorder'
-PAIR_STATUS = 'shaper_sim: stroke pair'
+SIM_NODE = '/' + SIM_NODE_NAME
 # Both signs, and the offset of equal mid-stroke speeds (SR = 1, paper eq. 26: -r r1 / h).
 UNITY_SPEED_RATIO_MM = kin.offset_for_speed_ratio(kin.Geometry.paper(), 1.0) * 1e3
 DEFAULT_OFFSETS_MM = [-15.0, UNITY_SPEED_RATIO_MM, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0]
@@ -85,11 +85,11 @@ class Conductor:
         self.set_client = self.node.create_client(SetParameters,
                                                   SIM_NODE + '/set_parameters')
         self.pairs = []
-        self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics, 50)
+        self.node.create_subscription(DiagnosticArray, DIAGNOSTICS_TOPIC, self._on_diagnostics, 50)
 
     def _on_diagnostics(self, message):
         for status in message.status:
-            if status.name == PAIR_STATUS:
+            if status.name == STROKE_PAIR_STATUS:
                 self.pairs.append({item.key: item.value for item in status.values})
 
     def wait_for(self, condition, timeout, what):
@@ -100,8 +100,9 @@ class Conductor:
             self.executor.spin_once(timeout_sec=0.05)
 
     def recorder_subscribed(self):
-        infos = self.node.get_subscriptions_info_by_topic('/joint_states')
-        return any(info.node_name == RECORDER_NODE for info in infos)
+        infos = self.node.get_subscriptions_info_by_topic(
+            absolute_topic(JOINT_STATES_TOPIC))
+        return any(info.node_name == RECORDER_NODE_NAME for info in infos)
 
     def set_parameters(self, **values):
         """Set shaper_sim parameters (floats) as `ros2 param set` does; raise if refused."""

@@ -51,15 +51,17 @@ from rclpy.qos import (DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSPro
                        ReliabilityPolicy)
 from rclpy.signals import SignalHandlerOptions
 
-NODE_NAME = 'mcap_recorder'
-DEFAULT_TOPICS = ['joint_states', 'ram/twist', 'input_speed_cmd', '/diagnostics',
+from qrm_ros.kinematics import Geometry
+from qrm_ros.names import (DIAGNOSTICS_TOPIC, GEOMETRY_METADATA, JOINT_STATES_TOPIC,
+                           PARAMETERS_METADATA, RAM_TWIST_TOPIC, RECORDER_NODE_NAME,
+                           SPEED_COMMAND_TOPIC)
+
+NODE_NAME = RECORDER_NODE_NAME
+DEFAULT_TOPICS = [JOINT_STATES_TOPIC, RAM_TWIST_TOPIC, SPEED_COMMAND_TOPIC, DIAGNOSTICS_TOPIC,
                   '/parameter_events']
 COMPRESSIONS = {'zstd': CompressionType.ZSTD, 'lz4': CompressionType.LZ4,
                 'none': CompressionType.NONE}
-GEOMETRY_PARAMETERS = ['coupling_radius', 'crank_radius', 'pivot_distance', 'ram_height',
-                       'crank_phase']
-GEOMETRY_METADATA = 'qrm_ros.geometry'
-PARAMETERS_METADATA = 'qrm_ros.parameters'
+GEOMETRY_PARAMETERS = list(Geometry.field_names())
 MAX_CHUNK_DURATION_RANGE = (0.001, 3600.0)
 # Closing a chunk early by size keeps memory bounded at high rates; duration is the usual limit.
 CHUNK_SIZE_BYTES = 4 * 1024 * 1024

@@ -28,14 +28,19 @@ from typing import NamedTuple, Optional
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import TwistStamped
+from qrm_ros.names import (DIAGNOSTICS_TOPIC, JOINT_NAMES, JOINT_STATES_TOPIC,
+                           RAM_TWIST_TOPIC, SIM_NODE_NAME, SPEED_COMMAND_TOPIC,
+                           STROKE_PAIR_STATUS)
 from qrm_ros.kinematics import (Geometry, KinematicsError, peak_ram_speeds, speed_ratio,
                                 stroke_times)
+from qrm_ros.ros_process import (init_rclpy, RCLError, rcl_error_text, spin_until_stopped,
+                                 StopRequest)
 from qrm_ros.stepping import ShaperStepper, wrap_angle
 from qrm_ros.strokes import find_stroke_pairs
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 import rclpy
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
@@ -44,10 +49,7 @@ from std_srvs.srv import SetBool, Trigger
 
 __all__ = ['JOINT_NAMES', 'PARAMETERS', 'ShaperSimNode', 'main', 'refusal_reason']
 
-JOINT_NAMES = ('input_shaft_joint', 'flywheel_joint', 'lever_joint', 'ram_joint',
-               'coupling_offset_joint')
-GEOMETRY_NAMES = ('coupling_radius', 'crank_radius', 'pivot_distance', 'ram_height',
-                  'crank_phase')
+GEOMETRY_NAMES = Geometry.field_names()
 # At most this many tick samples wait in the diagnostics buffer for a stroke pair to end
 # (at 100 Hz, 43 minutes; a shaft slower than one turn in that time gets no diagnostics).
 DIAGNOSTICS_BUFFER_LIMIT = 2 ** 18
@@ -226,7 +228,7 @@ class ShaperSimNode(Node):
     """Steps the mechanism on a timer and publishes it; see the module docstring."""
 
     def __init__(self, **node_options):
-        super().__init__('shaper_sim', **node_options)
+        super().__init__(SIM_NODE_NAME, **node_options)
         try:
             self._set_up()
         except Exception:
@@ -257,10 +259,11 @@ class ShaperSimNode(Node):
 
         self._joint_state = JointState(name=list(JOINT_NAMES))
         self._twist = TwistStamped()
-        self._joint_state_publisher = self.create_publisher(JointState, 'joint_states', 10)
-        self._twist_publisher = self.create_publisher(TwistStamped, 'ram/twist', 10)
-        self._diagnostics_publisher = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-        self.create_subscription(Float64, 'input_speed_cmd', self._on_speed_command, 10)
+        self._joint_state_publisher = self.create_publisher(JointState, JOINT_STATES_TOPIC, 10)
+        self._twist_publisher = self.create_publisher(TwistStamped, RAM_TWIST_TOPIC, 10)
+        self._diagnostics_publisher = self.create_publisher(
+            DiagnosticArray, DIAGNOSTICS_TOPIC, 10)
+        self.create_subscription(Float64, SPEED_COMMAND_TOPIC, self._on_speed_command, 10)
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.create_service(SetBool, '~/pause', self._on_pause)
         self.add_on_set_parameters_callback(self._check_parameters)
@@ -533,7 +536,7 @@ class ShaperSimNode(Node):
         key_values.append(KeyValue(key='input_speed_steady', value=str(speed_steady).lower()))
         steady = 'steady' if offset_steady and speed_steady else 'NOT steady (ratios mixed)'
         status = DiagnosticStatus(
-            level=DiagnosticStatus.OK, name='shaper_sim: stroke pair', hardware_id='shaper_sim',
+            level=DiagnosticStatus.OK, name=STROKE_PAIR_STATUS, hardware_id=SIM_NODE_NAME,
             message=(f'TR {measured["time_ratio"]:.4f}, SR {measured["speed_ratio"]:.4f} '
                      f'(peak {measured["peak_speed_ratio"]:.4f}) at offset {offset:.6g} m, '
                      f'{speed:.6g} rad/s, {steady}'),
@@ -548,24 +551,29 @@ def _default_values():
 
 
 def main(args=None):
-    """Run the node until Ctrl-C or SIGTERM; a bad start-up parameter exits with code 2."""
-    rclpy.init(args=args)
-    node = None
-    code = 0
+    """Run the node until Ctrl-C or SIGTERM; exit 2 on bad start-up arguments or parameters."""
     try:
-        node = ShaperSimNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except ValueError as error:
-        # Bad start-up parameters: say which, no traceback. (KinematicsError is a ValueError.)
-        print(f'shaper_sim: cannot start: {error}', file=sys.stderr)
-        code = 2
+        init_rclpy(args)
+    except RCLError as error:  # a malformed -p or params file, said by rcl
+        print(f'{SIM_NODE_NAME}: cannot start: {rcl_error_text(error)}', file=sys.stderr)
+        return 2
+    node = None
+    try:
+        with StopRequest() as stop:
+            try:
+                node = ShaperSimNode()
+            except ValueError as error:
+                # Say which start-up value and why, no traceback (KinematicsError included).
+                print(f'{SIM_NODE_NAME}: cannot start: {error}', file=sys.stderr)
+                return 2
+            executor = SingleThreadedExecutor()
+            executor.add_node(node)
+            spin_until_stopped(executor, stop)
     finally:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
-    return code
+    return 0
 
 
 if __name__ == '__main__':

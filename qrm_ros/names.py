@@ -1,0 +1,49 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+Names the node, the recorder, the analysis, the main job and the tests share: one place each.
+
+A recording made by one version must stay readable by the next, so these are part of the
+package's interface: change one only with a migration.
+"""
+
+__all__ = ['DIAGNOSTICS_TOPIC', 'GEOMETRY_METADATA', 'JOINT_NAMES', 'JOINT_STATES_TOPIC',
+           'JOINT_STATE_TYPE', 'PARAMETERS_METADATA', 'RAM_TWIST_TOPIC', 'RECORDER_NODE_NAME',
+           'SIM_NODE_NAME', 'SPEED_COMMAND_TOPIC', 'STROKE_PAIR_STATUS', 'absolute_topic']
+
+SIM_NODE_NAME = 'shaper_sim'
+RECORDER_NODE_NAME = 'mcap_recorder'
+
+# Order of the joints in every JointState the node publishes (and the URDF's joint names).
+JOINT_NAMES = ('input_shaft_joint', 'flywheel_joint', 'lever_joint', 'ram_joint',
+               'coupling_offset_joint')
+
+# Topics, relative to the node's namespace where they are relative.
+JOINT_STATES_TOPIC = 'joint_states'
+RAM_TWIST_TOPIC = 'ram/twist'
+SPEED_COMMAND_TOPIC = 'input_speed_cmd'
+DIAGNOSTICS_TOPIC = '/diagnostics'
+JOINT_STATE_TYPE = 'sensor_msgs/msg/JointState'
+
+# DiagnosticStatus.name of the node's per-stroke-pair report.
+STROKE_PAIR_STATUS = f'{SIM_NODE_NAME}: stroke pair'
+
+# MCAP metadata records the recorder writes and the analysis reads.
+GEOMETRY_METADATA = 'qrm_ros.geometry'
+PARAMETERS_METADATA = 'qrm_ros.parameters'
+
+
+def absolute_topic(topic):
+    """Return the topic as recorded from the root namespace ('joint_states' -> '/joint_states')."""
+    return topic if topic.startswith('/') else '/' + topic

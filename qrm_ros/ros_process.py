@@ -1,0 +1,86 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+How this package's ROS processes start and stop: clean stops on Ctrl-C and SIGTERM.
+
+rclpy's own signal handler shuts the context down from another thread at any moment; an
+executor that is between its `context.ok()` check and building its wait set then raises
+`RCLError: ... the given context is not valid` (a traceback on a plain SIGTERM, about one
+stop in three here). So the processes init rclpy without its handlers, and a signal only
+records a stop request: the spin loop sees it between callbacks, finishes what it is doing,
+and the process shuts rclpy down itself, in order.
+"""
+
+import re
+import signal
+
+import rclpy
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.signals import SignalHandlerOptions
+
+__all__ = ['IDLE_WAKEUP', 'RCLError', 'StopRequest', 'init_rclpy', 'rcl_error_text',
+           'spin_until_stopped']
+
+RCLError = _rclpy.RCLError  # rcl failures (bad arguments, invalid context); as rclpy.action
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+# Longest wait for a stop request when no callback is due (e.g. use_sim_time, no /clock).
+IDLE_WAKEUP = 0.1  # s
+
+
+def init_rclpy(args=None, context=None):
+    """rclpy.init without rclpy's signal handlers: StopRequest handles the stop signals."""
+    rclpy.init(args=args, context=context, signal_handler_options=SignalHandlerOptions.NO)
+
+
+def rcl_error_text(error):
+    """One line from an RCLError, without rcl's source locations (`, at /project/...c:239`)."""
+    return re.sub(r', at /\S+:\d+', '', str(error)).strip()
+
+
+class StopRequest:
+    """
+    While entered, SIGINT and SIGTERM only record that a stop was asked for.
+
+    Truthy once a signal came; `signal_number` says which. The handlers before are restored
+    on exit.
+    """
+
+    def __init__(self, signals=STOP_SIGNALS):
+        self._signals = signals
+        self._previous = {}
+        self.signal_number = None
+
+    def _on_signal(self, signal_number, frame):
+        del frame
+        if self.signal_number is None:
+            self.signal_number = signal_number
+
+    def __bool__(self):
+        return self.signal_number is not None
+
+    def __enter__(self):
+        self._previous = {number: signal.signal(number, self._on_signal)
+                          for number in self._signals}
+        return self
+
+    def __exit__(self, *exc_info):
+        for number, handler in self._previous.items():
+            signal.signal(number, handler)
+        return False
+
+
+def spin_until_stopped(executor, stop, idle_wakeup=IDLE_WAKEUP):
+    """Run the executor's callbacks until the stop request (or the context) ends it."""
+    while not stop and executor.context.ok():
+        executor.spin_once(timeout_sec=idle_wakeup)
