@@ -329,13 +329,7 @@ def measure_segment(samples, segment, geometry):
         'peak_return_speed': pairs.peak_return_speed}
     theory = {name: None for name in measured}
     if segment.input_speed != 0.0 and abs(segment.offset) < geometry.coupling_radius:
-        offset, speed = segment.offset, segment.input_speed
-        theory['cutting_time'], theory['return_time'] = kin.stroke_times(geometry, offset, speed)
-        theory['peak_cutting_speed'], theory['peak_return_speed'] = kin.peak_ram_speeds(
-            geometry, offset, speed)
-        theory['time_ratio'] = kin.time_ratio(geometry, offset, speed)
-        theory['speed_ratio'] = kin.speed_ratio(geometry, offset, speed)
-        theory['peak_speed_ratio'] = theory['peak_return_speed'] / theory['peak_cutting_speed']
+        theory.update(kin.steady_theory(geometry, segment.offset, segment.input_speed)._asdict())
     for name, values in measured.items():
         mean, spread = _mean_and_spread(values)
         row[f'{name}_measured'] = mean

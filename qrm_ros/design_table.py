@@ -31,16 +31,10 @@ DEFAULT_OFFSETS_MM = np.arange(-20.0, 20.0 + 1e-9, 2.5)
 
 def design_rows(geometry, offsets, input_speed):
     """One dict per offset with every figure the table prints, in SI units."""
-    cutting_time, return_time = kin.stroke_times(geometry, offsets, input_speed)
-    peak_cut, peak_return = kin.peak_ram_speeds(geometry, offsets, input_speed)
-    time_ratio = kin.time_ratio(geometry, offsets, input_speed)
-    speed_ratio = kin.speed_ratio(geometry, offsets, input_speed)
+    theory = kin.steady_theory(geometry, offsets, input_speed)
     return [dict(offset=float(offsets[i]),
                  offset_over_pivot_distance=float(offsets[i] / geometry.pivot_distance),
-                 time_ratio=float(time_ratio[i]), speed_ratio=float(speed_ratio[i]),
-                 peak_speed_ratio=float(peak_return[i] / peak_cut[i]),
-                 cutting_time=float(cutting_time[i]), return_time=float(return_time[i]),
-                 peak_cutting_speed=float(peak_cut[i]), peak_return_speed=float(peak_return[i]))
+                 **{name: float(values[i]) for name, values in theory._asdict().items()})
             for i in range(len(offsets))]
 
 

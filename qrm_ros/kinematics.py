@@ -377,6 +377,35 @@ def peak_speed_ratio(geometry, offset, input_speed=1.0):
     return _scalar(np.asarray(returning) / cutting)
 
 
+class SteadyTheory(NamedTuple):
+    """Exact figures of steady running at one offset and input speed (s, m/s, ratios)."""
+
+    cutting_time: object
+    return_time: object
+    time_ratio: object
+    speed_ratio: object
+    peak_speed_ratio: object
+    peak_cutting_speed: object
+    peak_return_speed: object
+
+
+def steady_theory(geometry, offset, input_speed):
+    """
+    Every theory figure of steady running, from one place.
+
+    The node's diagnostics, the recording analysis and the design table all compare with
+    (or print) these; computing them once here keeps the three from drifting apart.
+    """
+    cutting, returning = stroke_times(geometry, offset, input_speed)
+    peak_cut, peak_return = peak_ram_speeds(geometry, offset, input_speed)
+    return SteadyTheory(
+        cutting_time=cutting, return_time=returning,
+        time_ratio=_scalar(np.asarray(cutting) / returning),
+        speed_ratio=speed_ratio(geometry, offset, input_speed),
+        peak_speed_ratio=_scalar(np.asarray(peak_return) / peak_cut),
+        peak_cutting_speed=peak_cut, peak_return_speed=peak_return)
+
+
 def offset_for_speed_ratio(geometry, speed_ratio_target):
     """Offset giving a mid-stroke speed ratio (eq. 27; numerical inversion if phased)."""
     target = _as_float('speed_ratio', speed_ratio_target)

@@ -31,8 +31,7 @@ from geometry_msgs.msg import TwistStamped
 from qrm_ros.names import (DIAGNOSTICS_TOPIC, JOINT_NAMES, JOINT_STATES_TOPIC,
                            RAM_TWIST_TOPIC, SIM_NODE_NAME, SPEED_COMMAND_TOPIC,
                            STROKE_PAIR_STATUS)
-from qrm_ros.kinematics import (Geometry, KinematicsError, peak_ram_speeds, speed_ratio,
-                                stroke_times)
+from qrm_ros.kinematics import Geometry, KinematicsError, steady_theory
 from qrm_ros.ros_process import (init_rclpy, RCLError, rcl_error_text, spin_until_stopped,
                                  StopRequest)
 from qrm_ros.stepping import ShaperStepper, wrap_angle
@@ -487,27 +486,23 @@ class ShaperSimNode(Node):
         samples.keep_from(len(samples) - 2)
 
     def _theory(self, offset, speed):
-        """Core values for a steady offset and speed (per unit |speed| for speeds)."""
+        """Core values for a steady offset and speed (cached per unit |speed|)."""
         key = (offset, speed > 0.0)
         if key not in self._theory_cache:
             if len(self._theory_cache) > 64:
                 self._theory_cache.clear()
-            unit_speed = math.copysign(1.0, speed)
-            cutting, returning = stroke_times(self._geometry, offset, unit_speed)
-            peak_cut, peak_return = peak_ram_speeds(self._geometry, offset, unit_speed)
-            self._theory_cache[key] = (
-                cutting, returning, speed_ratio(self._geometry, offset, unit_speed),
-                peak_cut, peak_return)
-        cutting, returning, mid_ratio, peak_cut, peak_return = self._theory_cache[key]
+            self._theory_cache[key] = steady_theory(self._geometry, offset,
+                                                    math.copysign(1.0, speed))
+        unit = self._theory_cache[key]
         scale = abs(speed)
         return {
-            'time_ratio_theory': cutting / returning,
-            'speed_ratio_theory': mid_ratio,
-            'peak_speed_ratio_theory': peak_return / peak_cut,
-            'cutting_time_theory': cutting / scale,
-            'return_time_theory': returning / scale,
-            'peak_cutting_speed_theory': peak_cut * scale,
-            'peak_return_speed_theory': peak_return * scale,
+            'time_ratio_theory': unit.time_ratio,
+            'speed_ratio_theory': unit.speed_ratio,
+            'peak_speed_ratio_theory': unit.peak_speed_ratio,
+            'cutting_time_theory': unit.cutting_time / scale,
+            'return_time_theory': unit.return_time / scale,
+            'peak_cutting_speed_theory': unit.peak_cutting_speed * scale,
+            'peak_return_speed_theory': unit.peak_return_speed * scale,
         }
 
     def _publish_pair(self, stamp_ns, origin, pairs, index):
