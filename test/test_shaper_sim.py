@@ -26,8 +26,8 @@ from diagnostic_msgs.msg import DiagnosticArray
 import pytest
 from qrm_ros.kinematics import peak_speed_ratio, speed_ratio, state, time_ratio
 from qrm_ros.shaper_sim import JOINT_NAMES, PARAMETERS, ShaperSimNode
-from rcl_interfaces.msg import ParameterType
-from rcl_interfaces.srv import DescribeParameters
+from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterType, ParameterValue
+from rcl_interfaces.srv import DescribeParameters, SetParameters
 import rclpy
 from rclpy.context import Context
 from rclpy.node import Node
@@ -197,6 +197,37 @@ def test_accepted_values_reach_the_stepper(harness):
                                                  Parameter('input_speed', value=90.0)])
     assert result.successful, result.reason
     assert stepper.speed_command == 90.0
+
+
+def test_a_consistent_atomic_change_is_judged_as_a_whole(harness):
+    h = harness(spin_shaper=False, input_speed=50.0)
+    # Lowering the limit below today's command is fine when the same change lowers the
+    # command: the cross-check sees every value after the change.
+    result = h.shaper.set_parameters_atomically([Parameter('input_speed', value=5.0),
+                                                 Parameter('max_input_speed', value=10.0)])
+    assert result.successful, result.reason
+    assert h.shaper.stepper.speed_command == 5.0
+    result = h.shaper.set_parameters_atomically([Parameter('max_input_speed', value=4.0),
+                                                 Parameter('input_speed', value=4.5)])
+    assert not result.successful and 'below |input_speed| = 4.5 rad/s' in result.reason
+
+
+def test_the_rclpy_internals_this_node_relies_on_still_work(harness):
+    # shaper_sim.py isolates three uses of rclpy internals; an rclpy update breaking one
+    # must fail here, not in a user's hands.
+    h = harness(spin_shaper=True, coupling_offset=0.004)
+    # 1. The start-up overrides are where the node finds a refused or unknown value.
+    assert h.shaper._start_up_overrides()['coupling_offset'].value == 0.004
+    # 2. The parameter services' callbacks are replaced: a malformed type gets a reason.
+    client = h.probe.create_client(SetParameters, '/shaper_sim/set_parameters')
+    malformed = ParameterMsg(name='input_speed', value=ParameterValue(type=42))
+    result, = call(client, SetParameters.Request(parameters=[malformed])).results
+    assert not result.successful and 'input_speed: malformed request refused' in result.reason
+    # 3. rclpy's own set path (pre-set callback) takes an integer for a double.
+    assert Node.set_parameters_atomically(
+        h.shaper, [Parameter('input_speed', value=3)]).successful
+    assert h.shaper.get_parameter('input_speed').type_ == Parameter.Type.DOUBLE
+    assert h.shaper.stepper.speed_command == 3.0
 
 
 def test_bad_start_up_values_are_refused_with_a_reason(context):

@@ -24,20 +24,36 @@ import math
 import os
 import signal
 import subprocess
+import sys
 import tempfile
+import time
 
 from ament_index_python.packages import get_package_share_directory
 import numpy as np
 import pytest
 from qrm_ros.kinematics import Geometry, state
-from rcl_interfaces.srv import GetParameters, SetParameters
+from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterValue
+from rcl_interfaces.srv import GetParameters, SetParameters, SetParametersAtomically
 import rclpy
 from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.parameter import Parameter, parameter_value_to_python
 from sensor_msgs.msg import JointState
+from std_srvs.srv import SetBool, Trigger
 
 from ros_probe import BackgroundSpinner, call, installed_executable, wait_for
+
+
+def stop_process(process, timeout=10.0):
+    """SIGINT, then SIGKILL if it does not stop in time."""
+    if process.poll() is None:
+        process.send_signal(signal.SIGINT)
+    try:
+        return process.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        return process.wait()
+
 
 NS = 1_000_000_000
 RATE = 100.0  # Hz, the default publish_rate
@@ -244,3 +260,115 @@ def test_process_refuses_a_bad_start_up_value_and_exits_2():
     assert code == 2
     assert 'Traceback' not in output
     assert 'coupling_offset' in output and '0.024' in output and '[-0.0225, 0.0225]' in output
+
+
+# Robustness: nothing a client sends stops the node ----------------------------------------
+
+def test_malformed_and_bursty_requests_never_stop_the_node(probe):
+    node = Process()
+    try:
+        probe.wait_for(lambda: len(probe.messages) >= 3, what='first joint states')
+        malformed = ParameterMsg(name='coupling_offset', value=ParameterValue(type=99))
+        result, = probe.call(probe.set_client, SetParameters.Request(
+            parameters=[malformed])).results
+        assert not result.successful
+        assert 'coupling_offset: malformed request refused' in result.reason, result.reason
+        atomic = probe.node.create_client(SetParametersAtomically,
+                                          '/shaper_sim/set_parameters_atomically')
+        result = probe.call(atomic, SetParametersAtomically.Request(
+            parameters=[malformed])).result
+        assert not result.successful and '99' in result.reason
+        # A burst of service calls: every one is answered (the default service queue of 10
+        # dropped all but a few dozen of 600).
+        pause = probe.node.create_client(SetBool, '/shaper_sim/pause')
+        reset = probe.node.create_client(Trigger, '/shaper_sim/reset')
+        assert pause.wait_for_service(10.0) and reset.wait_for_service(10.0)
+        futures = [pause.call_async(SetBool.Request(data=i % 2 == 0)) for i in range(600)]
+        futures += [reset.call_async(Trigger.Request()) for _ in range(600)]
+        probe.wait_for(lambda: all(f.done() for f in futures), timeout=60.0,
+                       what=f'1200 answers ({sum(f.done() for f in futures)} came)')
+        assert all(f.result().success for f in futures)
+        assert probe.set_parameter('coupling_offset', 0.002).successful
+        count = len(probe.messages)
+        probe.wait_for(lambda: len(probe.messages) > count + 3, what='publishing after it all')
+    finally:
+        code, output = node.stop()
+    assert code == 0 and 'Traceback' not in output, output
+
+
+@pytest.mark.parametrize('arguments, words', [
+    (['-p', 'publish_rate:=0.5'], ['publish_rate = 0.5 refused', '[1, 10000] Hz']),
+    (['-p', 'crank_phase:=4.0'], ['crank_phase = 4.0 refused', '[-3.14159, 3.14159] rad']),
+    (['-p', 'ram_height:=-0.1'], ['ram_height', '-0.1', '> 0']),
+    (['-p', 'coupling_offset'], ['cannot start', "parameter override rule: '-p"]),
+    (['--params-file', '/nonexistent/shaper.yaml'], ['cannot start', 'params file']),
+], ids=['publish_rate', 'crank_phase', 'geometry', 'malformed -p', 'missing params file'])
+def test_start_up_problems_get_one_line_and_exit_2(arguments, words):
+    code, output = Process(*arguments).stop(None, timeout=30.0)
+    assert code == 2, output
+    assert 'Traceback' not in output, output
+    lines = [line for line in output.splitlines() if 'shaper_sim: cannot start' in line]
+    assert len(lines) == 1, output
+    for word in words:
+        assert word in lines[0], output
+
+
+def test_an_unknown_start_up_parameter_is_reported(probe):
+    node = Process('-p', 'coupling_ofset:=0.01')
+    try:
+        probe.wait_for(lambda: len(probe.messages) >= 3, what='first joint states')
+    finally:
+        code, output = node.stop()
+    assert code == 0, output
+    assert 'coupling_ofset ignored' in output and 'did you mean coupling_offset' in output
+
+
+STALLING_SUBSCRIBER = '''
+import sys
+import rclpy
+from qrm_ros.ros_process import init_rclpy, spin_until_stopped, StopRequest
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+init_rclpy()
+node = Node('stalling_subscriber')
+out = open(sys.argv[1], 'w', buffering=1)
+node.create_subscription(
+    JointState, 'joint_states',
+    lambda m: out.write(f'{m.header.stamp.sec * 10**9 + m.header.stamp.nanosec}\\n'), 10000)
+executor = SingleThreadedExecutor()
+executor.add_node(node)
+with StopRequest() as stop:
+    spin_until_stopped(executor, stop)
+'''
+
+
+def test_a_subscriber_that_stalls_for_a_moment_loses_nothing(probe, tmp_path):
+    # A reliable subscriber that stops for 0.5 s (a loaded machine) at 1 kHz gets every
+    # message the node published, as a parallel subscriber (the probe) does. (Measured:
+    # transport buffers carry stalls up to about 1 s whatever the publisher history; the
+    # node keeps a second of history so that the writer can also resend what a transport
+    # dropped.)
+    node = Process('-p', 'publish_rate:=1000.0')
+    received = tmp_path / 'stamps.txt'
+    subscriber = subprocess.Popen([sys.executable, '-c', STALLING_SUBSCRIBER, str(received)])
+
+    def seen():
+        return received.read_text().split() if received.exists() else []
+    try:
+        probe.wait_for(lambda: len(seen()) >= 100, what='the subscriber receiving')
+        subscriber.send_signal(signal.SIGSTOP)
+        time.sleep(0.5)  # the stall under test
+        subscriber.send_signal(signal.SIGCONT)
+        count = len(seen())
+        probe.wait_for(lambda: len(seen()) > count + 1000, what='the subscriber catching up')
+    finally:
+        subscriber.send_signal(signal.SIGCONT)
+        stop_process(subscriber)
+        code, output = node.stop()
+    assert code == 0, output
+    stamps = [int(s) for s in seen()]
+    got = set(stamps)
+    window = [stamp_ns(m) for m in probe.messages if stamps[0] <= stamp_ns(m) <= stamps[-1]]
+    missing = [s for s in window if s not in got]
+    assert not missing, f'{len(missing)} of {len(window)} messages lost by the stalled subscriber'

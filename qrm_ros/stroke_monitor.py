@@ -1,0 +1,159 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+Live per-stroke-pair measurement for the node's diagnostics, free of ROS.
+
+The node feeds every published sample; when a cutting stroke begins, the pair before it is
+complete and is measured with the same method as the offline analysis
+(strokes.find_stroke_pairs) and compared with the core's theory for the offset and speed in
+force. The node only wraps the returned reports in DiagnosticStatus messages.
+"""
+
+from array import array
+import math
+from typing import Dict, List, NamedTuple
+
+from qrm_ros.kinematics import Geometry, steady_theory, SteadyTheory
+from qrm_ros.strokes import find_stroke_pairs
+
+__all__ = ['BUFFER_LIMIT', 'MEASURED_FIGURES', 'PairReport', 'StrokeMonitor']
+
+# At most this many samples wait for a stroke pair to end (at 100 Hz, 43 minutes; a shaft
+# slower than one turn in that time gets no reports).
+BUFFER_LIMIT = 2 ** 18
+# StrokePairs fields reported per pair, in the order they are published.
+MEASURED_FIGURES = ('cutting_time', 'return_time', 'time_ratio', 'peak_cutting_speed',
+                    'peak_return_speed', 'mid_cutting_speed', 'mid_return_speed',
+                    'speed_ratio', 'peak_speed_ratio')
+_SAMPLE_FIELDS = ('ram_position', 'ram_velocity', 'offset', 'offset_rate', 'input_speed')
+_THEORY_CACHE_LIMIT = 64
+_NANOSECONDS = 1e9
+
+
+class PairReport(NamedTuple):
+    """One completed stroke pair: what was measured, what theory says, and in what setting."""
+
+    stamp_ns: int            # the sample that completed the pair
+    pair_start: float        # s, on the sample clock
+    pair_end: float          # s
+    coupling_offset: float   # m, in force at the pair's end
+    input_speed: float       # rad/s, in force at the pair's end
+    offset_steady: bool      # the offset did not move during the pair
+    input_speed_steady: bool
+    measured: Dict[str, float]
+    theory: Dict[str, float]  # empty at zero speed; keys end in '_theory'
+
+    @property
+    def steady(self):
+        return self.offset_steady and self.input_speed_steady
+
+    def values(self):
+        """Every figure as name -> float, in publishing order."""
+        values = dict(self.measured)
+        values.update(pair_start=self.pair_start, pair_end=self.pair_end,
+                      coupling_offset=self.coupling_offset, input_speed=self.input_speed)
+        values.update(self.theory)
+        return values
+
+
+def theory_figures(theory_per_unit_speed: SteadyTheory, input_speed: float) -> Dict[str, float]:
+    """Scale the theory at unit |speed| to a speed (times / |speed|, speeds x |speed|)."""
+    unit, scale = theory_per_unit_speed, abs(input_speed)
+    return {
+        'time_ratio_theory': unit.time_ratio,
+        'speed_ratio_theory': unit.speed_ratio,
+        'peak_speed_ratio_theory': unit.peak_speed_ratio,
+        'cutting_time_theory': unit.cutting_time / scale,
+        'return_time_theory': unit.return_time / scale,
+        'peak_cutting_speed_theory': unit.peak_cutting_speed * scale,
+        'peak_return_speed_theory': unit.peak_return_speed * scale,
+    }
+
+
+class StrokeMonitor:
+    """Buffers samples and reports each stroke pair once it is complete."""
+
+    def __init__(self, geometry: Geometry):
+        self._geometry = geometry
+        self._theory_cache: Dict[tuple, SteadyTheory] = {}
+        self.clear()
+
+    def clear(self) -> None:
+        """Forget the samples (after a reset, a pause or a clock jump: no pair spans it)."""
+        self._stamp_ns: List[int] = []
+        self._columns = {name: array('d') for name in _SAMPLE_FIELDS}
+        self._last_velocity_positive = None
+
+    def __len__(self):
+        return len(self._stamp_ns)
+
+    def add(self, stamp_ns: int, ram_position: float, ram_velocity: float, offset: float,
+            offset_rate: float, input_speed: float) -> List[PairReport]:
+        """Take one sample; return the pairs it completed (usually none, at most a few)."""
+        self._stamp_ns.append(stamp_ns)
+        for name, value in zip(_SAMPLE_FIELDS, (ram_position, ram_velocity, offset,
+                                                offset_rate, input_speed)):
+            self._columns[name].append(value)
+        if len(self._stamp_ns) > BUFFER_LIMIT:
+            self._keep_from(len(self._stamp_ns) - BUFFER_LIMIT // 2)
+        positive = ram_velocity >= 0.0
+        # A cutting stroke beginning ends the pair before it: measure only then.
+        reports = []
+        if self._last_velocity_positive and not positive:
+            reports = self._measure(stamp_ns)
+        self._last_velocity_positive = positive
+        return reports
+
+    def _keep_from(self, index):
+        del self._stamp_ns[:index]
+        for column in self._columns.values():
+            del column[:index]
+
+    def _measure(self, stamp_ns):
+        origin = self._stamp_ns[0]
+        time = [(ns - origin) / _NANOSECONDS for ns in self._stamp_ns]
+        columns = self._columns
+        pairs = find_stroke_pairs(time, columns['ram_position'], columns['ram_velocity'])
+        reports = [self._report(stamp_ns, origin, pairs, index)
+                   for index in range(len(pairs.cutting_time))]
+        # Keep the two samples around the reversal just found: the next pair starts there.
+        self._keep_from(len(self._stamp_ns) - 2)
+        return reports
+
+    def _report(self, stamp_ns, origin, pairs, index):
+        columns = self._columns
+        first, last = int(pairs.first_sample[index]), int(pairs.last_sample[index])
+        offsets = columns['offset'][first:last + 1]
+        speeds = columns['input_speed'][first:last + 1]
+        offset, speed = offsets[-1], speeds[-1]
+        return PairReport(
+            stamp_ns=stamp_ns,
+            pair_start=origin / _NANOSECONDS + float(pairs.cutting_start[index]),
+            pair_end=origin / _NANOSECONDS + float(pairs.return_end[index]),
+            coupling_offset=offset, input_speed=speed,
+            offset_steady=(min(offsets) == max(offsets)
+                           and not any(columns['offset_rate'][first:last])),
+            input_speed_steady=min(speeds) == max(speeds),
+            measured={name: float(getattr(pairs, name)[index]) for name in MEASURED_FIGURES},
+            theory=self.theory(offset, speed) if speed != 0.0 else {})
+
+    def theory(self, offset: float, input_speed: float) -> Dict[str, float]:
+        """Theory figures at a steady offset and speed (cached per offset and direction)."""
+        key = (offset, input_speed > 0.0)
+        if key not in self._theory_cache:
+            if len(self._theory_cache) > _THEORY_CACHE_LIMIT:
+                self._theory_cache.clear()
+            self._theory_cache[key] = steady_theory(self._geometry, offset,
+                                                    math.copysign(1.0, input_speed))
+        return theory_figures(self._theory_cache[key], input_speed)
