@@ -1,0 +1,68 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""The ROS-free stroke monitor against the closed form, sample by sample as the node feeds it."""
+
+import math
+
+import numpy as np
+import pytest
+from qrm_ros.kinematics import Geometry, state, stroke_times, time_ratio
+from qrm_ros.stroke_monitor import MEASURED_FIGURES, StrokeMonitor
+
+NS = 1_000_000_000
+GEOMETRY = Geometry.paper()
+
+
+def feed(monitor, offset, speed, seconds, rate=1000.0, start_ns=NS, offsets=None):
+    """Exact steady-running samples (core closed form); return every report."""
+    reports = []
+    for index in range(int(seconds * rate)):
+        stamp = start_ns + round(index * NS / rate)
+        angle = speed * (stamp - start_ns) / NS
+        moving = offsets(index) if offsets else offset
+        sample = state(GEOMETRY, moving, angle, speed)
+        reports += monitor.add(stamp, float(sample.ram_position), float(sample.ram_velocity),
+                               moving, 0.0, speed)
+    return reports
+
+
+@pytest.mark.parametrize('offset, speed', [(0.0, 2 * math.pi), (0.012, 2 * math.pi),
+                                           (-0.01, -3.0)])
+def test_steady_pairs_match_the_closed_form(offset, speed):
+    reports = feed(StrokeMonitor(GEOMETRY), offset, speed, 3.5 * 2 * math.pi / abs(speed))
+    assert len(reports) >= 2
+    cutting, returning = stroke_times(GEOMETRY, offset, speed)
+    for report in reports:
+        assert report.steady and report.coupling_offset == offset
+        assert set(report.measured) == set(MEASURED_FIGURES)
+        assert report.measured['time_ratio'] == pytest.approx(
+            time_ratio(GEOMETRY, offset, speed), rel=1e-6)
+        assert report.measured['cutting_time'] == pytest.approx(cutting, abs=1e-6)
+        # Theory is the core's, scaled to the speed: times and speeds, not just ratios.
+        assert report.theory['cutting_time_theory'] == pytest.approx(cutting, rel=1e-14)
+        assert report.theory['return_time_theory'] == pytest.approx(returning, rel=1e-14)
+        assert report.pair_end - report.pair_start == pytest.approx(cutting + returning,
+                                                                    abs=1e-6)
+        assert all(np.isfinite(list(report.values().values())))
+
+
+def test_clear_forgets_a_partial_pair_and_a_moving_offset_is_flagged():
+    monitor = StrokeMonitor(GEOMETRY)
+    feed(monitor, 0.0, 2 * math.pi, 0.7)
+    monitor.clear()
+    assert len(monitor) == 0
+    reports = feed(StrokeMonitor(GEOMETRY), None, 2 * math.pi, 2.2,
+                   offsets=lambda index: 1e-6 * index)
+    assert reports and not any(r.offset_steady for r in reports)
+    assert all(r.input_speed_steady for r in reports)
