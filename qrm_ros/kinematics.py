@@ -158,8 +158,16 @@ def _fmt(value):
     return f'{value:.6g}' if np.ndim(value) == 0 else 'per-element values'
 
 
+class _ScalarMath:
+    """math's functions under numpy's names: the same formulas run ~20x faster on floats."""
+
+    cos = staticmethod(math.cos)
+    sin = staticmethod(math.sin)
+    arctan2 = staticmethod(math.atan2)
+
+
 def _slot_rates(crank_radius, centre_distance, crank_angle, crank_speed, crank_acceleration,
-                centre_rate=0.0):
+                centre_rate=0.0, xp=np):
     """
     Angular rate and acceleration of the line from a slot's centre to a crank pin.
 
@@ -168,7 +176,7 @@ def _slot_rates(crank_radius, centre_distance, crank_angle, crank_speed, crank_a
     inverted slider-crank of both stages; rates follow from the pin's relative position
     p, velocity and acceleration: beta' = (p x p') / |p|^2.
     """
-    cos_a, sin_a = np.cos(crank_angle), np.sin(crank_angle)
+    cos_a, sin_a = xp.cos(crank_angle), xp.sin(crank_angle)
     px = crank_radius * cos_a
     py = crank_radius * sin_a + centre_distance
     vx = -crank_radius * sin_a * crank_speed
@@ -191,17 +199,24 @@ def state(geometry, offset, input_angle, input_speed, input_acceleration=0.0,
     the true time derivatives of the positions while the offset actuator runs (its own
     acceleration is taken as zero: it moves at a constant rate or not at all).
     """
-    offset = check_offset(geometry, offset)
     r1, r, h = geometry.coupling_radius, geometry.crank_radius, geometry.pivot_distance
-    theta = np.asarray(input_angle, dtype=float)
+    # One sample of scalars (the node, every tick) takes math's functions, not numpy's.
+    scalar = all(type(value) is float for value in (
+        offset, input_angle, input_speed, input_acceleration, offset_rate, r1, r, h,
+        geometry.ram_height, geometry.crank_phase))
+    if scalar and math.isfinite(offset) and abs(offset) < r1:
+        xp, theta = _ScalarMath, input_angle
+    else:
+        offset = check_offset(geometry, offset)
+        xp, theta = np, np.asarray(input_angle, dtype=float)
     # Output angle = input angle + a bounded correction, so it is as continuous as the input.
-    flywheel_angle = theta + np.arctan2(offset * np.cos(theta), r1 + offset * np.sin(theta))
+    flywheel_angle = theta + xp.arctan2(offset * xp.cos(theta), r1 + offset * xp.sin(theta))
     flywheel_speed, flywheel_acc = _slot_rates(r1, offset, theta, input_speed,
-                                               input_acceleration, offset_rate)
+                                               input_acceleration, offset_rate, xp)
     crank_angle = flywheel_angle + geometry.crank_phase
-    cos_c, sin_c = np.cos(crank_angle), np.sin(crank_angle)
-    lever_angle = np.arctan2(r * cos_c, h + r * sin_c)
-    slot_rate, slot_acc = _slot_rates(r, h, crank_angle, flywheel_speed, flywheel_acc)
+    cos_c, sin_c = xp.cos(crank_angle), xp.sin(crank_angle)
+    lever_angle = xp.arctan2(r * cos_c, h + r * sin_c)
+    slot_rate, slot_acc = _slot_rates(r, h, crank_angle, flywheel_speed, flywheel_acc, 0.0, xp)
     # The lever angle is measured from the vertical toward +x: the slot's angle, mirrored.
     lever_speed, lever_acc = -slot_rate, -slot_acc
     tan_lever = r * cos_c / (h + r * sin_c)
@@ -216,6 +231,8 @@ def state(geometry, offset, input_angle, input_speed, input_acceleration=0.0,
         ram_velocity=height * lever_speed * sec2,
         ram_acceleration=height * sec2 * (lever_acc + 2.0 * lever_speed ** 2 * tan_lever),
     )
+    if xp is _ScalarMath:
+        return result
     if all(np.ndim(value) == 0 for value in result):
         return MechanismState(*(float(value) for value in result))
     return MechanismState(*(np.broadcast_arrays(*result)))

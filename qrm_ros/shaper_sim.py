@@ -351,16 +351,19 @@ class ShaperSimNode(Node):
                 f'non-finite state at {stamp_ns} ns not published: positions {positions}, '
                 f'velocities {velocities}', throttle_duration_sec=_WARNING_PERIOD)
             return False
-        stamp = _stamp(stamp_ns)
+        # The messages are built once; each tick only fills in its values.
+        seconds, nanoseconds = divmod(stamp_ns, 1_000_000_000)
         frame_id = self._values['frame_id']
         joint_state = self._joint_state
-        joint_state.header.stamp = stamp
+        joint_state.header.stamp.sec = seconds
+        joint_state.header.stamp.nanosec = nanoseconds
         joint_state.header.frame_id = frame_id
         joint_state.position = positions
         joint_state.velocity = velocities
         self._joint_state_publisher.publish(joint_state)
         twist = self._twist
-        twist.header.stamp = stamp
+        twist.header.stamp.sec = seconds
+        twist.header.stamp.nanosec = nanoseconds
         twist.header.frame_id = frame_id
         twist.twist.linear.x = sample.ram_velocity
         self._twist_publisher.publish(twist)
