@@ -40,11 +40,11 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'qrm_design = qrm_ros.design_table:main',
-            'shaper_sim = qrm_ros.shaper_sim:main',
-            'mcap_recorder = qrm_ros.recorder:main',
-            'qrm_analyze = qrm_ros.analysis:main',
-            'qrm_main = qrm_ros.main_job:main',
+            'qrm_design = qrm_ros.entry_points:qrm_design',
+            'shaper_sim = qrm_ros.entry_points:shaper_sim',
+            'mcap_recorder = qrm_ros.entry_points:mcap_recorder',
+            'qrm_analyze = qrm_ros.entry_points:qrm_analyze',
+            'qrm_main = qrm_ros.entry_points:qrm_main',
         ],
     },
 )

@@ -14,15 +14,24 @@
 """
 Benchmark: shaper_sim against a bare rclpy timer publishing a JointState of the same size.
 
-    python3 dev.py run python bench/bench_node.py [--repeat 3] [--window 1.5]
+    python3 dev.py run python bench/bench_node.py [--repeat 5] [--window 2] [--allow-busy]
 
-Both run as their own processes, one after the other in the same run, at each publish rate;
-this process subscribes to joint_states and counts missed ticks from the stamps (a gap of
-k periods is k - 1 missed ticks). A rate is sustained when at most 1 % of its ticks are
-missed over the window; the highest rate reported is the highest up to which every tested
-rate was sustained. CPU is the publisher's user + system time over the window (/proc),
-in percent of one core. Prints each run and the medians over runs. Not a test: no
-thresholds are asserted (targets: max rate >= 0.9 x bare, CPU at 1 kHz <= 1.2 x bare).
+Every publisher runs as its own process; this process subscribes to joint_states and counts
+missed ticks from the stamps (a gap of k periods is k - 1 missed ticks). Variants, measured
+interleaved (each repeat visits every rate and variant, in a rotated order, so slow drifts of
+the machine hit all alike):
+  node         shaper_sim as shipped (SingleThreadedExecutor)
+  bare         a plain rclpy timer publishing one JointState (the baseline)
+  bare-2pub    the bare timer also publishing a TwistStamped (the node's two messages)
+  node-events  ShaperSimNode spun by rclpy's experimental EventsExecutor
+  bare-events  the bare timer on the EventsExecutor
+CPU is the publisher process's on-CPU time from the kernel (/proc/PID/task/*/schedstat,
+nanoseconds, all threads) over the window. A measurement is kept only if the rest of the
+machine was quiet meanwhile (other processes' CPU from /proc/stat below --quiet-limit cores);
+a busy machine is retried, and with no quiet measurement the benchmark refuses to report
+(exit 3) unless --allow-busy. Prints medians and spreads (min..max) over repeats of each
+variant's CPU and of the node/bare ratio of adjacent measurements. Not a test: nothing is
+asserted (targets: CPU at 1 kHz <= 1.2 x bare, max rate >= 0.9 x bare).
 """
 
 import argparse
@@ -34,23 +43,60 @@ import subprocess
 import sys
 import time
 
+from qrm_ros.names import JOINT_NAMES, JOINT_STATES_TOPIC, RAM_TWIST_TOPIC
 from qrm_ros.ros_isolation import isolate_ros_traffic
 
-RATES = [100.0, 200.0, 500.0, 1000.0, 2000.0, 3000.0, 5000.0]
+RATES = [100.0, 1000.0, 2000.0, 3000.0, 5000.0]
+CPU_RATES = (100.0, 1000.0)
+VARIANTS = ('node', 'bare', 'bare-2pub', 'node-events', 'bare-events')
 SUSTAINED_MISSED_FRACTION = 0.01
+RETRIES = 3
+EXIT_BUSY = 3
 
 
-def bare_main(rate):
-    """Publish a 5-joint JointState at `rate` from a plain rclpy timer."""
+# Publishers (each run as `bench_node.py --publisher VARIANT RATE`) ------------------------
+
+def _spin(node, events):
     import rclpy
-    from rclpy.executors import ExternalShutdownException
+    from qrm_ros.ros_process import spin_until_stopped, StopRequest
+    if events:
+        from rclpy.experimental.events_executor import EventsExecutor
+        executor = EventsExecutor()
+    else:
+        executor = rclpy.executors.SingleThreadedExecutor()
+    executor.add_node(node)
+    with StopRequest() as stop:
+        spin_until_stopped(executor, stop)
+
+
+def publisher_main(variant, rate):
+    import rclpy
+    from qrm_ros.ros_process import init_rclpy
+    init_rclpy()
+    if variant.startswith('node'):
+        from qrm_ros.shaper_sim import ShaperSimNode
+        from rclpy.parameter import Parameter
+        node = ShaperSimNode(parameter_overrides=[Parameter('publish_rate', value=rate)])
+    else:
+        node = _bare_node(rate, twist=variant == 'bare-2pub')
+    try:
+        _spin(node, events=variant.endswith('events'))
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+def _bare_node(rate, twist):
+    """A plain rclpy timer publishing a 5-joint JointState (and a twist, if asked)."""
+    import rclpy
+    from geometry_msgs.msg import TwistStamped
     from sensor_msgs.msg import JointState
 
-    rclpy.init()
     node = rclpy.create_node('bare_publisher')
-    publisher = node.create_publisher(JointState, 'joint_states', 10)
-    message = JointState(name=['input_shaft_joint', 'flywheel_joint', 'lever_joint',
-                               'ram_joint', 'coupling_offset_joint'])
+    publisher = node.create_publisher(JointState, JOINT_STATES_TOPIC, 10)
+    twist_publisher = node.create_publisher(TwistStamped, RAM_TWIST_TOPIC, 10)
+    message = JointState(name=list(JOINT_NAMES))
+    twist_message = TwistStamped()
     clock = node.get_clock()
 
     def tick():
@@ -60,41 +106,84 @@ def bare_main(rate):
         message.position = array('d', (seconds, seconds, seconds, seconds, seconds))
         message.velocity = array('d', (1.0, 1.0, 1.0, 1.0, 1.0))
         publisher.publish(message)
+        if twist:
+            twist_message.header.stamp = message.header.stamp
+            twist_message.twist.linear.x = seconds
+            twist_publisher.publish(twist_message)
 
     node.create_timer(1.0 / rate, tick)
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    return node
 
 
-def cpu_seconds(pid):
-    with open(f'/proc/{pid}/stat') as handle:
-        fields = handle.read().rsplit(')', 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+# Measuring --------------------------------------------------------------------------------
+
+def process_cpu_ns(pid):
+    """On-CPU nanoseconds of every live thread of a process (kernel schedstat)."""
+    total = 0
+    for task in os.listdir(f'/proc/{pid}/task'):
+        try:
+            with open(f'/proc/{pid}/task/{task}/schedstat') as handle:
+                total += int(handle.read().split()[0])
+        except (FileNotFoundError, ProcessLookupError):
+            pass  # a thread ended meanwhile
+    return total
 
 
-def measure(command, rate, window, probe):
-    """Start a publisher, measure missed ticks and CPU over `window` seconds, stop it."""
+def machine_busy_ns():
+    """CPU time spent by everything on the machine, in ns (/proc/stat, all cores)."""
+    with open('/proc/stat') as handle:
+        fields = [int(v) for v in handle.readline().split()[1:]]
+    user, nice, system, idle, iowait, irq, softirq, steal = fields[:8]
+    ticks = user + nice + system + irq + softirq + steal
+    return ticks * 1e9 / os.sysconf('SC_CLK_TCK')
+
+
+class Probe:
+    """Counts the stamps of the joint states it receives (reliable, deep queue)."""
+
+    def __init__(self):
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.qos import QoSProfile
+        from sensor_msgs.msg import JointState
+
+        rclpy.init()
+        self.node = rclpy.create_node('bench_probe')
+        self.stamps = []
+        self.node.create_subscription(
+            JointState, JOINT_STATES_TOPIC,
+            lambda m: self.stamps.append(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec),
+            QoSProfile(depth=10000))
+        self.executor = SingleThreadedExecutor()
+        self.executor.add_node(self.node)
+
+    def spin_for(self, seconds):
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.executor.spin_once(timeout_sec=0.01)
+
+
+def measure(variant, rate, window, probe, quiet_limit):
+    """(missed fraction, CPU in % of a core, other load in cores) over one window."""
+    command = [sys.executable, os.path.abspath(__file__), '--publisher', variant, str(rate)]
     process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         probe.stamps.clear()
         deadline = time.monotonic() + 20.0
         while len(probe.stamps) < 10:
-            probe.spin_once()
+            probe.spin_for(0.01)
             if time.monotonic() > deadline:
-                raise RuntimeError(f'no joint states from {command[0]}')
-        time.sleep(0.2)  # past start-up
-        probe.drain()
+                raise RuntimeError(f'no joint states from {variant}')
+        probe.spin_for(0.2)  # past start-up
         probe.stamps.clear()
-        cpu_start, wall_start = cpu_seconds(process.pid), time.monotonic()
-        while time.monotonic() - wall_start < window:
-            probe.spin_once()
-        cpu = (cpu_seconds(process.pid) - cpu_start) / (time.monotonic() - wall_start)
-        probe.drain()
+        own = os.getpid()
+        cpu0, probe0, busy0 = process_cpu_ns(process.pid), process_cpu_ns(own), machine_busy_ns()
+        wall0 = time.monotonic()
+        probe.spin_for(window)
+        wall = time.monotonic() - wall0
+        cpu = process_cpu_ns(process.pid) - cpu0
+        others = machine_busy_ns() - busy0 - cpu - (process_cpu_ns(own) - probe0)
+        probe.spin_for(0.1)
         stamps = list(probe.stamps)
     finally:
         process.send_signal(2)
@@ -106,91 +195,88 @@ def measure(command, rate, window, probe):
     period = 1e9 / rate
     missed = sum(max(0, round((b - a) / period) - 1) for a, b in zip(stamps, stamps[1:]))
     expected = max(1, round((stamps[-1] - stamps[0]) / period) + 1) if stamps else 1
-    return missed / expected, 100.0 * cpu
+    return missed / expected, 100.0 * cpu / (wall * 1e9), others / (wall * 1e9)
 
 
-class Probe:
-    def __init__(self):
-        import rclpy
-        from rclpy.executors import SingleThreadedExecutor
-        from rclpy.qos import QoSProfile
-        from sensor_msgs.msg import JointState
-
-        rclpy.init()
-        self.node = rclpy.create_node('bench_probe')
-        self.stamps = []
-        self.node.create_subscription(
-            JointState, 'joint_states',
-            lambda m: self.stamps.append(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec),
-            QoSProfile(depth=10000))
-        self.executor = SingleThreadedExecutor()
-        self.executor.add_node(self.node)
-
-    def spin_once(self):
-        self.executor.spin_once(timeout_sec=0.01)
-
-    def drain(self):
-        for _ in range(50):
-            self.executor.spin_once(timeout_sec=0.002)
+def quiet_measurement(variant, rate, window, probe, quiet_limit, allow_busy):
+    for attempt in range(RETRIES):
+        missed, cpu, others = measure(variant, rate, window, probe, quiet_limit)
+        if others <= quiet_limit:
+            return missed, cpu
+        print(f'    (machine busy: other processes used {others:.2f} cores during '
+              f'{variant} {rate:.0f} Hz; retry {attempt + 1}/{RETRIES})', flush=True)
+    if allow_busy:
+        return missed, cpu
+    return None
 
 
-def one_run(window, probe):
-    shaper = shutil.which('shaper_sim')
-    shaper = shaper or os.path.join(os.path.dirname(sys.executable), 'shaper_sim')
-    results = {}
-    for rate in RATES:
-        for kind, command in (
-                ('node', [shaper, '--ros-args', '-p', f'publish_rate:={rate}']),
-                ('bare', [sys.executable, os.path.abspath(__file__), '--bare', str(rate)])):
-            results[kind, rate] = measure(command, rate, window, probe)
-            missed, cpu = results[kind, rate]
-            print(f'  {kind} {rate:6.0f} Hz: missed {100 * missed:5.2f} % of ticks, '
-                  f'CPU {cpu:5.1f} %', flush=True)
-    summary = {}
-    for kind in ('node', 'bare'):
-        # The highest rate up to which every tested rate was sustained.
-        summary[kind, 'max_rate'] = 0.0
-        for rate in RATES:
-            if results[kind, rate][0] > SUSTAINED_MISSED_FRACTION:
-                break
-            summary[kind, 'max_rate'] = rate
-        summary[kind, 'cpu_100'] = results[kind, 100.0][1]
-        summary[kind, 'cpu_1000'] = results[kind, 1000.0][1]
-    return summary
-
-
-def report(summary, label):
-    def ratio(name):
-        bare = summary['bare', name]
-        return summary['node', name] / bare if bare else float('inf')
-    print(f'{label}: highest rate without missed ticks (<= 1 % missed): node '
-          f'{summary["node", "max_rate"]:.0f} Hz, bare {summary["bare", "max_rate"]:.0f} Hz, '
-          f'node/bare {ratio("max_rate"):.2f}')
-    print(f'{label}: CPU at 100 Hz: node {summary["node", "cpu_100"]:.1f} %, bare '
-          f'{summary["bare", "cpu_100"]:.1f} %, node/bare {ratio("cpu_100"):.2f}')
-    print(f'{label}: CPU at 1 kHz: node {summary["node", "cpu_1000"]:.1f} %, bare '
-          f'{summary["bare", "cpu_1000"]:.1f} %, node/bare {ratio("cpu_1000"):.2f}',
-          flush=True)
+def spread(values):
+    values = sorted(values)
+    return f'median {statistics.median(values):6.2f} (min {values[0]:.2f}, max {values[-1]:.2f})'
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
-    parser.add_argument('--repeat', type=int, default=3, help='runs (medians reported)')
+    parser.add_argument('--repeat', type=int, default=5, help='interleaved repeats')
     parser.add_argument('--window', type=float, default=2.0, help='seconds per measurement')
-    parser.add_argument('--bare', type=float, help=argparse.SUPPRESS)
+    parser.add_argument('--variants', nargs='+', default=list(VARIANTS), choices=VARIANTS)
+    parser.add_argument('--rates', nargs='+', type=float, default=RATES)
+    parser.add_argument('--quiet-limit', type=float, default=0.2,
+                        help='largest CPU use of other processes, in cores (default 0.2)')
+    parser.add_argument('--allow-busy', action='store_true',
+                        help='report even when the machine was busy (marked as such)')
+    parser.add_argument('--publisher', nargs=2, help=argparse.SUPPRESS)
     args = parser.parse_args()
-    if args.bare:
-        return bare_main(args.bare)
+    if args.publisher:
+        return publisher_main(args.publisher[0], float(args.publisher[1]))
     isolate_ros_traffic(os.environ)
     probe = Probe()
-    runs = []
+    results = {}  # (variant, rate) -> list of (missed, cpu) per repeat
     for index in range(args.repeat):
-        print(f'run {index + 1}/{args.repeat} ({os.cpu_count()} CPUs, window {args.window} s)',
-              flush=True)
-        runs.append(one_run(args.window, probe))
-        report(runs[-1], f'run {index + 1}')
-    median = {key: statistics.median(run[key] for run in runs) for key in runs[0]}
-    report(median, f'median of {len(runs)}')
+        print(f'repeat {index + 1}/{args.repeat} ({os.cpu_count()} CPUs, window '
+              f'{args.window} s)', flush=True)
+        order = args.variants[index % len(args.variants):] + \
+            args.variants[:index % len(args.variants)]
+        for rate in args.rates:
+            for variant in order:
+                found = quiet_measurement(variant, rate, args.window, probe, args.quiet_limit,
+                                          args.allow_busy)
+                if found is None:
+                    print(f'bench_node: the machine stayed busy (other processes above '
+                          f'{args.quiet_limit} cores) through {RETRIES} tries of {variant} '
+                          f'at {rate:.0f} Hz: no figures reported (--allow-busy reports '
+                          'them anyway)', file=sys.stderr)
+                    return EXIT_BUSY
+                results.setdefault((variant, rate), []).append(found)
+                print(f'  {variant:11s} {rate:6.0f} Hz: missed {100 * found[0]:5.2f} %, '
+                      f'CPU {found[1]:5.1f} %', flush=True)
+    report(results, args)
+    return 0
+
+
+def report(results, args):
+    print(f'\nmedians over {args.repeat} interleaved repeats'
+          + (' (busy machine allowed)' if args.allow_busy else ''))
+    for rate in [r for r in CPU_RATES if r in args.rates]:
+        for variant in args.variants:
+            cpus = [cpu for _, cpu in results[variant, rate]]
+            print(f'CPU at {rate:6.0f} Hz, {variant:11s}: {spread(cpus)} % of a core')
+        bare = [cpu for _, cpu in results['bare', rate]] if 'bare' in args.variants else None
+        for variant in args.variants:
+            if variant == 'bare' or bare is None:
+                continue
+            ratios = [cpu / base for (_, cpu), base in zip(results[variant, rate], bare)]
+            print(f'CPU at {rate:6.0f} Hz, {variant:11s} / bare: {spread(ratios)}')
+    for variant in args.variants:
+        highest = []
+        for index in range(args.repeat):
+            top = 0.0
+            for rate in sorted(args.rates):
+                if results[variant, rate][index][0] > SUSTAINED_MISSED_FRACTION:
+                    break
+                top = rate
+            highest.append(top)
+        print(f'highest rate with <= 1 % missed ticks, {variant:11s}: {spread(highest)} Hz')
 
 
 if __name__ == '__main__':

@@ -38,6 +38,7 @@ import rclpy
 from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.parameter import Parameter, parameter_value_to_python
+from rclpy.qos import qos_profile_parameters
 from sensor_msgs.msg import JointState
 from std_srvs.srv import SetBool, Trigger
 
@@ -254,6 +255,18 @@ def test_process_stops_cleanly(probe, signal_number):
     assert 'Traceback' not in output, output
 
 
+@pytest.mark.parametrize('signal_number', [signal.SIGINT, signal.SIGTERM],
+                         ids=['SIGINT', 'SIGTERM'])
+@pytest.mark.parametrize('delay', [0.4, 0.8])
+def test_a_stop_while_starting_is_quiet(signal_number, delay):
+    # Importing rclpy, numpy and scipy takes a while: a stop then exits quietly too.
+    node = Process()
+    time.sleep(delay)  # the moment under test: somewhere in start-up
+    code, output = node.stop(signal_number)
+    assert code == 0, output
+    assert 'Traceback' not in output and 'KeyboardInterrupt' not in output, output
+
+
 def test_process_refuses_a_bad_start_up_value_and_exits_2():
     node = Process('-p', 'coupling_offset:=0.024')
     code, output = node.stop(None, timeout=30.0)
@@ -278,10 +291,13 @@ def test_malformed_and_bursty_requests_never_stop_the_node(probe):
         result = probe.call(atomic, SetParametersAtomically.Request(
             parameters=[malformed])).result
         assert not result.successful and '99' in result.reason
-        # A burst of service calls: every one is answered (the default service queue of 10
-        # dropped all but a few dozen of 600).
-        pause = probe.node.create_client(SetBool, '/shaper_sim/pause')
-        reset = probe.node.create_client(Trigger, '/shaper_sim/reset')
+        # A burst of service calls from clients with deep queues (as rclpy's parameter
+        # clients have): every one is answered (the default service queue of 10 dropped all
+        # but a few dozen of 600).
+        pause = probe.node.create_client(SetBool, '/shaper_sim/pause',
+                                         qos_profile=qos_profile_parameters)
+        reset = probe.node.create_client(Trigger, '/shaper_sim/reset',
+                                         qos_profile=qos_profile_parameters)
         assert pause.wait_for_service(10.0) and reset.wait_for_service(10.0)
         futures = [pause.call_async(SetBool.Request(data=i % 2 == 0)) for i in range(600)]
         futures += [reset.call_async(Trigger.Request()) for _ in range(600)]
