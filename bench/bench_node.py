@@ -37,7 +37,6 @@ asserted (targets: CPU at 1 kHz <= 1.2 x bare, max rate >= 0.9 x bare).
 import argparse
 from array import array
 import os
-import shutil
 import statistics
 import subprocess
 import sys
@@ -87,7 +86,7 @@ def publisher_main(variant, rate):
 
 
 def _bare_node(rate, twist):
-    """A plain rclpy timer publishing a 5-joint JointState (and a twist, if asked)."""
+    """Make a plain rclpy timer node publishing a 5-joint JointState (and a twist)."""
     import rclpy
     from geometry_msgs.msg import TwistStamped
     from sensor_msgs.msg import JointState
