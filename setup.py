@@ -27,10 +27,12 @@ setup(
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/config', glob('config/*.yaml')),
         ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
+        ('share/' + package_name + '/urdf', glob('urdf/*.urdf')),
     ],
     install_requires=['setuptools', 'numpy', 'scipy', 'mcap', 'rosbags', 'matplotlib'],
     extras_require={
-        'test': ['pytest', 'flake8', 'pydocstyle', 'mcap-ros2-support', 'pyyaml'],
+        'test': ['pytest', 'flake8', 'pydocstyle', 'mcap-ros2-support', 'pyyaml',
+                 'yourdfpy'],
     },
     zip_safe=True,
     maintainer='qrm_ros developers',
@@ -45,6 +47,7 @@ setup(
             'mcap_recorder = qrm_ros.recorder:main',
             'qrm_analyze = qrm_ros.analysis:main',
             'qrm_main = qrm_ros.main_job:main',
+            'qrm_urdf = qrm_ros.urdf_model:main',
         ],
     },
 )
