@@ -97,7 +97,7 @@ class _Builder:
         ET.SubElement(visual, 'material', name=material)
 
     def bar(self, link, start, end, layer, material, width=None):
-        """A flat bar from start to end (x, y) on a z layer (multiples of the bar width)."""
+        """Add a flat bar from start to end (x, y) on a z layer (in bar widths)."""
         width = width or self.sizes.bar_width
         dx, dy = end[0] - start[0], end[1] - start[1]
         self.visual(link, ('box', (math.hypot(dx, dy), width, width)), material,
@@ -111,7 +111,7 @@ class _Builder:
                     xyz=(xy[0], xy[1], layer * self.sizes.bar_width))
 
     def pin(self, link, xy=(0.0, 0.0)):
-        """A pin through every layer, so it shows in front of what it joins."""
+        """Add a pin through every layer, so it shows in front of what it joins."""
         self.disc(link, self.sizes.pin_radius, 0.5, 'pin_black', xy,
                   thickness=6.0 * self.sizes.bar_width)
 
@@ -154,7 +154,7 @@ def _lever_inertia_about_centre(mass_properties):
 
 def urdf_text(geometry, mass_properties=None):
     """
-    The URDF (XML text) of the machine with this geometry.
+    Return the URDF (XML text) of the machine with this geometry.
 
     ``mass_properties`` (an object with the fields of ``qrm_ros.dynamics.MassProperties``:
     input_inertia, flywheel_inertia, lever_inertia, lever_mass, lever_com_distance,
