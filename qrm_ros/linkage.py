@@ -28,8 +28,21 @@ import numpy as np
 
 from qrm_ros import kinematics as kin
 
-__all__ = ['LinkagePoints', 'LinkageSizes', 'linkage_points', 'linkage_sizes',
+__all__ = ['COLOURS', 'LinkagePoints', 'LinkageSizes', 'linkage_points', 'linkage_sizes',
            'workpiece_span']
+
+# Colours (RGBA, 0 to 1) of the parts, by name: URDF materials, markers and animations.
+COLOURS = {
+    'frame_grey': (0.55, 0.55, 0.58, 1.0),
+    'flywheel_blue': (0.25, 0.4, 0.7, 1.0),
+    'slot_black': (0.08, 0.08, 0.1, 1.0),
+    'input_orange': (0.95, 0.55, 0.1, 1.0),
+    'lever_green': (0.2, 0.65, 0.3, 1.0),
+    'ram_red': (0.7, 0.15, 0.15, 1.0),
+    'tool_yellow': (0.95, 0.85, 0.1, 1.0),
+    'pin_black': (0.1, 0.1, 0.1, 1.0),
+    'workpiece_brown': (0.55, 0.4, 0.25, 1.0),
+}
 
 
 class LinkageSizes(NamedTuple):
@@ -108,13 +121,18 @@ def linkage_points(geometry, offset, input_angle, mechanism_state=None, sizes=No
     lever_angle = np.asarray(mechanism_state.lever_angle, dtype=float)
     ram_position = np.asarray(mechanism_state.ram_position, dtype=float)
     shape = np.broadcast_shapes(offset.shape, theta.shape, flywheel_angle.shape)
-    zeros = np.zeros(shape)
     r1, r = geometry.coupling_radius, geometry.crank_radius
     h = geometry.pivot_distance
     crank_angle = flywheel_angle + geometry.crank_phase
 
-    def point(x, y):
-        return np.stack(np.broadcast_arrays(x + zeros, y + zeros), axis=-1)
+    if shape == ():
+        def point(x, y):  # one state (the live markers' case): no broadcasting to do
+            return np.array((float(x), float(y)))
+    else:
+        zeros = np.zeros(shape)
+
+        def point(x, y):
+            return np.stack(np.broadcast_arrays(x + zeros, y + zeros), axis=-1)
 
     ram_y = sizes.ram_line_height
     return LinkagePoints(

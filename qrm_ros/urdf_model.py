@@ -34,7 +34,7 @@ import xml.etree.ElementTree as ET
 
 from qrm_ros import kinematics as kin
 from qrm_ros.design_table import add_geometry_arguments, geometry_from_arguments
-from qrm_ros.linkage import linkage_sizes
+from qrm_ros.linkage import COLOURS, linkage_sizes
 from qrm_ros.names import JOINT_NAMES
 
 __all__ = ['BASE_LINK', 'ROBOT_NAME', 'URDF_FILE_NAME', 'main', 'urdf_text', 'write_urdf']
@@ -48,17 +48,6 @@ BASE_LINK = 'shaper_base'
 # no actuator limits on these, so they are written as effectively unbounded (N or N m, and
 # m/s or rad/s).
 UNBOUNDED = 1e9
-# Colours (RGBA) by material name.
-MATERIALS = {
-    'frame_grey': (0.55, 0.55, 0.58, 1.0),
-    'flywheel_blue': (0.25, 0.4, 0.7, 1.0),
-    'slot_black': (0.08, 0.08, 0.1, 1.0),
-    'input_orange': (0.95, 0.55, 0.1, 1.0),
-    'lever_green': (0.2, 0.65, 0.3, 1.0),
-    'ram_red': (0.7, 0.15, 0.15, 1.0),
-    'tool_yellow': (0.95, 0.85, 0.1, 1.0),
-    'pin_black': (0.1, 0.1, 0.1, 1.0),
-}
 
 
 def _number(value):
@@ -76,7 +65,7 @@ class _Builder:
     def __init__(self, sizes):
         self.robot = ET.Element('robot', name=ROBOT_NAME)
         self.sizes = sizes
-        for name, rgba in MATERIALS.items():
+        for name, rgba in COLOURS.items():
             material = ET.SubElement(self.robot, 'material', name=name)
             ET.SubElement(material, 'color', rgba=_vector(*rgba))
 
