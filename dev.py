@@ -40,7 +40,7 @@ STAMP = os.path.join(VENV, '.qrm_ros_installed')
 REQUIREMENTS = 'requirements.txt'
 # What makes the package itself (not its dependencies) need a reinstall.
 PACKAGE_INPUTS = ['setup.py', 'setup.cfg', 'package.xml', 'qrm_ros', 'config', 'launch',
-                  'resource']
+                  'resource', 'urdf']
 
 
 def _fingerprint(names):

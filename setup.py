@@ -25,12 +25,15 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
-        ('share/' + package_name + '/config', glob('config/*.yaml')),
+        ('share/' + package_name + '/config',
+         glob('config/*.yaml') + glob('config/*.rviz') + glob('config/*.json')),
         ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
+        ('share/' + package_name + '/urdf', glob('urdf/*.urdf')),
     ],
     install_requires=['setuptools', 'numpy', 'scipy', 'mcap', 'rosbags', 'matplotlib'],
     extras_require={
-        'test': ['pytest', 'flake8', 'pydocstyle', 'mcap-ros2-support', 'pyyaml'],
+        'test': ['pytest', 'flake8', 'pydocstyle', 'mcap-ros2-support', 'pyyaml',
+                 'yourdfpy'],
     },
     zip_safe=True,
     maintainer='qrm_ros developers',
@@ -45,6 +48,7 @@ setup(
             'mcap_recorder = qrm_ros.entry_points:mcap_recorder',
             'qrm_analyze = qrm_ros.entry_points:qrm_analyze',
             'qrm_main = qrm_ros.entry_points:qrm_main',
+            'qrm_urdf = qrm_ros.entry_points:qrm_urdf',
         ],
     },
 )

@@ -25,7 +25,7 @@ import importlib
 import signal
 import sys
 
-__all__ = ['mcap_recorder', 'qrm_analyze', 'qrm_design', 'qrm_main', 'shaper_sim']
+__all__ = ['mcap_recorder', 'qrm_analyze', 'qrm_design', 'qrm_main', 'qrm_urdf', 'shaper_sim']
 
 EXIT_INTERRUPTED = 130  # the shell's code for a Ctrl-C
 
@@ -66,3 +66,7 @@ def qrm_design():
 
 def qrm_main():
     return _run('qrm_ros.main_job')
+
+
+def qrm_urdf():
+    return _run('qrm_ros.urdf_model')

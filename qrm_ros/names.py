@@ -19,8 +19,10 @@ package's interface: change one only with a migration.
 """
 
 __all__ = ['DIAGNOSTICS_TOPIC', 'GEOMETRY_METADATA', 'JOINT_NAMES', 'JOINT_STATES_TOPIC',
-           'JOINT_STATE_TYPE', 'PARAMETERS_METADATA', 'RAM_TWIST_TOPIC', 'RECORDER_NODE_NAME',
-           'SIM_NODE_NAME', 'SPEED_COMMAND_TOPIC', 'STROKE_PAIR_STATUS', 'absolute_topic']
+           'JOINT_STATE_TYPE', 'LINKAGE_MARKERS_TOPIC', 'LINKAGE_MARKERS_TYPE',
+           'PARAMETERS_METADATA', 'RAM_TWIST_TOPIC', 'RECORDER_NODE_NAME',
+           'ROBOT_DESCRIPTION_TOPIC', 'SIM_NODE_NAME', 'SPEED_COMMAND_TOPIC',
+           'STROKE_PAIR_STATUS', 'absolute_topic']
 
 SIM_NODE_NAME = 'shaper_sim'
 RECORDER_NODE_NAME = 'mcap_recorder'
@@ -47,3 +49,10 @@ PARAMETERS_METADATA = 'qrm_ros.parameters'
 def absolute_topic(topic):
     """Return the topic as recorded from the root namespace ('joint_states' -> '/joint_states')."""
     return topic if topic.startswith('/') else '/' + topic
+
+
+# visualization_msgs/MarkerArray of the linkage (frame, cranks, lever, ram, label).
+LINKAGE_MARKERS_TOPIC = 'linkage_markers'
+LINKAGE_MARKERS_TYPE = 'visualization_msgs/msg/MarkerArray'
+# What robot_state_publisher publishes the URDF on (display.launch.py, shaper.rviz).
+ROBOT_DESCRIPTION_TOPIC = '/robot_description'
