@@ -211,6 +211,11 @@ PARAMETERS = {
     'publish_rate': ParameterSpec(
         100.0, 'Hz', 'Rate of the timer that steps and publishes the mechanism (node clock). '
         'Set at start-up only.', True, DoubleRange(1.0, 1e4)),
+    'marker_rate': ParameterSpec(
+        30.0, 'Hz', 'Rate of the linkage_markers MarkerArray (the mechanism drawn for RViz and '
+        'Foxglove, at the latest published sample); 0 turns it off. Independent of '
+        'publish_rate.', False, DoubleRange(0.0, 1000.0),
+        apply=lambda node, value: node.set_marker_rate(value)),
     'frame_id': ParameterSpec(
         'shaper_base', '', 'frame_id of the published joint_states and ram/twist headers. '
         'Non-empty.', False, NonEmptyText()),

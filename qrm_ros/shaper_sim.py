@@ -30,9 +30,10 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import TwistStamped
 from qrm_ros.kinematics import Geometry
+from qrm_ros.linkage_markers import delete_all_marker_array, linkage_marker_array
 from qrm_ros.names import (DIAGNOSTICS_TOPIC, JOINT_NAMES, JOINT_STATES_TOPIC,
-                           RAM_TWIST_TOPIC, SIM_NODE_NAME, SPEED_COMMAND_TOPIC,
-                           STROKE_PAIR_STATUS)
+                           LINKAGE_MARKERS_TOPIC, RAM_TWIST_TOPIC, SIM_NODE_NAME,
+                           SPEED_COMMAND_TOPIC, STROKE_PAIR_STATUS)
 from qrm_ros.ros_process import (init_rclpy, RCLError, rcl_error_text, spin_until_stopped,
                                  StopRequest)
 from qrm_ros.shaper_parameters import (allowed_text, default_values, GEOMETRY_NAMES,
@@ -50,6 +51,7 @@ from rclpy.qos import qos_profile_parameters
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, Trigger
+from visualization_msgs.msg import MarkerArray
 
 __all__ = ['JOINT_NAMES', 'PARAMETERS', 'ShaperSimNode', 'main', 'refusal_reason']
 
@@ -121,6 +123,11 @@ class ShaperSimNode(Node):
         self._twist_publisher = self.create_publisher(TwistStamped, RAM_TWIST_TOPIC, depth)
         self._diagnostics_publisher = self.create_publisher(
             DiagnosticArray, DIAGNOSTICS_TOPIC, MIN_PUBLISHER_DEPTH)
+        self._marker_publisher = self.create_publisher(MarkerArray, LINKAGE_MARKERS_TOPIC,
+                                                       MIN_PUBLISHER_DEPTH)
+        self._marker_timer = None
+        self._clear_markers = False
+        self.set_marker_rate(self._values['marker_rate'])
         self.create_subscription(Float64, SPEED_COMMAND_TOPIC, self._on_speed_command, 10)
         self.create_service(Trigger, '~/reset', self._on_reset, qos_profile=SERVICE_QOS)
         self.create_service(SetBool, '~/pause', self._on_pause, qos_profile=SERVICE_QOS)
@@ -285,6 +292,7 @@ class ShaperSimNode(Node):
         speed, offset = self._values['input_speed'], self._values['coupling_offset']
         self._stepper.reset(speed, offset)
         self._monitor.clear()
+        self._clear_markers = True  # DELETEALL before the next markers
         response.success = True
         response.message = (f'reset: input angle 0 rad, input speed {speed!r} rad/s, '
                             f'offset {offset!r} m')
@@ -371,6 +379,35 @@ class ShaperSimNode(Node):
                                         stepper.offset, stepper.offset_rate,
                                         stepper.input_speed):
             self._publish_pair(report)
+        return True
+
+    # Markers -------------------------------------------------------------------------------
+
+    def set_marker_rate(self, rate):
+        """Publish the linkage markers at rate Hz (0: stop), on a timer of their own."""
+        if self._marker_timer is not None:
+            self.destroy_timer(self._marker_timer)
+            self._marker_timer = None
+        if rate > 0.0:
+            self._marker_timer = self.create_timer(1.0 / rate, self.publish_markers)
+
+    def publish_markers(self):
+        """
+        Publish the mechanism as markers at the latest published sample (its stamp).
+
+        Returns False before the first sample. After a reset a DELETEALL goes first, so no
+        stale part is left behind.
+        """
+        stepper = self._stepper
+        if stepper.stamp_ns is None:
+            return False
+        frame_id = self._values['frame_id']
+        if self._clear_markers:
+            self._marker_publisher.publish(delete_all_marker_array(stepper.stamp_ns, frame_id))
+            self._clear_markers = False
+        self._marker_publisher.publish(linkage_marker_array(
+            self._geometry, stepper.offset, stepper.input_angle, stepper.stamp_ns, frame_id,
+            input_speed=stepper.input_speed))
         return True
 
     def _publish_pair(self, report):

@@ -36,6 +36,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, Trigger
+from visualization_msgs.msg import Marker, MarkerArray
 
 from ros_probe import BackgroundSpinner, call, wait_for
 
@@ -423,3 +424,52 @@ def test_use_sim_time_stamps_follow_clock(harness):
     stamps = [m.header.stamp.sec * NS + m.header.stamp.nanosec for m in h.joint_states]
     assert all(s in published for s in stamps)
     assert stamps == sorted(stamps)
+
+
+# Markers ----------------------------------------------------------------------------------
+
+def test_markers_show_the_published_state_and_clear_on_reset(harness):
+    h = harness(spin_shaper=False, coupling_offset=0.012, marker_rate=0.0)
+    arrays = []
+    h.probe.create_subscription(MarkerArray, 'linkage_markers', arrays.append, 100)
+    assert not h.shaper.publish_markers()  # nothing published yet: nothing to draw
+    run_ticks(h.shaper, 50 * NS, 0.37)
+    assert h.shaper.publish_markers()
+    h.wait_for(lambda: arrays and len(h.joint_states) >= 37, what='markers and joint states')
+    joint_state = h.joint_states[-1]
+    markers = {(m.ns, m.id): m for m in arrays[-1].markers}
+    assert all(m.header.stamp == joint_state.header.stamp for m in markers.values())
+    # The pins, from the published joint values by the mechanism's own definitions
+    # (mechanism.md): coupling pin on the input crank at r1 about O1 = (0, offset); crank pin
+    # on the flywheel at r, at the crank phase; ram block on the ram line, H above O3.
+    angle, flywheel, lever, ram, offset = joint_state.position
+    expected = [(R1 * math.cos(angle), offset + R1 * math.sin(angle)),
+                (R * math.cos(flywheel), R * math.sin(flywheel)),
+                (0.2 * math.tan(lever), -H_PIVOT + 0.2)]
+    pins = markers['pins', 0].points
+    for point, (x, y) in zip(pins, expected):
+        assert (point.x, point.y) == pytest.approx((x, y), abs=1e-12)
+    assert pins[2].x == pytest.approx(ram, abs=1e-15)
+    assert 'offset +12.00 mm' in markers['label', 0].text
+    # The service's callback, called as the executor would (this node is not spun here).
+    assert h.shaper._on_reset(Trigger.Request(), Trigger.Response()).success
+    count = len(arrays)
+    run_ticks(h.shaper, 60 * NS, 0.05)
+    assert h.shaper.publish_markers()
+    h.wait_for(lambda: len(arrays) >= count + 2, what='markers after the reset')
+    assert [m.action for m in arrays[count].markers] == [Marker.DELETEALL]
+    assert len(arrays[count + 1].markers) > 5
+
+
+def test_marker_rate_is_live_and_zero_turns_markers_off(harness):
+    h = harness(marker_rate=50.0)
+    arrays = []
+    h.probe.create_subscription(MarkerArray, 'linkage_markers', arrays.append, 100)
+    h.wait_for(lambda: len(arrays) >= 5, what='markers at 50 Hz')
+    assert h.shaper.set_parameters([Parameter('marker_rate', value=0.0)])[0].successful
+    result, = h.shaper.set_parameters([Parameter('marker_rate', value=-1.0)])
+    assert not result.successful and '[0, 1000] Hz' in result.reason
+    time.sleep(0.1)  # let markers already under way arrive
+    count = len(arrays)
+    time.sleep(0.3)  # 15 periods at the old rate: none may come
+    assert len(arrays) == count
