@@ -23,11 +23,12 @@ the node turns specs into descriptors and reasons into SetParametersResults.
 import math
 from typing import Callable, NamedTuple, Optional, Tuple
 
+from qrm_ros.dynamics import Loads, MassProperties
 from qrm_ros.kinematics import Geometry, KinematicsError
 
-__all__ = ['DoubleRange', 'GEOMETRY_NAMES', 'NonEmptyText', 'ParameterSpec', 'PARAMETERS',
-           'PositiveLength', 'SymmetricRange', 'View', 'allowed_text', 'default_values',
-           'refusal_reason', 'shown']
+__all__ = ['AtLeast', 'DoubleRange', 'GEOMETRY_NAMES', 'NonEmptyText', 'ParameterSpec',
+           'PARAMETERS', 'PositiveLength', 'SymmetricRange', 'View', 'allowed_text',
+           'default_values', 'refusal_reason', 'shown']
 
 GEOMETRY_NAMES = Geometry.field_names()
 _PAPER = Geometry.paper()
@@ -116,6 +117,30 @@ class PositiveLength(NamedTuple):
         allowed = self.allowed(unit, view)
         return _double_problem(value, None, None, allowed) or (
             None if value > 0.0 else f'must be {allowed}')
+
+
+class AtLeast(NamedTuple):
+    """A finite double >= minimum (> minimum if strict); minimum None: any finite double."""
+
+    minimum: Optional[float]
+    strict: bool = False
+
+    def descriptor_bounds(self, geometry):
+        return None
+
+    def allowed(self, unit, view):
+        if self.minimum is None:
+            return f'a finite value{_with_unit(unit)}'
+        relation = '>' if self.strict else '>='
+        return f'a finite value {relation} {shown(float(self.minimum))}{_with_unit(unit)}'
+
+    def problem(self, value, unit, view):
+        allowed = self.allowed(unit, view)
+        problem = _double_problem(value, None, None, allowed)
+        if problem or self.minimum is None:
+            return problem
+        below = value <= self.minimum if self.strict else value < self.minimum
+        return f'outside the allowed range {allowed}' if below else None
 
 
 class NonEmptyText(NamedTuple):
@@ -220,6 +245,63 @@ PARAMETERS = {
         'shaper_base', '', 'frame_id of the published joint_states and ram/twist headers. '
         'Non-empty.', False, NonEmptyText()),
 }
+
+
+_MASS_MEANINGS = {
+    'input_inertia': 'Inertia J1 of the input assembly about O1 (input shaft, coupling crank, '
+                     'motor rotor and gearbox referred to the input shaft)',
+    'flywheel_inertia': 'Inertia J2 of the flywheel assembly about O2 (bull gear, crank, the '
+                        "coupling's slotted member)",
+    'lever_inertia': 'Inertia J3 of the slotted lever about its pivot O3',
+    'lever_mass': 'Lever mass m3 (for its weight)',
+    'lever_com_distance': "Distance l3 from O3 to the lever's centre of mass, toward the ram",
+    'ram_mass': 'Mass m4 of the ram with its tool head',
+    'gravity': 'Gravitational acceleration g, along -y',
+}
+_LOAD_MEANINGS = {
+    'cutting_force': 'Cutting force F_c on the ram while the tool cuts (ram moving toward -x, '
+                     '|ram position| <= cutting_length / 2)',
+    'ram_friction': 'Coulomb friction force on the ram, against its motion',
+    'cutting_length': 'Length L_c of the workpiece, centred on ram position 0; at most the ram '
+                      'stroke',
+}
+
+
+def _cutting_length_within_stroke(value, view):
+    stroke = float(view.geometry.ram_stroke)
+    if value > stroke:
+        return f'longer than the ram stroke, {shown(stroke)} m'
+    return None
+
+
+def _some_inertia(value, view):
+    if view.values['input_inertia'] + view.values['flywheel_inertia'] <= 0.0:
+        return ('input_inertia and flywheel_inertia may not both be 0 (the drive would see no '
+                'inertia)')
+    return None
+
+
+_EXTRA_CHECKS = {'cutting_length': (_cutting_length_within_stroke,),
+                 'input_inertia': (_some_inertia,), 'flywheel_inertia': (_some_inertia,)}
+
+
+def _dynamics_parameters():
+    """Declare the mass properties and the loads (all live) from the dynamics' own fields."""
+    specs = {}
+    for kind, defaults, meanings in (
+            (MassProperties, MassProperties.small_shaper(), _MASS_MEANINGS),
+            (Loads, Loads.none(), _LOAD_MEANINGS)):
+        units, limits = kind.units(), kind.lower_limits()
+        for name in kind.field_names():
+            specs[name] = ParameterSpec(
+                float(getattr(defaults, name)), units[name],
+                f'{meanings[name]}. Live: the efforts follow at once.', False,
+                AtLeast(*limits[name]), _EXTRA_CHECKS.get(name, ()),
+                lambda node, value: node.update_dynamics())
+    return specs
+
+
+PARAMETERS.update(_dynamics_parameters())
 
 
 def default_values():

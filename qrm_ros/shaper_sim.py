@@ -29,6 +29,7 @@ import sys
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import TwistStamped
+from qrm_ros.dynamics import efforts, Loads, MassProperties, ram_load_force
 from qrm_ros.kinematics import Geometry
 from qrm_ros.linkage_markers import delete_all_marker_array, linkage_marker_array
 from qrm_ros.names import (DIAGNOSTICS_TOPIC, JOINT_NAMES, JOINT_STATES_TOPIC,
@@ -113,6 +114,7 @@ class ShaperSimNode(Node):
             self._values['input_acceleration_limit'], self._values['offset_rate_limit'])
         self._paused = False
         self._monitor = StrokeMonitor(self._geometry)
+        self.update_dynamics()
 
         depth = max(MIN_PUBLISHER_DEPTH,
                     math.ceil(PUBLISHER_HISTORY_SECONDS * self._values['publish_rate']))
@@ -354,10 +356,19 @@ class ShaperSimNode(Node):
                                 sample.lever_angle, sample.ram_position, stepper.offset))
         velocities = array('d', (stepper.input_speed, sample.flywheel_speed,
                                  sample.lever_speed, sample.ram_velocity, stepper.offset_rate))
-        if not all(map(math.isfinite, positions + velocities)):
+        # What drives each joint (N m, N), exact at the stamp: the speed drive supplies the
+        # input torque the prescribed motion needs against inertia, gravity and the loads.
+        ram_force = ram_load_force(self._loads, sample.ram_position, sample.ram_velocity,
+                                   self._geometry.ram_stroke)
+        joint_efforts = array('d', efforts(
+            self._geometry, self._mass, stepper.offset, stepper.input_angle,
+            stepper.input_speed, stepper.input_acceleration, stepper.offset_rate, 0.0,
+            ram_force))
+        if not all(map(math.isfinite, positions + velocities + joint_efforts)):
             self.get_logger().error(
                 f'non-finite state at {stamp_ns} ns not published: positions {positions}, '
-                f'velocities {velocities}', throttle_duration_sec=_WARNING_PERIOD)
+                f'velocities {velocities}, efforts {joint_efforts}',
+                throttle_duration_sec=_WARNING_PERIOD)
             return False
         # The messages are built once; each tick only fills in its values.
         seconds, nanoseconds = divmod(stamp_ns, 1_000_000_000)
@@ -368,6 +379,7 @@ class ShaperSimNode(Node):
         joint_state.header.frame_id = frame_id
         joint_state.position = positions
         joint_state.velocity = velocities
+        joint_state.effort = joint_efforts
         self._joint_state_publisher.publish(joint_state)
         twist = self._twist
         twist.header.stamp.sec = seconds
@@ -380,6 +392,12 @@ class ShaperSimNode(Node):
                                         stepper.input_speed):
             self._publish_pair(report)
         return True
+
+    def update_dynamics(self):
+        """Take the mass and load parameters in force (checked by their rules already)."""
+        values = self._values
+        self._mass = MassProperties(**{n: values[n] for n in MassProperties.field_names()})
+        self._loads = Loads(**{n: values[n] for n in Loads.field_names()})
 
     # Markers -------------------------------------------------------------------------------
 

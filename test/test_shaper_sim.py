@@ -473,3 +473,49 @@ def test_marker_rate_is_live_and_zero_turns_markers_off(harness):
     count = len(arrays)
     time.sleep(0.3)  # 15 periods at the old rate: none may come
     assert len(arrays) == count
+
+
+# Efforts ----------------------------------------------------------------------------------
+
+def test_published_efforts_balance_the_energy(harness):
+    # Power in at the input shaft = d(kinetic + potential energy)/dt - (load force x ram
+    # velocity), with every term from the published joint values and the mass parameters
+    # (shared/design/dynamics.md), the derivative by central differences at 10 kHz.
+    mass = dict(input_inertia=0.01, flywheel_inertia=0.5, lever_inertia=0.3, lever_mass=8.0,
+                lever_com_distance=0.15, ram_mass=20.0, gravity=9.81)
+    h = harness(spin_shaper=False, coupling_offset=0.01, input_speed=4.0, cutting_force=500.0,
+                ram_friction=30.0, cutting_length=0.15, **mass)
+    rate = 10000.0
+    stamps = [5 * NS + i * 100_000 for i in range(1, int(1.3 * rate))]
+    for index, stamp in enumerate(stamps, 1):
+        assert h.shaper.publish_at(stamp)
+        if index % 500 == 0 or index == len(stamps):  # within the probe's queue
+            h.wait_for(lambda: len(h.joint_states) == index, what='every joint state')
+
+    def energy(message):
+        angle, flywheel, lever, ram, offset = message.position
+        speed, flywheel_speed, lever_speed, ram_velocity, _ = message.velocity
+        kinetic = 0.5 * (mass['input_inertia'] * speed ** 2
+                         + mass['flywheel_inertia'] * flywheel_speed ** 2
+                         + mass['lever_inertia'] * lever_speed ** 2
+                         + mass['ram_mass'] * ram_velocity ** 2)
+        return kinetic + mass['lever_mass'] * mass['gravity'] * mass['lever_com_distance'] * \
+            math.cos(lever)
+
+    def load(message):
+        ram, velocity = message.position[3], message.velocity[3]
+        cutting = 500.0 if velocity < 0.0 and abs(ram) <= 0.075 else 0.0
+        return cutting - math.copysign(30.0, velocity)
+
+    checked = 0
+    for before, middle, after in zip(h.joint_states, h.joint_states[1:], h.joint_states[2:]):
+        assert len(middle.effort) == 5 and all(map(math.isfinite, middle.effort))
+        if len({load(before), load(middle), load(after)}) > 1:
+            continue  # a load switch between the samples: no smooth derivative there
+        energy_rate = (energy(after) - energy(before)) * rate / 2
+        power_in = middle.effort[0] * middle.velocity[0]
+        load_power = load(middle) * middle.velocity[3]
+        assert power_in == pytest.approx(energy_rate - load_power,
+                                         abs=1e-4 * (1.0 + abs(power_in))), middle
+        checked += 1
+    assert checked > 0.95 * len(stamps)
