@@ -342,9 +342,26 @@ def efforts(geometry, mass, offset, input_angle, input_speed, input_acceleration
     external_ram_force is F_ext (N, along +x), e.g. ``ram_load_force``. Arguments broadcast;
     the result is an ``Efforts`` of floats or of equally shaped arrays.
     """
-    chain = _array_chain(geometry, mass, offset, input_angle, input_speed, input_acceleration,
-                         offset_rate, offset_acceleration, external_ram_force)
+    arguments = (offset, input_angle, input_speed, input_acceleration, offset_rate,
+                 offset_acceleration, external_ram_force)
+    if _one_sample(geometry, mass, arguments):
+        # One sample of floats (the node, every tick): math's functions, no array checks.
+        return _chain(_SCALAR_OPS, *_geometry_fields(geometry), mass.as_dict(),
+                      *arguments).efforts
+    chain = _array_chain(geometry, mass, *arguments)
     return _scalar_result(chain.efforts, Efforts)
+
+
+def _geometry_fields(geometry):
+    return (geometry.coupling_radius, geometry.crank_radius, geometry.pivot_distance,
+            geometry.ram_height, geometry.crank_phase)
+
+
+def _one_sample(geometry, mass, arguments):
+    """Say whether all are finite floats and the offset one the coupling turns with."""
+    values = (*arguments, *_geometry_fields(geometry), *mass.as_dict().values())
+    return (all(type(value) is float and math.isfinite(value) for value in values)
+            and abs(arguments[0]) < geometry.coupling_radius)
 
 
 def generalized_inertia(geometry, mass, offset, input_angle):
@@ -363,6 +380,10 @@ def ram_load_force(loads, ram_position, ram_velocity, stroke):
     which the workpiece may not exceed.
     """
     loads.check_against(stroke)
+    if type(ram_position) is float and type(ram_velocity) is float:  # one sample: the node
+        cutting = ram_velocity < 0.0 and abs(ram_position) <= 0.5 * loads.cutting_length
+        direction = math.copysign(1.0, ram_velocity) if ram_velocity else 0.0
+        return (loads.cutting_force if cutting else 0.0) - loads.ram_friction * direction
     position = np.asarray(ram_position, dtype=float)
     velocity = np.asarray(ram_velocity, dtype=float)
     cutting = (velocity < 0.0) & (np.abs(position) <= 0.5 * loads.cutting_length)

@@ -519,3 +519,16 @@ def test_published_efforts_balance_the_energy(harness):
                                          abs=1e-4 * (1.0 + abs(power_in))), middle
         checked += 1
     assert checked > 0.95 * len(stamps)
+
+
+def test_one_sample_efforts_equal_the_vectorised_ones():
+    # The node's per-tick path (floats, math functions) and the array path agree.
+    from qrm_ros.dynamics import efforts, MassProperties
+    from qrm_ros.kinematics import Geometry
+    import numpy as np
+    geometry, mass = Geometry.paper(), MassProperties.small_shaper()
+    angles = np.linspace(-3.0, 3.0, 13)
+    vectorised = efforts(geometry, mass, 0.013, angles, 5.0, 2.0, 0.004, 0.0, 300.0)
+    for index, angle in enumerate(angles):
+        one = efforts(geometry, mass, 0.013, float(angle), 5.0, 2.0, 0.004, 0.0, 300.0)
+        assert one == pytest.approx([v[index] for v in vectorised], rel=1e-13, abs=1e-12)
