@@ -190,7 +190,10 @@ def _check_joint_states(run: Run, path: str) -> None:
     if schema is None or not schema.data:
         return  # no definition recorded: trust the type name, as rosbag2 does
     from rosbags.typesys import get_types_from_idl, get_types_from_msg
-    parse = {'ros2msg': get_types_from_msg, 'ros2idl': get_types_from_idl}.get(schema.encoding)
+    parsers: Dict[str, Callable[[str, str], Any]] = {
+        'ros2msg': get_types_from_msg,
+        'ros2idl': lambda text, _: get_types_from_idl(text)}  # an IDL names its own types
+    parse = parsers.get(schema.encoding)
     if parse is None:
         raise AnalysisError(f'{path}: the definition of {JOINT_STATE_TYPE} is in an unknown '
                             f'encoding {schema.encoding!r} (expected ros2msg or ros2idl)')
@@ -399,10 +402,11 @@ def _loss_clause(losses: Sequence[Lost], run: Run) -> str:
 
 def _geometry(stored: Dict[str, str], overrides: Dict[str, Optional[float]],
               path: str) -> kin.Geometry:
-    values = {}
+    values: Dict[str, float] = {}
     for name in GEOMETRY_FIELDS:
-        if overrides.get(name) is not None:
-            values[name] = overrides[name]
+        override = overrides.get(name)
+        if override is not None:
+            values[name] = override
         elif name in stored:
             try:
                 values[name] = float(stored[name])

@@ -34,7 +34,8 @@ import heapq
 import io
 import os
 import struct
-from typing import Callable, Dict, Iterable, Iterator, List, NamedTuple, Optional, Union
+from typing import (Any, Callable, Dict, Generator, Iterable, Iterator, List, NamedTuple,
+                    Optional, Union)
 import zlib
 
 from mcap.data_stream import ReadDataStream
@@ -203,7 +204,7 @@ class Run:
                                f'({_describe(error)})') from None
         self._indexed = True
 
-    def _records(self) -> Iterator:
+    def _records(self) -> Generator[Any, None, Optional[Stop]]:
         """Stream the file's records up to the last whole one; return why it stopped early."""
         with open(self.path, 'rb') as handle:
             size = os.fstat(handle.fileno()).st_size
