@@ -33,6 +33,7 @@ import argparse
 import concurrent.futures
 import contextlib
 import csv
+from dataclasses import replace
 import functools
 import json
 import math
@@ -70,6 +71,9 @@ PROGRESS_STEP = 5000
 # Long runs are decoded in parallel worker processes, one per core (up to MAX_WORKERS).
 PARALLEL_MIN_MESSAGES = 100_000
 MAX_WORKERS = 8
+# Read payloads that repeat a learnt layout with numpy (False: rosbags for every message).
+FAST_DECODING = True
+_BAD_NANOSEC = 'an invalid stamp (nanosec of 10^9 or more)'
 # The loss stages: not read from the file at all, or read but not usable as a sample.
 IN_FILE, IN_MESSAGE = 'file', 'message'
 _NS = 1_000_000_000
@@ -166,13 +170,21 @@ def read_recording(path: str, geometry_overrides: Optional[Dict[str, Optional[fl
     progress = None
     if progress_stream.isatty() and total >= PROGRESS_MIN_MESSAGES:
         progress = _progress(progress_stream, total)  # a bar only for a person, on long files
-    workers = min(os.cpu_count() or 1, MAX_WORKERS) if total >= PARALLEL_MIN_MESSAGES else 1
+    workers = min(_usable_cores(), MAX_WORKERS) if total >= PARALLEL_MIN_MESSAGES else 1
     file_parts = run.parts(workers)
     if len(file_parts) == 1:
-        parts = [_decode_part(path, file_parts[0], _Counter(), progress)]
+        parts = [_decode_part(path, file_parts[0], _Counter(), progress, run)]
     else:
         parts = _decode_in_parallel(path, file_parts, progress)
     return _combine(path, run, geometry, parts)
+
+
+def _usable_cores() -> int:
+    """Cores this process may run on (taskset, cgroups), not the machine's count."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
 
 
 def _check_joint_states(run: Run, path: str) -> None:
@@ -244,64 +256,217 @@ def _start_worker(counter):
     _worker_counter = counter
 
 
-def _decode_part(path: str, part: Optional[slice], counter=None, progress=None) -> _Part:
-    """
-    Decode the joint states of one part of the file into arrays; list what is unusable.
+class _Layout(NamedTuple):
+    """Where the values sit in joint-state payloads of one size and one set of other bytes."""
 
-    The hot loop of a long file: one decode, a few checks and four appends per message.
+    template: np.ndarray  # the payload it was learnt from, as bytes (uint8)
+    fixed: np.ndarray  # indices of the bytes every payload of the layout repeats
+    sec: slice
+    nanosec: slice
+    position: slice
+    velocity: slice
+    order: Any  # joint columns (None: in JOINT_NAMES order)
+
+
+def _flipped(array: np.ndarray) -> np.ndarray:
+    return (np.ascontiguousarray(array, dtype='<f8').view('<u8') ^ np.uint64(2 ** 64 - 1)
+            ).view('<f8')
+
+
+# Changes making every byte of one value field differ, to find the field by serializing.
+_PROBES = {
+    'sec': lambda m: replace(m, header=replace(m.header, stamp=replace(
+        m.header.stamp, sec=~m.header.stamp.sec))),
+    'nanosec': lambda m: replace(m, header=replace(m.header, stamp=replace(
+        m.header.stamp, nanosec=m.header.stamp.nanosec ^ 0xFFFFFFFF))),
+    'position': lambda m: replace(m, position=_flipped(m.position)),
+    'velocity': lambda m: replace(m, velocity=_flipped(m.velocity)),
+}
+
+
+def _learn_layout(data: bytes, decoded: Any, order: Any) -> Optional[_Layout]:
     """
+    Find the stamp's, positions' and velocities' bytes in a payload, by rosbags alone.
+
+    Each value field is changed in every byte and the message serialized again by rosbags:
+    the bytes that differ are that field. Every other byte is structure (lengths, names,
+    frame); a payload repeating all of them has the same structure, so rosbags would read
+    its values from the same places. None when the payload is not rosbags' own encoding.
+    """
+    store = _typestore()
+    try:
+        if bytes(store.serialize_cdr(decoded, JOINT_STATE_TYPE)) != data:
+            return None
+        original = np.frombuffer(data, dtype=np.uint8)
+        regions = {}
+        for field, probe in _PROBES.items():
+            changed = np.frombuffer(bytes(store.serialize_cdr(probe(decoded), JOINT_STATE_TYPE)),
+                                    dtype=np.uint8)
+            if changed.size != original.size:
+                return None
+            where = np.flatnonzero(changed != original)
+            if not where.size or where[-1] - where[0] + 1 != where.size:
+                return None
+            regions[field] = slice(int(where[0]), int(where[-1]) + 1)
+    except Exception:  # rosbags' serializer on a message it decoded: no fast path then
+        return None
+    stamp = decoded.header.stamp
+    if (data[regions['sec']] != np.array([stamp.sec], '<i4').tobytes()
+            or data[regions['nanosec']] != np.array([stamp.nanosec], '<u4').tobytes()
+            or data[regions['position']] != np.asarray(decoded.position, '<f8').tobytes()
+            or data[regions['velocity']] != np.asarray(decoded.velocity, '<f8').tobytes()):
+        return None
+    fixed = np.ones(original.size, dtype=bool)
+    for region in regions.values():
+        fixed[region] = False
+    return _Layout(original, np.flatnonzero(fixed), regions['sec'], regions['nanosec'],
+                   regions['position'], regions['velocity'], order)
+
+
+class _Decoder:
+    """
+    Joint-state payloads to arrays: rosbags' deserializer, with a vectorised fast path.
+
+    A node publishes the same names and frame every time, so almost every payload repeats a
+    learnt layout (see _learn_layout) but for its values: those are read for a whole block
+    with numpy. Any other payload goes through rosbags' deserializer, message by message.
+    """
+
+    def __init__(self):
+        self.deserialize = _typestore().deserialize_cdr
+        self.columns: Dict[Tuple[str, ...], Any] = {}
+        self.layouts: Dict[int, Optional[_Layout]] = {}
+        self.rejected: Dict[str, List[int]] = {}
+        self.stamps: List[np.ndarray] = []
+        self.log_times: List[np.ndarray] = []
+        self.positions: List[np.ndarray] = []
+        self.velocities: List[np.ndarray] = []
+
+    def one(self, data: bytes, log_time: int):
+        """Decode one payload with rosbags: (decoded, joint order), or None if rejected."""
+        try:
+            decoded = self.deserialize(data, JOINT_STATE_TYPE)
+        except Exception:  # rosbags raises SerdeError, struct.error, IndexError... on bad bytes
+            _reject(self.rejected, 'undecodable CDR payload', log_time)
+            return None
+        joint_names = tuple(decoded.name)
+        order = self.columns.get(joint_names, False)
+        if order is False:
+            order = self.columns[joint_names] = _joint_columns(joint_names)
+        if isinstance(order, str):
+            _reject(self.rejected, order, log_time)
+            return None
+        if len(decoded.position) != len(joint_names) or len(decoded.velocity) != len(
+                joint_names):
+            _reject(self.rejected, 'fewer or more positions or velocities than joint names',
+                    log_time)
+            return None
+        if decoded.header.stamp.nanosec >= _NS:
+            _reject(self.rejected, _BAD_NANOSEC, log_time)
+            return None
+        return decoded, order
+
+    def block(self, log_times: List[int], payloads: List[bytes]) -> None:
+        """Decode a block of payloads (in file order) and keep the usable samples."""
+        count = len(payloads)
+        width = len(JOINT_NAMES)
+        stamps = np.zeros(count, dtype=np.int64)
+        positions = np.zeros((count, width))
+        velocities = np.zeros((count, width))
+        usable = np.zeros(count, dtype=bool)
+        sizes = np.fromiter(map(len, payloads), dtype=np.int64, count=count)
+        times = np.array(log_times, dtype=np.int64)
+        slow = np.ones(count, dtype=bool)
+        if FAST_DECODING:
+            for size in np.unique(sizes):
+                rows = np.flatnonzero(sizes == size)
+                picks = rows[[0, rows.size // 2, -1]]  # a damaged first one does not decide
+                layout = self._layout(int(size), [payloads[i] for i in picks])
+                if layout is None:
+                    continue
+                block = np.frombuffer(b''.join([payloads[i] for i in rows]),
+                                      dtype=np.uint8).reshape(rows.size, int(size))
+                same = (block[:, layout.fixed] == layout.template[layout.fixed]).all(axis=1)
+                rows, block = rows[same], block[same]
+                slow[rows] = False
+                sec = block[:, layout.sec].copy().view('<i4')[:, 0].astype(np.int64)
+                nanosec = block[:, layout.nanosec].copy().view('<u4')[:, 0].astype(np.int64)
+                columns = slice(None) if layout.order is None else layout.order
+                positions[rows] = block[:, layout.position].copy().view('<f8')[:, columns]
+                velocities[rows] = block[:, layout.velocity].copy().view('<f8')[:, columns]
+                stamps[rows] = sec * _NS + nanosec
+                valid = nanosec < _NS
+                usable[rows[valid]] = True
+                for row in rows[~valid]:
+                    _reject(self.rejected, _BAD_NANOSEC, int(times[row]))
+        for row in np.flatnonzero(slow):
+            found = self.one(payloads[row], int(times[row]))
+            if found is None:
+                continue
+            decoded, order = found
+            columns = slice(None) if order is None else order
+            stamp = decoded.header.stamp
+            stamps[row] = stamp.sec * _NS + stamp.nanosec
+            positions[row] = np.asarray(decoded.position, dtype=float)[columns]
+            velocities[row] = np.asarray(decoded.velocity, dtype=float)[columns]
+            usable[row] = True
+        self.stamps.append(stamps[usable])
+        self.log_times.append(times[usable])
+        self.positions.append(positions[usable])
+        self.velocities.append(velocities[usable])
+
+    def _layout(self, size: int, candidates: List[bytes]) -> Optional[_Layout]:
+        if size not in self.layouts:
+            self.layouts[size] = next(filter(None, map(self._learn, candidates)), None)
+        return self.layouts[size]
+
+    def _learn(self, data: bytes) -> Optional[_Layout]:
+        """Learn a layout from a payload that passes every check (no count kept here)."""
+        try:
+            decoded = self.deserialize(data, JOINT_STATE_TYPE)
+        except Exception:  # as in one(): this payload is not one to learn from
+            return None
+        joint_names = tuple(decoded.name)
+        order = _joint_columns(joint_names)
+        if (isinstance(order, str) or len(decoded.position) != len(joint_names)
+                or len(decoded.velocity) != len(joint_names)
+                or decoded.header.stamp.nanosec >= _NS):
+            return None
+        return _learn_layout(data, decoded, order)
+
+
+def _decode_part(path: str, part: Optional[slice], counter=None, progress=None,
+                 run: Optional[Run] = None) -> _Part:
+    """Decode the joint states of one part of the file into arrays; list what is unusable."""
     counter = counter or _worker_counter
-    deserialize = _typestore().deserialize_cdr
-    stamps, log_times, positions, velocities = [], [], [], []
-    rejected: Dict[str, List[int]] = {}
+    decoder = _Decoder()
     losses: List[Loss] = []
-    columns: Dict[Tuple[str, ...], Any] = {}
-    run = open_run(path)
+    run = run or open_run(path)  # a worker process opens the file itself
+    log_times: List[int] = []
+    payloads: List[bytes] = []
     count = 0
     for count, message in enumerate(run.messages(  # in file order: the order received
             [JOINT_STATES_TOPIC], log_time_order=False, part=part, on_loss=losses.append), 1):
+        log_times.append(message.log_time)
+        payloads.append(message.data)
         if count % PROGRESS_STEP == 0:
+            decoder.block(log_times, payloads)
+            log_times, payloads = [], []
             with counter.get_lock():
                 counter.value += PROGRESS_STEP
             if progress is not None:
                 progress(counter.value)
-        log_time = message.log_time
-        try:
-            decoded = deserialize(message.data, JOINT_STATE_TYPE)
-        except Exception:  # rosbags raises SerdeError, struct.error, IndexError... on bad bytes
-            _reject(rejected, 'undecodable CDR payload', log_time)
-            continue
-        joint_names = tuple(decoded.name)
-        order = columns.get(joint_names, False)
-        if order is False:
-            order = columns[joint_names] = _joint_columns(joint_names)
-        if isinstance(order, str):
-            _reject(rejected, order, log_time)
-            continue
-        position, velocity = decoded.position, decoded.velocity
-        if len(position) != len(joint_names) or len(velocity) != len(joint_names):
-            _reject(rejected, 'fewer or more positions or velocities than joint names',
-                    log_time)
-            continue
-        stamp = decoded.header.stamp
-        if stamp.nanosec >= _NS:
-            _reject(rejected, 'an invalid stamp (nanosec of 10^9 or more)', log_time)
-            continue
-        stamps.append(stamp.sec * _NS + stamp.nanosec)
-        log_times.append(log_time)
-        if order is None:
-            positions.append(position)
-            velocities.append(velocity)
-        else:
-            positions.append(position[order])
-            velocities.append(velocity[order])
+    if payloads:
+        decoder.block(log_times, payloads)
     if progress is not None:
         progress(run.message_count(JOINT_STATES_TOPIC))
     width = len(JOINT_NAMES)
-    return _Part(np.array(stamps, dtype=np.int64), np.array(log_times, dtype=np.int64),
-                 np.array(positions, dtype=float).reshape(-1, width),
-                 np.array(velocities, dtype=float).reshape(-1, width),
-                 count, rejected, losses)
+
+    def joined(arrays, dtype, shape):
+        return np.concatenate(arrays).astype(dtype) if arrays else np.zeros(shape, dtype)
+    return _Part(joined(decoder.stamps, np.int64, 0), joined(decoder.log_times, np.int64, 0),
+                 joined(decoder.positions, float, (0, width)),
+                 joined(decoder.velocities, float, (0, width)), count, decoder.rejected, losses)
 
 
 def _decode_in_parallel(path: str, parts: List[Optional[slice]], progress) -> List[_Part]:

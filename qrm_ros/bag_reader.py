@@ -43,7 +43,7 @@ from mcap.exceptions import EndOfFile
 from mcap.opcode import Opcode
 from mcap.reader import FOOTER_SIZE, SeekingReader
 from mcap.records import Channel, Chunk, DataEnd, Footer, Message, Metadata, Schema
-from mcap.stream_reader import breakup_chunk, StreamReader
+from mcap.stream_reader import breakup_chunk, get_chunk_data_stream, StreamReader
 
 MAGIC = b'\x89MCAP0\r\n'
 # A chunk claiming more than this uncompressed is damaged (the recorder's hold about 1 s).
@@ -51,6 +51,8 @@ MAX_CHUNK_BYTES = 1 << 30
 _RECORD_PREFIX = 1 + 8  # opcode, length
 _FOOTER_CRC_END = _RECORD_PREFIX + 8 + 8  # the summary CRC covers the footer up to here
 _MESSAGE_INDEX_ENTRY = 16  # log time, offset
+_RECORD_HEAD = struct.Struct('<BQ')  # opcode, length
+_MESSAGE_HEAD = struct.Struct('<HIQQ')  # channel id, sequence, log time, publish time
 
 
 class RunFileError(ValueError):
@@ -102,6 +104,38 @@ def _chunk_records(chunk: Chunk) -> List:
     if chunk.uncompressed_size > MAX_CHUNK_BYTES:
         raise RunFileError(f'the chunk claims {chunk.uncompressed_size} bytes uncompressed')
     return breakup_chunk(chunk, validate_crc=True)
+
+
+def _chunk_messages(chunk: Chunk, channels) -> List[tuple]:
+    """
+    Return (channel id, log time, publish time, data) of the chunk's messages on `channels`.
+
+    The chunk is decompressed and CRC-checked by the mcap library; the records are then
+    walked here with one struct call per record instead of the library's per-field reads
+    (breakup_chunk), which took 40 % of a long analysis. Anything this walk does not expect
+    is handed to the library's own breakup_chunk, so the library stays the judge.
+    """
+    if chunk.uncompressed_size > MAX_CHUNK_BYTES:
+        raise RunFileError(f'the chunk claims {chunk.uncompressed_size} bytes uncompressed')
+    stream, size = get_chunk_data_stream(chunk, validate_crc=True)
+    data = stream.read(size)
+    found = []
+    position, record_head, message_head = 0, _RECORD_HEAD.unpack_from, _MESSAGE_HEAD.unpack_from
+    try:
+        while position < size:
+            opcode, length = record_head(data, position)
+            body, position = position + _RECORD_PREFIX, position + _RECORD_PREFIX + length
+            if opcode == Opcode.MESSAGE:
+                channel_id, _, log_time, publish_time = message_head(data, body)
+                if channel_id in channels:
+                    found.append((channel_id, log_time, publish_time,
+                                  data[body + _MESSAGE_HEAD.size:position]))
+        if position != size:
+            raise ValueError('records overrun the chunk')
+    except (struct.error, ValueError):
+        return [(r.channel_id, r.log_time, r.publish_time, r.data) for r in _chunk_records(chunk)
+                if isinstance(r, Message) and r.channel_id in channels]
+    return found
 
 
 def _describe(error: Exception) -> str:
@@ -366,7 +400,7 @@ class Run:
         with open(self.path, 'rb') as handle:
             for sequence, index in enumerate(chunks):
                 try:
-                    records = self._chunk(handle, index)
+                    records = self._chunk(handle, index, labels)
                 except Exception as error:  # the mcap library, zstandard and lz4's own errors
                     loss = Loss(f'damaged chunk at byte {index.chunk_start_offset} '
                                 f'({_describe(error)})', index.message_start_time,
@@ -376,9 +410,9 @@ class Run:
                         raise RunFileError(f'{self.path!r}: {loss.reason}') from None
                     on_loss(loss)
                     continue
-                found = [MessageTuple(*labels[r.channel_id], r.log_time, r.publish_time, r.data)
-                         for r in records if isinstance(r, Message) and r.channel_id in labels
-                         and low <= r.log_time < high]
+                found = [MessageTuple(*labels[channel_id], log_time, publish_time, data)
+                         for channel_id, log_time, publish_time, data in records
+                         if low <= log_time < high]
                 if not log_time_order:
                     yield from found
                     continue
@@ -390,8 +424,8 @@ class Run:
             yield heapq.heappop(pending)[-1]
 
     @staticmethod
-    def _chunk(handle, index):
-        """Read one chunk at its index entry; its records, once every check passes."""
+    def _chunk(handle, index, channels):
+        """Read one chunk at its index entry; its messages on `channels`, once it checks out."""
         handle.seek(index.chunk_start_offset)
         prefix = handle.read(_RECORD_PREFIX)
         if len(prefix) < _RECORD_PREFIX:
@@ -399,7 +433,7 @@ class Run:
         opcode, length = struct.unpack('<BQ', prefix)
         if opcode != Opcode.CHUNK or _RECORD_PREFIX + length != index.chunk_length:
             raise RunFileError('its record does not match the chunk index')
-        return _chunk_records(Chunk.read(ReadDataStream(handle)))
+        return _chunk_messages(Chunk.read(ReadDataStream(handle)), channels)
 
     @staticmethod
     def _indexed_count(handle, index, labels):

@@ -244,7 +244,7 @@ def test_parallel_decoding_gives_the_same_samples_as_serial(tmp_path, monkeypatc
     write_run(path, PAPER, [-0.01, 0.01], hold=15.0, chunk_size=16 * 1024)
     serial = analysis.read_recording(str(path)).samples
     monkeypatch.setattr(analysis, 'PARALLEL_MIN_MESSAGES', 0)
-    monkeypatch.setattr(analysis.os, 'cpu_count', lambda: 3)
+    monkeypatch.setattr(analysis, '_usable_cores', lambda: 3)
     parts = analysis.open_run(str(path)).parts(3)
     assert len(parts) == 3  # really split
     parallel = analysis.read_recording(str(path)).samples
@@ -335,7 +335,7 @@ def test_a_damaged_chunk_is_skipped_and_what_it_held_reported(tmp_path, capsys, 
     damaged = _damage(path, index.chunk_start_offset + 80, tmp_path / 'damaged.mcap')
     if parallel:  # the path of long files: worker processes, one part each
         monkeypatch.setattr(analysis, 'PARALLEL_MIN_MESSAGES', 0)
-        monkeypatch.setattr(analysis.os, 'cpu_count', lambda: 3)
+        monkeypatch.setattr(analysis, '_usable_cores', lambda: 3)
     code, out, err = run_main([damaged, '--json', tmp_path / 'r.json'], capsys)
     assert code == analysis.EXIT_INCOMPLETE, err
     document = json.loads((tmp_path / 'r.json').read_text())
@@ -441,3 +441,17 @@ def test_exit_status_policy(tmp_path, capsys, case):
     assert code == {'complete': 0, 'incomplete': 3, 'bad input': 2, 'output': 1}[case], err
     if code in (1, 2):
         assert len(err.strip().splitlines()) == 1 and err.startswith('qrm_analyze: error: ')
+
+
+@pytest.mark.parametrize('log', sorted(os.listdir(os.path.join(
+    os.path.dirname(os.path.abspath(__file__)), 'data'))))
+def test_fast_decoding_gives_what_rosbags_gives_message_by_message(log, monkeypatch):
+    if not log.endswith('.mcap'):
+        return
+    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'data', log)
+    fast = analysis.read_recording(path)
+    monkeypatch.setattr(analysis, 'FAST_DECODING', False)
+    slow = analysis.read_recording(path)
+    assert fast.messages_read == slow.messages_read > 0
+    for name, values in slow.samples._asdict().items():
+        np.testing.assert_array_equal(getattr(fast.samples, name), values, err_msg=name)
