@@ -68,8 +68,11 @@ EXIT_TRUNCATED = EXIT_INCOMPLETE
 MIN_SAMPLES_PER_REVOLUTION = 60
 PROGRESS_MIN_MESSAGES = 20000
 PROGRESS_STEP = 5000
-# Long runs are decoded in parallel worker processes, one per core (up to MAX_WORKERS).
-PARALLEL_MIN_MESSAGES = 100_000
+# Very long runs are decoded in parallel worker processes, one per core (up to MAX_WORKERS).
+# A worker costs about 0.7 s of CPU to start (its imports); with the block decoding, one
+# process reads 360 000 joint states in 1.9 s where two workers took 8.5 s (medians,
+# bench_analysis on 2 cores), so only far longer runs are split. Not measured above 1 h.
+PARALLEL_MIN_MESSAGES = 2_000_000
 MAX_WORKERS = 8
 # Read payloads that repeat a learnt layout with numpy (False: rosbags for every message).
 FAST_DECODING = True

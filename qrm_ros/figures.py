@@ -125,6 +125,12 @@ def _one_revolution(samples, segment):
     return span[travelled <= 2 * math.pi], unwrapped[travelled <= 2 * math.pi]
 
 
+def _has_theory(geometry, row):
+    """Whether the closed form covers a segment (a damaged file can hold any setting)."""
+    return (abs(row['offset']) < geometry.coupling_radius
+            and math.isfinite(row['input_speed']))
+
+
 def _input_angle_grid():
     return np.linspace(0.0, 2 * math.pi, CURVE_POINTS)
 
@@ -137,9 +143,10 @@ def flywheel_speed_figure(analysis):
     for index, (row, segment) in enumerate(zip(analysis.rows, analysis.segments)):
         color = f'C{index % 10}'
         label = f'δ = {row["offset"] * 1e3:g} mm'
-        axes.plot(np.degrees(theta), kin.state(geometry, row['offset'], theta,
-                                               row['input_speed']).flywheel_speed,
-                  color=color, gid=THEORY, label=f'{label}, theory')
+        if _has_theory(geometry, row):
+            axes.plot(np.degrees(theta), kin.state(geometry, row['offset'], theta,
+                                                   row['input_speed']).flywheel_speed,
+                      color=color, gid=THEORY, label=f'{label}, theory')
         chosen, _ = _one_revolution(samples, segment)
         angle = np.mod(samples.input_angle[chosen], 2 * math.pi)
         axes.plot(np.degrees(angle), samples.flywheel_speed[chosen], '.', color=color,
@@ -161,10 +168,11 @@ def ram_motion_figure(analysis):
     for index, (row, segment) in enumerate(zip(analysis.rows, analysis.segments)):
         color = f'C{index % 10}'
         label = f'δ = {row["offset"] * 1e3:g} mm'
-        state = kin.state(geometry, row['offset'], theta, row['input_speed'])
-        top.plot(np.degrees(theta), state.ram_position * 1e3, color=color, gid=THEORY,
-                 label=label)
-        bottom.plot(np.degrees(theta), state.ram_velocity, color=color, gid=THEORY)
+        if _has_theory(geometry, row):
+            state = kin.state(geometry, row['offset'], theta, row['input_speed'])
+            top.plot(np.degrees(theta), state.ram_position * 1e3, color=color, gid=THEORY,
+                     label=label)
+            bottom.plot(np.degrees(theta), state.ram_velocity, color=color, gid=THEORY)
         chosen, _ = _one_revolution(samples, segment)
         angle = np.degrees(np.mod(samples.input_angle[chosen], 2 * math.pi))
         top.plot(angle, samples.ram_position[chosen] * 1e3, '.', color=color, markersize=3)

@@ -455,3 +455,11 @@ def test_fast_decoding_gives_what_rosbags_gives_message_by_message(log, monkeypa
     assert fast.messages_read == slow.messages_read > 0
     for name, values in slow.samples._asdict().items():
         np.testing.assert_array_equal(getattr(fast.samples, name), values, err_msg=name)
+
+
+def test_figures_of_a_setting_outside_the_closed_form_show_the_measurement_only(tmp_path):
+    narrow = kin.Geometry(0.005, PAPER.crank_radius, PAPER.pivot_distance)  # |δ| >= r1 below
+    result = analysis.analyse(analysis.Recording('odd', narrow, samples_for([0.01]), None))
+    (row,) = result.rows
+    assert row['time_ratio_theory'] is None and row['time_ratio_measured'] is not None
+    assert len(figures.write_figures(result, str(tmp_path))) == len(figures.FIGURES)
