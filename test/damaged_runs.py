@@ -319,7 +319,8 @@ def odd_arrays(rng, recorded):
         elif how == 1:
             decoded.velocity = decoded.velocity[:0]
         else:
-            decoded.name = [n for n in decoded.name if n != rng.choice(decoded.name)]
+            dropped = rng.choice(decoded.name)
+            decoded.name = [n for n in decoded.name if n != dropped]
     _rewrite_joint_states(recorded, spoil, picked)
     return INCOMPLETE
 
