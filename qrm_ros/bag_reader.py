@@ -126,6 +126,8 @@ def _chunk_messages(chunk: Chunk, channels) -> List[tuple]:
             opcode, length = record_head(data, position)
             body, position = position + _RECORD_PREFIX, position + _RECORD_PREFIX + length
             if opcode == Opcode.MESSAGE:
+                if length < _MESSAGE_HEAD.size:
+                    raise ValueError('a message record shorter than its fields')
                 channel_id, _, log_time, publish_time = message_head(data, body)
                 if channel_id in channels:
                     found.append((channel_id, log_time, publish_time,

@@ -168,14 +168,16 @@ def ram_motion_figure(analysis):
     for index, (row, segment) in enumerate(zip(analysis.rows, analysis.segments)):
         color = f'C{index % 10}'
         label = f'δ = {row["offset"] * 1e3:g} mm'
-        if _has_theory(geometry, row):
+        theory = _has_theory(geometry, row)
+        if theory:
             state = kin.state(geometry, row['offset'], theta, row['input_speed'])
             top.plot(np.degrees(theta), state.ram_position * 1e3, color=color, gid=THEORY,
                      label=label)
             bottom.plot(np.degrees(theta), state.ram_velocity, color=color, gid=THEORY)
         chosen, _ = _one_revolution(samples, segment)
         angle = np.degrees(np.mod(samples.input_angle[chosen], 2 * math.pi))
-        top.plot(angle, samples.ram_position[chosen] * 1e3, '.', color=color, markersize=3)
+        top.plot(angle, samples.ram_position[chosen] * 1e3, '.', color=color, markersize=3,
+                 label=None if theory else f'{label} (no closed form)')
         bottom.plot(angle, samples.ram_velocity[chosen], '.', color=color, markersize=3)
     top.set_ylabel('ram position x [mm]')
     bottom.set_ylabel('ram velocity v [m/s] (< 0: cutting)')

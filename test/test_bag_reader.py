@@ -119,3 +119,15 @@ def test_a_damaged_summary_is_not_trusted_and_the_data_section_is_read(recorded,
     assert run.truncated and 'summary section fails its CRC' in run.problem
     assert run.data_complete
     assert [(m.log_time, m.data) for m in run.messages()] == _independent(recorded)
+
+
+@pytest.mark.parametrize('log', ['offset_and_speed_change', 'steady_negative_offset',
+                                 'steady_positive_offset'])
+def test_the_golden_logs_read_as_rosbags_reads_them(log):
+    path = Path(__file__).parent / 'data' / f'{log}.mcap'
+    run = open_run(path)
+    assert [(m.log_time, m.data) for m in run.messages()] == _independent(path)
+    with open(path, 'rb') as handle:  # the mcap library's own reader, in file order
+        expected = [(m.log_time, m.data) for _, _, m in
+                    make_reader(handle).iter_messages(log_time_order=False)]
+    assert [(m.log_time, m.data) for m in run.messages(log_time_order=False)] == expected
