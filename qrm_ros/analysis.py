@@ -519,10 +519,8 @@ def _combine(path: str, run: Run, geometry: kin.Geometry, parts: List[_Part]) ->
     rejected: Dict[str, List[int]] = {}
     for part in parts:
         for reason, (count, first, last) in part.rejected.items():
-            _reject(rejected, reason, first)
-            entry = rejected[reason]
-            entry[0] += count - 1
-            entry[2] = max(entry[2], last)
+            entry = rejected.setdefault(reason, [0, first, last])
+            entry[:] = [entry[0] + count, min(entry[1], first), max(entry[2], last)]
     stamps = np.concatenate([part.stamps for part in parts])
     log_times = np.concatenate([part.log_times for part in parts])
     position = np.concatenate([part.positions for part in parts])

@@ -99,10 +99,15 @@ def _wanted(topics: Topics):
     return {_normalise(topics)} if isinstance(topics, str) else {_normalise(t) for t in topics}
 
 
-def _chunk_records(chunk: Chunk) -> List:
-    """Return a chunk's records once its size and CRC check out; raise on damage."""
+def _check_size(chunk: Chunk) -> None:
+    """Refuse a chunk whose claimed size would make decompression allocate absurdly."""
     if chunk.uncompressed_size > MAX_CHUNK_BYTES:
         raise RunFileError(f'the chunk claims {chunk.uncompressed_size} bytes uncompressed')
+
+
+def _chunk_records(chunk: Chunk) -> List:
+    """Return a chunk's records once its size and CRC check out; raise on damage."""
+    _check_size(chunk)
     return breakup_chunk(chunk, validate_crc=True)
 
 
@@ -115,8 +120,7 @@ def _chunk_messages(chunk: Chunk, channels) -> List[tuple]:
     (breakup_chunk), which took 40 % of a long analysis. Anything this walk does not expect
     is handed to the library's own breakup_chunk, so the library stays the judge.
     """
-    if chunk.uncompressed_size > MAX_CHUNK_BYTES:
-        raise RunFileError(f'the chunk claims {chunk.uncompressed_size} bytes uncompressed')
+    _check_size(chunk)
     stream, size = get_chunk_data_stream(chunk, validate_crc=True)
     data = stream.read(size)
     found = []
