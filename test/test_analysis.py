@@ -308,13 +308,16 @@ def _chunk_indexes(path):
                       key=lambda c: c.chunk_start_offset)
 
 
-def _messages_between(path, start, end):
-    """Joint states logged in [start, end] ns, counted by rosbags' reader (independent)."""
+def _log_times(path):
+    """Log times of every joint state, by rosbags' own MCAP reader (independent)."""
     from pathlib import Path
     from rosbags.highlevel import AnyReader
     with AnyReader([Path(path)]) as reader:
-        return sum(1 for _, log_time, _ in reader.messages(connections=reader.connections)
-                   if start <= log_time <= end)
+        return [log_time for _, log_time, _ in reader.messages(connections=reader.connections)]
+
+
+def _messages_between(path, start, end):
+    return sum(1 for log_time in _log_times(path) if start <= log_time <= end)
 
 
 def _damage(path, offset, target):
@@ -345,9 +348,10 @@ def test_a_damaged_chunk_is_skipped_and_what_it_held_reported(tmp_path, capsys, 
     (loss,) = document['losses']
     assert loss['stage'] == 'file' and loss['messages'] == held
     assert f'damaged chunk at byte {index.chunk_start_offset}' in loss['reason']
-    start = _chunk_indexes(path)[0].message_start_time
-    assert loss['start_time'] == pytest.approx((index.message_start_time - start) * 1e-9)
-    assert loss['end_time'] == pytest.approx((index.message_end_time - start) * 1e-9)
+    every = _log_times(path)
+    lost = [t for t in every if index.message_start_time <= t <= index.message_end_time]
+    assert loss['start_time'] == pytest.approx((min(lost) - min(every)) * 1e-9, abs=1e-12)
+    assert loss['end_time'] == pytest.approx((max(lost) - min(every)) * 1e-9, abs=1e-12)
     assert f'{held} /joint_states messages lost, log time {loss["start_time"]:.3f} s' in err
     if chunk:  # the lost second is a gap inside the first offset's segment
         assert any(t['kind'] == 'gap' for t in document['transitions'])
