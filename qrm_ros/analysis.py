@@ -166,9 +166,14 @@ def read_recording(path: str, geometry_overrides: Optional[Dict[str, Optional[fl
         run = open_run(path)
     except RunFileError as error:
         raise AnalysisError(str(error)) from None
-    geometry = _geometry(run.metadata.get(GEOMETRY_METADATA, {}), geometry_overrides or {},
-                         path)
-    _check_joint_states(run, path)
+    try:
+        _check_joint_states(run, path)
+        geometry = _geometry(run.metadata.get(GEOMETRY_METADATA, {}),
+                             geometry_overrides or {}, path)
+    except AnalysisError as error:
+        if run.truncated:  # say why the topic or the metadata may be missing
+            raise AnalysisError(f'{error}; note: {run.problem}') from None
+        raise
     total = run.message_count(JOINT_STATES_TOPIC)
     progress = None
     if progress_stream.isatty() and total >= PROGRESS_MIN_MESSAGES:

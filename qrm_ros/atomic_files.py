@@ -42,7 +42,10 @@ def staged_outputs() -> Iterator[Callable[[str], str]]:
 
     def stage(target: str) -> str:
         folder, name = os.path.split(os.path.abspath(target))
-        handle, temporary = tempfile.mkstemp(prefix=f'.{name}.', suffix='.part', dir=folder)
+        try:
+            handle, temporary = tempfile.mkstemp(prefix=f'.{name}.', suffix='.part', dir=folder)
+        except OSError as error:  # name the file the user asked for, not the temporary one
+            raise OSError(error.errno, error.strerror, target) from None
         os.close(handle)
         os.chmod(temporary, 0o666 & ~_umask())  # what a plain open() would have made
         staged.append((temporary, target))
