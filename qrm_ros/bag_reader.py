@@ -51,6 +51,7 @@ MAX_CHUNK_BYTES = 1 << 30
 _RECORD_PREFIX = 1 + 8  # opcode, length
 _FOOTER_CRC_END = _RECORD_PREFIX + 8 + 8  # the summary CRC covers the footer up to here
 _MESSAGE_INDEX_ENTRY = 16  # log time, offset
+_DATA_END_SIZE = _RECORD_PREFIX + 4  # opcode, length, data section CRC
 _RECORD_HEAD = struct.Struct('<BQ')  # opcode, length
 _MESSAGE_HEAD = struct.Struct('<HIQQ')  # channel id, sequence, log time, publish time
 
@@ -172,6 +173,7 @@ class Run:
                 summary, summary_problem = self._summary(handle)
                 if summary is not None:
                     self._read_index(handle, summary)
+                    self._check_data_section(handle)
         except FileNotFoundError:
             raise RunFileError(f'run file {path!r} does not exist') from None
         except IsADirectoryError:
@@ -223,6 +225,30 @@ class Run:
                                and summary.statistics.message_count):
             return None, None  # finished but unindexed: stream it
         return summary, None
+
+    def _check_data_section(self, handle):
+        """
+        Check the data section against the CRC in its DataEnd record, when it has one.
+
+        Chunks carry their own CRCs; this is the only one covering the records between them
+        (metadata such as the geometry, message indexes). Reading 40 MB costs about 30 ms.
+        """
+        footer = handle.seek(-(FOOTER_SIZE + len(MAGIC)), io.SEEK_END)
+        summary_start = struct.unpack_from('<Q', handle.read(FOOTER_SIZE), _RECORD_PREFIX)[0]
+        data_end = (summary_start or footer) - _DATA_END_SIZE
+        handle.seek(data_end)
+        opcode, length, expected = struct.unpack('<BQI', handle.read(_DATA_END_SIZE))
+        if opcode != Opcode.DATA_END or length != 4 or expected == 0:
+            return
+        handle.seek(0)
+        crc = 0
+        for block in iter(lambda: handle.read(min(1 << 20, data_end - handle.tell())), b''):
+            crc = zlib.crc32(block, crc)
+        if crc != expected:
+            self.truncated = True
+            self.problem = ('its data section fails its CRC: a record outside the chunks '
+                            '(metadata such as the geometry, or an index) is damaged, so what '
+                            'the metadata says may be wrong; every chunk passed its own CRC')
 
     def _read_index(self, handle, summary):
         self._schemas = dict(summary.schemas)

@@ -131,3 +131,17 @@ def test_the_golden_logs_read_as_rosbags_reads_them(log):
         expected = [(m.log_time, m.data) for _, _, m in
                     make_reader(handle).iter_messages(log_time_order=False)]
     assert [(m.log_time, m.data) for m in run.messages(log_time_order=False)] == expected
+
+
+def test_damage_outside_the_chunks_is_caught_by_the_data_section_crc(tmp_path):
+    path = tmp_path / 'run.mcap'
+    write_run(path, PAPER, [0.01], hold=2.0, data_crc=True)
+    assert not open_run(path).truncated  # the check passes on a sound file
+    data = path.read_bytes()
+    value = data.index(b"'0.0505'" if b"'0.0505'" in data else b'0.0505')
+    damaged = tmp_path / 'damaged.mcap'
+    damaged.write_bytes(data[:value] + b'0.0605' + data[value + 6:])  # still a fine number
+    run = open_run(damaged)
+    assert run.truncated and 'data section fails its CRC' in run.problem
+    assert run.metadata['qrm_ros.geometry']['crank_radius'] == '0.0605'  # read, not trusted
+    assert sum(1 for _ in run.messages()) == 200
