@@ -42,6 +42,7 @@ JOINT_STATES = '/joint_states'
 ANY_OUTCOME = frozenset({0, 2, 3})
 INCOMPLETE = frozenset({2, 3})  # 2 when nothing usable is left
 REFUSED = frozenset({2})
+GAP = frozenset({0})  # a pause or a clock jump: complete, with a gap listed
 
 
 class Case(NamedTuple):
@@ -50,6 +51,7 @@ class Case(NamedTuple):
     messages: int  # joint-state messages in the file before byte damage
     allowed: FrozenSet[int]  # acceptable exit codes of qrm_analyze
     same_results: bool = False  # the analysis must equal the undamaged log's
+    gap: bool = False  # a pause or clock jump inside the run: a gap must be listed
 
 
 @functools.lru_cache(maxsize=None)
@@ -251,7 +253,7 @@ def odd_timestamps(rng, recorded):
             ns = decoded.header.stamp.sec * 10 ** 9 + decoded.header.stamp.nanosec + shift
             decoded.header.stamp.sec, decoded.header.stamp.nanosec = divmod(ns, 10 ** 9)
         _rewrite_joint_states(recorded, move, joints[start:])
-        return frozenset({0, 3})
+        return GAP
     picked = _pick(rng, joints)
     chosen = {id(m) for m in picked}
     if how == 2:
@@ -349,5 +351,6 @@ def cases(logs: Dict[str, bytes], count: int, seed: int) -> List[Case]:
                             [list(m) for m in original.joint_states()], original.joint_channel)
         allowed: Optional[FrozenSet[int]] = kind(rng, recorded)
         made.append(Case(label, put_together(recorded), len(recorded.joint_states()),
-                         allowed or frozenset({0}), same_results=allowed is None))
+                         allowed or frozenset({0}), same_results=allowed is None,
+                         gap=allowed is GAP))
     return made

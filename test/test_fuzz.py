@@ -99,6 +99,8 @@ def test_damaged_run_ends_cleanly_and_loses_nothing_silently(number, fuzz_cases,
         assert counts['used'] + counts['repeated'] == case.messages, context
     else:
         assert not document['complete'] and 'warning' in err, context
+    if case.gap:
+        assert any(t['kind'] == 'gap' for t in document['transitions']), context
     if case.same_results:
         baseline = baselines[case.name.rsplit('-', 1)[1]]
         assert document['segments'] == baseline['segments'], context
