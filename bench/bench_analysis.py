@@ -15,12 +15,13 @@
 Benchmark: the whole offline analysis against a bare rosbags read of the same messages.
 
 Writes a synthetic one-hour, 100 Hz run (joint states and ram twist from the kinematics core,
-through the recorder's own MCAP writer), then times, alternately and several times each:
-``qrm_analyze``'s work (read, decode, segment, measure; no figures) and rosbags' AnyReader
-reading and deserializing the same joint-state messages. Prints the medians and the ratio
-(target: analysis <= 1.5 x the bare read).
+through the recorder's own MCAP writer), then times, interleaved and several times each:
+rosbags' AnyReader reading and deserializing the run's joint states (the baseline), and
+``qrm_analyze``'s whole work (read, check, decode, segment, measure; no figures), both pinned
+to one core, then both free to use every core. Prints each ratio analysis / baseline per
+repeat, and their median and spread (target: <= 1.0x on one core and on all).
 
-    python3 dev.py run python bench/bench_analysis.py [--hours 1] [--repeats 3]
+    python3 dev.py run python bench/bench_analysis.py [--hours 1] [--repeats 5]
 """
 
 import argparse
@@ -104,32 +105,57 @@ def rosbags_read(path):
     return count
 
 
+def _timed(function, path):
+    start = time.perf_counter()
+    result = function(path)
+    return time.perf_counter() - start, result
+
+
+def _summary(label, values, unit):
+    values = sorted(values)
+    return (f'{label}: median {statistics.median(values):.3f}{unit} (min {values[0]:.3f}, '
+            f'max {values[-1]:.3f}, {len(values)} repeats)')
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[1])
-    parser.add_argument('--hours', type=float, default=1.0)
-    parser.add_argument('--repeats', type=int, default=3)
+    parser.add_argument('--hours', type=float, default=1.0, help='run length [h]')
+    parser.add_argument('--repeats', type=int, default=5, help='interleaved repeats per mode')
     args = parser.parse_args()
+    every_core = os.sched_getaffinity(0)
+    modes = {'one core': {min(every_core)}, f'all {len(every_core)} cores': every_core}
     with tempfile.TemporaryDirectory() as folder:
         path = os.path.join(folder, 'hour.mcap')
         start = time.perf_counter()
         messages = write_synthetic_run(path, args.hours * 3600.0)
         print(f'wrote {messages} messages ({os.path.getsize(path) / 1e6:.1f} MB) in '
               f'{time.perf_counter() - start:.1f} s through McapRunFile')
-        ours, bare = [], []
-        for _ in range(args.repeats):
-            start = time.perf_counter()
-            pairs = analyse(path)
-            ours.append(time.perf_counter() - start)
-            start = time.perf_counter()
-            read = rosbags_read(path)
-            bare.append(time.perf_counter() - start)
-        ours_median, bare_median = statistics.median(ours), statistics.median(bare)
-        print(f'qrm_analyze (read + decode + segment + measure, {pairs} stroke pairs): '
-              f'{ours_median:.2f} s (median of {args.repeats})')
-        print(f'rosbags AnyReader read + deserialize of the same {read} joint states: '
-              f'{bare_median:.2f} s (median of {args.repeats})')
-        print(f'ratio analysis / bare rosbags read: {ours_median / bare_median:.2f}x '
-              '(target <= 1.5x)')
+        times = {(mode, who): [] for mode in modes for who in ('ours', 'bare')}
+        ratios = {mode: [] for mode in modes}
+        for repeat in range(args.repeats):
+            for mode, cores in modes.items():  # interleaved: drifts in load hit both alike
+                os.sched_setaffinity(0, cores)  # worker processes inherit it
+                order = ('bare', 'ours') if repeat % 2 else ('ours', 'bare')
+                taken = {}
+                for who in order:
+                    taken[who], result = _timed(rosbags_read if who == 'bare' else analyse, path)
+                    if who == 'ours':
+                        pairs = result
+                    else:
+                        read = result
+                    times[mode, who].append(taken[who])
+                ratios[mode].append(taken['ours'] / taken['bare'])
+                print(f'repeat {repeat + 1}, {mode}: analysis {taken["ours"]:.2f} s, bare read '
+                      f'{taken["bare"]:.2f} s, ratio {ratios[mode][-1]:.2f}x', flush=True)
+        os.sched_setaffinity(0, every_core)
+        print(f'analysis: read + check + decode + segment + measure ({pairs} stroke pairs); '
+              f'baseline: rosbags AnyReader reading and deserializing the same {read} joint '
+              'states')
+        for mode in modes:
+            print(_summary(f'{mode}: analysis', times[mode, 'ours'], ' s'))
+            print(_summary(f'{mode}: bare rosbags read', times[mode, 'bare'], ' s'))
+            print(_summary(f'{mode}: ratio analysis / bare read', ratios[mode], 'x')
+                  + ' (target <= 1.0x)')
 
 
 if __name__ == '__main__':

@@ -16,31 +16,40 @@ Offline analysis of a recorded run: measured time and speed ratios per offset, v
 
 ``qrm_analyze RUN.mcap`` reads the joint states of a recording (no ROS needed: the mcap
 reader and rosbags' CDR deserializer), splits the run into segments of steady offset and
-input speed, measures every stroke pair in each (qrm_ros.strokes: reversals and peaks located
-between samples), and compares the means with the core's closed form for the geometry stored
-in the file. Output: a table, CSV, JSON and the paper's figures (``--plot DIR``).
+input speed without gaps, measures every stroke pair in each (qrm_ros.strokes: reversals and
+peaks located between samples), and compares the means with the core's closed form for the
+geometry stored in the file. Output: a table, CSV, JSON and the paper's figures (``--plot``).
 
-Exit status: 0 analysed; 2 the input could not be analysed (one-line reason on stderr);
-3 analysed, but the file was truncated (what was lost is said on stderr).
+Nothing is lost in silence: a damaged chunk, an undecodable or malformed message, a
+non-finite value or a truncated file is listed (how many messages, which log-time span) and
+the exit status says the analysis is incomplete.
+
+Exit status: 0 analysed, complete; 1 failure at run time (an output could not be written;
+no output file is left half written); 2 bad usage or an input that cannot be analysed (one
+line on stderr says why); 3 analysed, but incomplete (stderr says what was lost).
 """
 
 import argparse
 import concurrent.futures
 import contextlib
 import csv
+from dataclasses import replace
+import functools
 import json
 import math
 import multiprocessing
 import os
 import sys
-from typing import NamedTuple
+from typing import (Any, Callable, Dict, List, NamedTuple, Optional, Sequence, TextIO,
+                    Tuple)
 
 import numpy as np
 
 from qrm_ros import kinematics as kin
-from qrm_ros.bag_reader import open_run, RunFileError
-from qrm_ros.design_table import add_geometry_arguments
 from qrm_ros import names
+from qrm_ros.atomic_files import staged_outputs
+from qrm_ros.bag_reader import Loss, open_run, Run, RunFileError
+from qrm_ros.design_table import add_geometry_arguments
 from qrm_ros.names import absolute_topic, GEOMETRY_METADATA, JOINT_NAMES, JOINT_STATE_TYPE
 from qrm_ros.strokes import find_stroke_pairs
 
@@ -50,14 +59,27 @@ GEOMETRY_FIELDS = kin.Geometry.field_names()
 STEADY_TOLERANCE = 1e-12
 # Shortest steady run worth measuring (a stroke pair needs several samples anyway).
 MIN_SEGMENT_SAMPLES = 3
-EXIT_BAD_INPUT, EXIT_TRUNCATED = 2, 3
+# A step between stamps longer than this many median sample periods is a gap (a pause, a
+# clock jump, lost messages): segments end there, so no stroke is measured across it.
+GAP_PERIODS = 3.0
+EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT, EXIT_INCOMPLETE = 0, 1, 2, 3
+EXIT_TRUNCATED = EXIT_INCOMPLETE
 # Below this, the between-sample interpolation can miss sharp speed peaks (large offsets).
 MIN_SAMPLES_PER_REVOLUTION = 60
 PROGRESS_MIN_MESSAGES = 20000
 PROGRESS_STEP = 5000
-# Long runs are decoded in parallel worker processes, one per core (up to MAX_WORKERS).
-PARALLEL_MIN_MESSAGES = 100_000
+# Very long runs are decoded in parallel worker processes, one per core (up to MAX_WORKERS).
+# A worker costs about 0.7 s of CPU to start (its imports); with the block decoding, one
+# process reads 360 000 joint states in 1.9 s where two workers took 8.5 s (medians,
+# bench_analysis on 2 cores), so only far longer runs are split. Not measured above 1 h.
+PARALLEL_MIN_MESSAGES = 2_000_000
 MAX_WORKERS = 8
+# Read payloads that repeat a learnt layout with numpy (False: rosbags for every message).
+FAST_DECODING = True
+_BAD_NANOSEC = 'an invalid stamp (nanosec of 10^9 or more)'
+# The loss stages: not read from the file at all, or read but not usable as a sample.
+IN_FILE, IN_MESSAGE = 'file', 'message'
+_NS = 1_000_000_000
 
 
 class AnalysisError(Exception):
@@ -65,7 +87,7 @@ class AnalysisError(Exception):
 
 
 class Samples(NamedTuple):
-    """The recorded joint states as arrays (s, rad, rad/s, m, m/s)."""
+    """The recorded joint states as arrays (s, rad, rad/s, m, m/s), in recording order."""
 
     time: np.ndarray
     input_angle: np.ndarray
@@ -78,14 +100,44 @@ class Samples(NamedTuple):
     offset_rate: np.ndarray
 
 
+class Lost(NamedTuple):
+    """Joint-state messages left out of the analysis, and why (times: s of log time)."""
+
+    stage: str  # IN_FILE: never read; IN_MESSAGE: read but not usable
+    reason: str
+    messages: Optional[int]  # None: unknown
+    start_time: Optional[float]  # from the recording's first message; None: unknown
+    end_time: Optional[float]
+
+
 class Recording(NamedTuple):
     path: str
     geometry: kin.Geometry
     samples: Samples
-    problem: object  # str if the file was truncated, else None
+    problem: Optional[str]  # what is wrong with the file as a whole, if anything
+    losses: Tuple[Lost, ...] = ()
+    messages_in_file: Optional[int] = None  # the file's own count; None: unknown
+    messages_read: Optional[int] = None
+    repeated_stamps: int = 0  # exact repeats of the previous message, counted once
+
+    @property
+    def complete(self) -> bool:
+        return self.problem is None and not self.losses
 
 
-def _progress(stream, total):
+class _Part(NamedTuple):
+    """What one worker decoded from its part of the file."""
+
+    stamps: np.ndarray  # ns
+    log_times: np.ndarray  # ns
+    positions: np.ndarray  # (n, joints) in JOINT_NAMES order
+    velocities: np.ndarray
+    read: int
+    rejected: Dict[str, List[int]]  # reason -> [count, first log time, last log time]
+    losses: List[Loss]
+
+
+def _progress(stream: TextIO, total: int) -> Callable[[int], None]:
     """Return a callback drawing a progress bar of `total` messages on stream."""
     width = 40
 
@@ -96,58 +148,102 @@ def _progress(stream, total):
         if done >= total:
             stream.write('\n')
         stream.flush()
-    update.total = total
+    update.total = total  # type: ignore[attr-defined]
     return update
 
 
+@functools.lru_cache(maxsize=None)
 def _typestore():
+    """Return the Jazzy type store, built once (it compiles a decoder per type on first use)."""
     from rosbags.typesys import get_typestore, Stores
     return get_typestore(Stores.ROS2_JAZZY)
 
 
-def read_recording(path, geometry_overrides=None, progress_stream=sys.stderr):
+def read_recording(path: str, geometry_overrides: Optional[Dict[str, Optional[float]]] = None,
+                   progress_stream: TextIO = sys.stderr) -> Recording:
     """Read a run file's geometry and joint states; AnalysisError says what is missing."""
     try:
         run = open_run(path)
     except RunFileError as error:
         raise AnalysisError(str(error)) from None
-    geometry = _geometry(run.metadata.get(GEOMETRY_METADATA, {}), geometry_overrides or {},
-                         path)
+    try:
+        _check_joint_states(run, path)
+        geometry = _geometry(run.metadata.get(GEOMETRY_METADATA, {}),
+                             geometry_overrides or {}, path)
+    except AnalysisError as error:
+        if run.truncated:  # say why the topic or the metadata may be missing
+            raise AnalysisError(f'{error}; note: {run.problem}') from None
+        raise
+    total = run.message_count(JOINT_STATES_TOPIC)
+    progress = None
+    if progress_stream.isatty() and total >= PROGRESS_MIN_MESSAGES:
+        progress = _progress(progress_stream, total)  # a bar only for a person, on long files
+    workers = min(_usable_cores(), MAX_WORKERS) if total >= PARALLEL_MIN_MESSAGES else 1
+    file_parts = run.parts(workers)
+    if len(file_parts) == 1:
+        parts = [_decode_part(path, file_parts[0], _Counter(), progress, run)]
+    else:
+        parts = _decode_in_parallel(path, file_parts, progress)
+    return _combine(path, run, geometry, parts)
+
+
+def _usable_cores() -> int:
+    """Cores this process may run on (taskset, cgroups), not the machine's count."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def _check_joint_states(run: Run, path: str) -> None:
+    """Refuse a joint-state channel this decoder would misread (encoding, definition)."""
     topics = run.topics()
     if topics.get(JOINT_STATES_TOPIC) != JOINT_STATE_TYPE:
         present = ', '.join(f'{t} ({s})' for t, s in sorted(topics.items())) or 'none'
         raise AnalysisError(f'{path} has no {JOINT_STATES_TOPIC} topic of type '
                             f'{JOINT_STATE_TYPE} (topics present: {present})')
-    total = run.message_count(JOINT_STATES_TOPIC)
-    progress = None
-    if progress_stream.isatty() and total >= PROGRESS_MIN_MESSAGES:
-        progress = _progress(progress_stream, total)  # a bar only for a person, on long files
-    workers = min(os.cpu_count() or 1, MAX_WORKERS) if total >= PARALLEL_MIN_MESSAGES else 1
-    spans = run.time_spans(workers)
-    if len(spans) == 1:
-        counter = _Counter()
-        parts = [_decode_span(path, None, None, counter, progress)]
-    else:
-        parts = _decode_in_parallel(path, spans, progress)
-    names = parts[0][0]
-    for part in parts[1:]:
-        if part[0] is not None and part[0] != names:
-            raise AnalysisError(f'{path}: the joints of {JOINT_STATES_TOPIC} change during '
-                                f'the run ({names} then {part[0]})')
-    stamp = np.concatenate([part[1] for part in parts])
-    if stamp.size < 3:
-        raise AnalysisError(f'{path} holds {stamp.size} {JOINT_STATES_TOPIC} messages: too few '
-                            'to find any stroke')
-    joint_order = _joint_order(names, path)
-    order = np.argsort(stamp, kind='stable')  # the spans and the file order are not sorted
-    stamp = stamp[order]
-    keep = np.concatenate([[True], np.diff(stamp) > 0])  # a stamp published twice counts once
-    time = (stamp[keep] - stamp[0]) * 1e-9
-    position = np.concatenate([part[2] for part in parts])[order][keep][:, joint_order]
-    velocity = np.concatenate([part[3] for part in parts])[order][keep][:, joint_order]
-    samples = Samples(time, position[:, 0], velocity[:, 0], position[:, 1], velocity[:, 1],
-                      position[:, 3], velocity[:, 3], position[:, 4], velocity[:, 4])
-    return Recording(path, geometry, samples, run.problem if run.truncated else None)
+    channel = run.channel(JOINT_STATES_TOPIC)
+    if channel.message_encoding != 'cdr':
+        raise AnalysisError(f'{path}: {JOINT_STATES_TOPIC} is encoded as '
+                            f'{channel.message_encoding!r}, not CDR')
+    schema = run.schema(channel)
+    if schema is None or not schema.data:
+        return  # no definition recorded: trust the type name, as rosbag2 does
+    from rosbags.typesys import get_types_from_idl, get_types_from_msg
+    parsers: Dict[str, Callable[[str, str], Any]] = {
+        'ros2msg': get_types_from_msg,
+        'ros2idl': lambda text, _: get_types_from_idl(text)}  # an IDL names its own types
+    parse = parsers.get(schema.encoding)
+    if parse is None:
+        raise AnalysisError(f'{path}: the definition of {JOINT_STATE_TYPE} is in an unknown '
+                            f'encoding {schema.encoding!r} (expected ros2msg or ros2idl)')
+    try:
+        recorded = parse(schema.data.decode('utf-8'), JOINT_STATE_TYPE)
+    except Exception as error:  # rosbags' parser raises several types on malformed text
+        raise AnalysisError(f'{path}: the recorded definition of {JOINT_STATE_TYPE} is '
+                            f'unreadable ({type(error).__name__})') from None
+    known = _typestore().fielddefs
+    for name, definition in recorded.items():
+        if name in known and tuple(definition[1]) != tuple(known[name][1]):
+            raise AnalysisError(f'{path}: the recorded definition of {name} differs from ROS 2 '
+                                'Jazzy\'s; this analysis decodes the standard one only')
+
+
+def _joint_columns(joint_names: Tuple[str, ...]):
+    """Columns of JOINT_NAMES in a message's arrays: None if in order, else an index array."""
+    if joint_names == JOINT_NAMES:
+        return None
+    missing = [joint for joint in JOINT_NAMES if joint not in joint_names]
+    if missing:
+        return f'the joints {", ".join(missing)} are missing'
+    return np.array([joint_names.index(joint) for joint in JOINT_NAMES])
+
+
+def _reject(rejected: Dict[str, List[int]], reason: str, log_time: int) -> None:
+    entry = rejected.setdefault(reason, [0, log_time, log_time])
+    entry[0] += 1
+    entry[1] = min(entry[1], log_time)
+    entry[2] = max(entry[2], log_time)
 
 
 class _Counter:
@@ -168,76 +264,327 @@ def _start_worker(counter):
     _worker_counter = counter
 
 
-def _decode_span(path, starting_at, ending_before, counter=None, progress=None):
-    """
-    Decode the joint states of a log-time span: (names, stamps, positions, velocities).
+class _Layout(NamedTuple):
+    """Where the values sit in joint-state payloads of one size and one set of other bytes."""
 
-    The hot loop of a long file: one decode and three appends per message.
+    template: np.ndarray  # the payload it was learnt from, as bytes (uint8)
+    fixed: np.ndarray  # indices of the bytes every payload of the layout repeats
+    sec: slice
+    nanosec: slice
+    position: slice
+    velocity: slice
+    order: Any  # joint columns (None: in JOINT_NAMES order)
+
+
+def _flipped(array: np.ndarray) -> np.ndarray:
+    return (np.ascontiguousarray(array, dtype='<f8').view('<u8') ^ np.uint64(2 ** 64 - 1)
+            ).view('<f8')
+
+
+# Changes making every byte of one value field differ, to find the field by serializing.
+_PROBES = {
+    'sec': lambda m: replace(m, header=replace(m.header, stamp=replace(
+        m.header.stamp, sec=~m.header.stamp.sec))),
+    'nanosec': lambda m: replace(m, header=replace(m.header, stamp=replace(
+        m.header.stamp, nanosec=m.header.stamp.nanosec ^ 0xFFFFFFFF))),
+    'position': lambda m: replace(m, position=_flipped(m.position)),
+    'velocity': lambda m: replace(m, velocity=_flipped(m.velocity)),
+}
+
+
+def _learn_layout(data: bytes, decoded: Any, order: Any) -> Optional[_Layout]:
     """
+    Find the stamp's, positions' and velocities' bytes in a payload, by rosbags alone.
+
+    Each value field is changed in every byte and the message serialized again by rosbags:
+    the bytes that differ are that field. Every other byte is structure (lengths, names,
+    frame); a payload repeating all of them has the same structure, so rosbags would read
+    its values from the same places. None when the payload is not rosbags' own encoding.
+    """
+    store = _typestore()
+    try:
+        if bytes(store.serialize_cdr(decoded, JOINT_STATE_TYPE)) != data:
+            return None
+        original = np.frombuffer(data, dtype=np.uint8)
+        regions = {}
+        for field, probe in _PROBES.items():
+            changed = np.frombuffer(bytes(store.serialize_cdr(probe(decoded), JOINT_STATE_TYPE)),
+                                    dtype=np.uint8)
+            if changed.size != original.size:
+                return None
+            where = np.flatnonzero(changed != original)
+            if not where.size or where[-1] - where[0] + 1 != where.size:
+                return None
+            regions[field] = slice(int(where[0]), int(where[-1]) + 1)
+    except Exception:  # rosbags' serializer on a message it decoded: no fast path then
+        return None
+    stamp = decoded.header.stamp
+    if (data[regions['sec']] != np.array([stamp.sec], '<i4').tobytes()
+            or data[regions['nanosec']] != np.array([stamp.nanosec], '<u4').tobytes()
+            or data[regions['position']] != np.asarray(decoded.position, '<f8').tobytes()
+            or data[regions['velocity']] != np.asarray(decoded.velocity, '<f8').tobytes()):
+        return None
+    fixed = np.ones(original.size, dtype=bool)
+    for region in regions.values():
+        fixed[region] = False
+    return _Layout(original, np.flatnonzero(fixed), regions['sec'], regions['nanosec'],
+                   regions['position'], regions['velocity'], order)
+
+
+class _Decoder:
+    """
+    Joint-state payloads to arrays: rosbags' deserializer, with a vectorised fast path.
+
+    A node publishes the same names and frame every time, so almost every payload repeats a
+    learnt layout (see _learn_layout) but for its values: those are read for a whole block
+    with numpy. Any other payload goes through rosbags' deserializer, message by message.
+    """
+
+    def __init__(self):
+        self.deserialize = _typestore().deserialize_cdr
+        self.columns: Dict[Tuple[str, ...], Any] = {}
+        self.layouts: Dict[int, Optional[_Layout]] = {}
+        self.rejected: Dict[str, List[int]] = {}
+        self.stamps: List[np.ndarray] = []
+        self.log_times: List[np.ndarray] = []
+        self.positions: List[np.ndarray] = []
+        self.velocities: List[np.ndarray] = []
+
+    def one(self, data: bytes, log_time: int):
+        """Decode one payload with rosbags: (decoded, joint order), or None if rejected."""
+        try:
+            decoded = self.deserialize(data, JOINT_STATE_TYPE)
+        except Exception:  # rosbags raises SerdeError, struct.error, IndexError... on bad bytes
+            _reject(self.rejected, 'undecodable CDR payload', log_time)
+            return None
+        joint_names = tuple(decoded.name)
+        order = self.columns.get(joint_names, False)
+        if order is False:
+            order = self.columns[joint_names] = _joint_columns(joint_names)
+        if isinstance(order, str):
+            _reject(self.rejected, order, log_time)
+            return None
+        if len(decoded.position) != len(joint_names) or len(decoded.velocity) != len(
+                joint_names):
+            _reject(self.rejected, 'fewer or more positions or velocities than joint names',
+                    log_time)
+            return None
+        if decoded.header.stamp.nanosec >= _NS:
+            _reject(self.rejected, _BAD_NANOSEC, log_time)
+            return None
+        return decoded, order
+
+    def block(self, log_times: List[int], payloads: List[bytes]) -> None:
+        """Decode a block of payloads (in file order) and keep the usable samples."""
+        count = len(payloads)
+        width = len(JOINT_NAMES)
+        stamps = np.zeros(count, dtype=np.int64)
+        positions = np.zeros((count, width))
+        velocities = np.zeros((count, width))
+        usable = np.zeros(count, dtype=bool)
+        sizes = np.fromiter(map(len, payloads), dtype=np.int64, count=count)
+        times = np.array(log_times, dtype=np.int64)
+        slow = np.ones(count, dtype=bool)
+        if FAST_DECODING:
+            for size in np.unique(sizes):
+                rows = np.flatnonzero(sizes == size)
+                picks = rows[[0, rows.size // 2, -1]]  # a damaged first one does not decide
+                layout = self._layout(int(size), [payloads[i] for i in picks])
+                if layout is None:
+                    continue
+                block = np.frombuffer(b''.join([payloads[i] for i in rows]),
+                                      dtype=np.uint8).reshape(rows.size, int(size))
+                same = (block[:, layout.fixed] == layout.template[layout.fixed]).all(axis=1)
+                rows, block = rows[same], block[same]
+                slow[rows] = False
+                sec = block[:, layout.sec].copy().view('<i4')[:, 0].astype(np.int64)
+                nanosec = block[:, layout.nanosec].copy().view('<u4')[:, 0].astype(np.int64)
+                columns = slice(None) if layout.order is None else layout.order
+                positions[rows] = block[:, layout.position].copy().view('<f8')[:, columns]
+                velocities[rows] = block[:, layout.velocity].copy().view('<f8')[:, columns]
+                stamps[rows] = sec * _NS + nanosec
+                valid = nanosec < _NS
+                usable[rows[valid]] = True
+                for row in rows[~valid]:
+                    _reject(self.rejected, _BAD_NANOSEC, int(times[row]))
+        for row in np.flatnonzero(slow):
+            found = self.one(payloads[row], int(times[row]))
+            if found is None:
+                continue
+            decoded, order = found
+            columns = slice(None) if order is None else order
+            stamp = decoded.header.stamp
+            stamps[row] = stamp.sec * _NS + stamp.nanosec
+            positions[row] = np.asarray(decoded.position, dtype=float)[columns]
+            velocities[row] = np.asarray(decoded.velocity, dtype=float)[columns]
+            usable[row] = True
+        self.stamps.append(stamps[usable])
+        self.log_times.append(times[usable])
+        self.positions.append(positions[usable])
+        self.velocities.append(velocities[usable])
+
+    def _layout(self, size: int, candidates: List[bytes]) -> Optional[_Layout]:
+        if size not in self.layouts:
+            self.layouts[size] = next(filter(None, map(self._learn, candidates)), None)
+        return self.layouts[size]
+
+    def _learn(self, data: bytes) -> Optional[_Layout]:
+        """Learn a layout from a payload that passes every check (no count kept here)."""
+        try:
+            decoded = self.deserialize(data, JOINT_STATE_TYPE)
+        except Exception:  # as in one(): this payload is not one to learn from
+            return None
+        joint_names = tuple(decoded.name)
+        order = _joint_columns(joint_names)
+        if (isinstance(order, str) or len(decoded.position) != len(joint_names)
+                or len(decoded.velocity) != len(joint_names)
+                or decoded.header.stamp.nanosec >= _NS):
+            return None
+        return _learn_layout(data, decoded, order)
+
+
+def _decode_part(path: str, part: Optional[slice], counter=None, progress=None,
+                 run: Optional[Run] = None) -> _Part:
+    """Decode the joint states of one part of the file into arrays; list what is unusable."""
     counter = counter or _worker_counter
-    deserialize = _typestore().deserialize_cdr
-    stamps, positions, velocities = [], [], []
-    names = None
-    run = open_run(path)
-    messages = run.messages([JOINT_STATES_TOPIC], log_time_order=False,  # sorted later
-                            starting_at=starting_at, ending_before=ending_before)
-    for count, (_, _, _, _, data) in enumerate(messages, 1):
-        message = deserialize(data, JOINT_STATE_TYPE)
-        if message.name != names:
-            if names is not None:
-                raise AnalysisError(f'{path}: the joints of {JOINT_STATES_TOPIC} change during '
-                                    f'the run ({names} then {message.name})')
-            names = message.name
-        stamp = message.header.stamp
-        stamps.append(stamp.sec * 1_000_000_000 + stamp.nanosec)
-        positions.append(message.position)
-        velocities.append(message.velocity)
+    decoder = _Decoder()
+    losses: List[Loss] = []
+    run = run or open_run(path)  # a worker process opens the file itself
+    log_times: List[int] = []
+    payloads: List[bytes] = []
+    count = 0
+    for count, message in enumerate(run.messages(  # in file order: the order received
+            [JOINT_STATES_TOPIC], log_time_order=False, part=part, on_loss=losses.append), 1):
+        log_times.append(message.log_time)
+        payloads.append(message.data)
         if count % PROGRESS_STEP == 0:
+            decoder.block(log_times, payloads)
+            log_times, payloads = [], []
             with counter.get_lock():
                 counter.value += PROGRESS_STEP
             if progress is not None:
                 progress(counter.value)
+    if payloads:
+        decoder.block(log_times, payloads)
     if progress is not None:
         progress(run.message_count(JOINT_STATES_TOPIC))
-    return (names, np.asarray(stamps, dtype=np.int64),
-            np.asarray(positions).reshape(-1, len(names or JOINT_NAMES)),
-            np.asarray(velocities).reshape(-1, len(names or JOINT_NAMES)))
+    width = len(JOINT_NAMES)
+
+    def joined(arrays, dtype, shape):
+        return np.concatenate(arrays).astype(dtype) if arrays else np.zeros(shape, dtype)
+    return _Part(joined(decoder.stamps, np.int64, 0), joined(decoder.log_times, np.int64, 0),
+                 joined(decoder.positions, float, (0, width)),
+                 joined(decoder.velocities, float, (0, width)), count, decoder.rejected, losses)
 
 
-def _decode_in_parallel(path, spans, progress):
-    """Decode spans in worker processes (long runs: decoding is per-message Python work)."""
+def _decode_in_parallel(path: str, parts: List[Optional[slice]], progress) -> List[_Part]:
+    """Decode parts in worker processes (long runs: decoding is per-message Python work)."""
     context = multiprocessing.get_context('spawn')  # no fork of a process that may hold DDS
     counter = context.Value('q', 0)
-    with concurrent.futures.ProcessPoolExecutor(len(spans), mp_context=context,
+    with concurrent.futures.ProcessPoolExecutor(len(parts), mp_context=context,
                                                 initializer=_start_worker,
                                                 initargs=(counter,)) as pool:
-        futures = [pool.submit(_decode_span, path, start, end) for start, end in spans]
+        futures = [pool.submit(_decode_part, path, part) for part in parts]
         while not all(future.done() for future in futures):
             concurrent.futures.wait(futures, timeout=0.2)
             if progress is not None:
                 progress(min(counter.value, progress.total - 1))
-        parts = [future.result() for future in futures]
+        decoded = [future.result() for future in futures]
     if progress is not None:
         progress(progress.total)
-    return parts
+    return decoded
 
 
-def _joint_order(names, path):
-    try:
-        return np.array([list(names).index(joint) for joint in JOINT_NAMES])
-    except ValueError:
-        missing = [joint for joint in JOINT_NAMES if joint not in names]
-        raise AnalysisError(f'{path}: joint_states lacks the joints {", ".join(missing)}') \
-            from None
+def _seconds(log_time: Optional[int], start: Optional[int]) -> Optional[float]:
+    return None if log_time is None or start is None else (log_time - start) / _NS
 
 
-def _geometry(stored, overrides, path):
-    values = {}
+def _combine(path: str, run: Run, geometry: kin.Geometry, parts: List[_Part]) -> Recording:
+    """Join the parts in file order; exclude what is unusable and list it."""
+    start = run.start_time
+    losses: List[Lost] = []
+    for part in parts:
+        for loss in part.losses:
+            losses.append(Lost(IN_FILE, loss.reason, loss.messages,
+                               _seconds(loss.start_time, start), _seconds(loss.end_time, start)))
+    read = sum(part.read for part in parts)
+    in_file = run.message_count(JOINT_STATES_TOPIC) if run.counted else None
+    if in_file is not None:
+        # The statistics count every message written: the exact toll of the damage, whatever
+        # the damaged chunks' own message indexes said.
+        unread = in_file - read - sum(loss.messages or 0 for loss in losses)
+        if unread or any(loss.messages is None for loss in losses):
+            losses.append(Lost(IN_FILE, f'in all, {in_file - read} of the {in_file} messages '
+                               'the file counts could not be read', unread, None, None))
+    if not run.data_complete:
+        last = max((int(part.log_times.max()) for part in parts if part.log_times.size),
+                   default=None)
+        losses.append(Lost(IN_FILE, 'messages after the last whole record (how many is '
+                           'unknown)', None, _seconds(last, start), None))
+    rejected: Dict[str, List[int]] = {}
+    for part in parts:
+        for reason, (count, first, last) in part.rejected.items():
+            entry = rejected.setdefault(reason, [0, first, last])
+            entry[:] = [entry[0] + count, min(entry[1], first), max(entry[2], last)]
+    stamps = np.concatenate([part.stamps for part in parts])
+    log_times = np.concatenate([part.log_times for part in parts])
+    position = np.concatenate([part.positions for part in parts])
+    velocity = np.concatenate([part.velocities for part in parts])
+    finite = np.isfinite(position).all(axis=1) & np.isfinite(velocity).all(axis=1)
+    if not finite.all():
+        bad = log_times[~finite]
+        rejected['non-finite positions or velocities'] = [int(bad.size), int(bad.min()),
+                                                          int(bad.max())]
+    stamps, log_times = stamps[finite], log_times[finite]
+    position, velocity = position[finite], velocity[finite]
+    # The same stamp as the previous message: an exact repeat counts once; a conflicting
+    # one is excluded (which of the two is right cannot be told).
+    repeat = np.zeros(stamps.size, dtype=bool)
+    repeat[1:] = np.diff(stamps) == 0
+    same = np.zeros_like(repeat)
+    same[1:] = (position[1:] == position[:-1]).all(axis=1) & (
+        velocity[1:] == velocity[:-1]).all(axis=1)
+    conflicting = repeat & ~same
+    if conflicting.any():
+        bad = log_times[conflicting]
+        rejected['the stamp of the previous message with other values'] = [
+            int(bad.size), int(bad.min()), int(bad.max())]
+    for reason, (count, first, last) in sorted(rejected.items()):
+        losses.append(Lost(IN_MESSAGE, reason, count, _seconds(first, start),
+                           _seconds(last, start)))
+    keep = ~repeat
+    stamps, position, velocity = stamps[keep], position[keep], velocity[keep]
+    if stamps.size < MIN_SEGMENT_SAMPLES:
+        raise AnalysisError(f'{path} holds {stamps.size} usable {JOINT_STATES_TOPIC} messages: '
+                            'too few to find any stroke' + _loss_clause(losses, run))
+    time = (stamps - stamps[0]) / _NS
+    samples = Samples(time, position[:, 0], velocity[:, 0], position[:, 1], velocity[:, 1],
+                      position[:, 3], velocity[:, 3], position[:, 4], velocity[:, 4])
+    return Recording(path, geometry, samples, run.problem if run.truncated else None,
+                     tuple(losses), in_file, read, int((repeat & same).sum()))
+
+
+def _loss_clause(losses: Sequence[Lost], run: Run) -> str:
+    reasons = [loss.reason for loss in losses[:3]]
+    if run.truncated and run.problem:
+        reasons.insert(0, run.problem)
+    return f' ({"; ".join(reasons)})' if reasons else ''
+
+
+def _geometry(stored: Dict[str, str], overrides: Dict[str, Optional[float]],
+              path: str) -> kin.Geometry:
+    values: Dict[str, float] = {}
     for name in GEOMETRY_FIELDS:
-        if overrides.get(name) is not None:
-            values[name] = overrides[name]
+        override = overrides.get(name)
+        if override is not None:
+            values[name] = override
         elif name in stored:
-            values[name] = float(stored[name])
+            try:
+                values[name] = float(stored[name])
+            except ValueError:
+                raise AnalysisError(
+                    f'{path}: the {GEOMETRY_METADATA} metadata value of {name} is not a number '
+                    f'({stored[name][:40]!r}): give it with --{name.replace("_", "-")}') from None
     missing = [name for name in GEOMETRY_FIELDS[:4] if name not in values]
     if missing:
         options = ' '.join('--' + name.replace('_', '-') for name in missing)
@@ -256,19 +603,30 @@ class Segment(NamedTuple):
     input_speed: float
 
 
-def split_segments(samples):
+def sample_period(samples: Samples) -> Optional[float]:
+    """Return the median step between stamps (s), None with fewer than two samples."""
+    steps = np.diff(samples.time)
+    steps = steps[steps > 0]
+    return float(np.median(steps)) if steps.size else None
+
+
+def split_segments(samples: Samples) -> Tuple[List[Segment], List[Dict[str, Any]]]:
     """
     Split into spans of steady offset and input speed; return (segments, transitions).
 
     A segment is a maximal run of samples that share one offset and one input speed with
     the offset actuator at rest (a ramp changes the speed at every sample, so its samples
-    never form a run); what lies between segments is a transition, excluded from the
-    measurement and reported.
+    never form a run) and no gap between stamps (longer than GAP_PERIODS sample periods,
+    or backwards: a pause, a clock jump, lost messages); what lies between segments is a
+    transition, excluded from the measurement and reported.
     """
-    offset, speed = samples.offset, samples.input_speed
-    scale = max(1.0, float(np.max(np.abs(speed))))
+    offset, speed, time = samples.offset, samples.input_speed, samples.time
+    scale = max(1.0, float(np.max(np.abs(speed)))) if speed.size else 1.0
+    step = sample_period(samples) or 0.0
+    steps = np.diff(time)
+    gap = (steps > GAP_PERIODS * step) | (steps < 0)
     changed = ((np.abs(np.diff(offset)) > STEADY_TOLERANCE)
-               | (np.abs(np.diff(speed)) > STEADY_TOLERANCE * scale))
+               | (np.abs(np.diff(speed)) > STEADY_TOLERANCE * scale) | gap)
     steady = samples.offset_rate == 0.0
     starts = np.flatnonzero(np.concatenate([[True], changed | (steady[1:] != steady[:-1])]))
     ends = np.append(starts[1:], offset.size)
@@ -277,26 +635,33 @@ def split_segments(samples):
     transitions = []
     for before, after in zip(segments, segments[1:]):
         changes = []
+        jumps = steps[before.end - 1:after.start][gap[before.end - 1:after.start]]
+        if jumps.size:
+            largest = jumps[np.argmax(np.abs(jumps))]
+            changes.append(f'a gap of {largest:.3f} s between stamps (a pause, a clock jump or '
+                           'lost messages)' if largest > 0 else
+                           f'the clock jumps back by {-largest:.3f} s')
         if after.offset != before.offset:
             changes.append(f'offset {before.offset * 1e3:g} -> {after.offset * 1e3:g} mm')
         if after.input_speed != before.input_speed:
             changes.append(f'input speed {before.input_speed:g} -> {after.input_speed:g} rad/s')
         transitions.append({
-            'start_time': float(samples.time[before.end - 1]),
-            'end_time': float(samples.time[after.start]),
+            'kind': 'gap' if jumps.size else 'change',
+            'start_time': float(time[before.end - 1]),
+            'end_time': float(time[after.start]),
             'offset_from': before.offset, 'offset_to': after.offset,
             'input_speed_from': before.input_speed, 'input_speed_to': after.input_speed,
             'change': ', '.join(changes) or 'interruption'})
     return segments, transitions
 
 
-def _relative_error(measured, theory):
+def _relative_error(measured: float, theory: float) -> Optional[float]:
     if not (math.isfinite(measured) and math.isfinite(theory)) or theory == 0.0:
         return None
     return measured / theory - 1.0
 
 
-def _mean_and_spread(values):
+def _mean_and_spread(values) -> Tuple[Optional[float], Optional[float]]:
     values = np.asarray(values, dtype=float)
     values = values[np.isfinite(values)]
     if values.size == 0:
@@ -305,12 +670,13 @@ def _mean_and_spread(values):
     return float(np.mean(values)), spread
 
 
-def measure_segment(samples, segment, geometry):
+def measure_segment(samples: Samples, segment: Segment,
+                    geometry: kin.Geometry) -> Dict[str, Any]:
     """Measured and theoretical figures of one steady segment, as a JSON-ready dict."""
     span = slice(segment.start, segment.end)
     pairs = find_stroke_pairs(samples.time[span], samples.ram_position[span],
                               samples.ram_velocity[span])
-    row = {
+    row: Dict[str, Any] = {
         'offset': segment.offset,
         'offset_over_pivot_distance': segment.offset / geometry.pivot_distance,
         'input_speed': segment.input_speed,
@@ -327,29 +693,33 @@ def measure_segment(samples, segment, geometry):
         'peak_speed_ratio': pairs.peak_speed_ratio, 'cutting_time': pairs.cutting_time,
         'return_time': pairs.return_time, 'peak_cutting_speed': pairs.peak_cutting_speed,
         'peak_return_speed': pairs.peak_return_speed}
-    theory = {name: None for name in measured}
+    theory: Dict[str, Any] = {name: None for name in measured}
     if segment.input_speed != 0.0 and abs(segment.offset) < geometry.coupling_radius:
-        theory.update(kin.steady_theory(geometry, segment.offset, segment.input_speed)._asdict())
+        with contextlib.suppress(kin.KinematicsError):  # e.g. a speed too large to be finite
+            theory.update(kin.steady_theory(geometry, segment.offset,
+                                            segment.input_speed)._asdict())
     for name, values in measured.items():
         mean, spread = _mean_and_spread(values)
         row[f'{name}_measured'] = mean
         row[f'{name}_measured_std'] = spread
-        row[f'{name}_theory'] = theory[name]
-        row[f'{name}_relative_error'] = (None if mean is None or theory[name] is None
-                                         else _relative_error(mean, theory[name]))
+        row[f'{name}_theory'] = _finite_or_none(theory[name])
+        row[f'{name}_relative_error'] = (None if mean is None or row[f'{name}_theory'] is None
+                                         else _relative_error(mean, row[f'{name}_theory']))
     return row
 
 
 class Analysis(NamedTuple):
     recording: Recording
-    segments: list
-    rows: list
-    transitions: list
+    segments: List[Segment]
+    rows: List[Dict[str, Any]]
+    transitions: List[Dict[str, Any]]
 
 
-def analyse(recording):
-    segments, transitions = split_segments(recording.samples)
-    rows = [measure_segment(recording.samples, s, recording.geometry) for s in segments]
+def analyse(recording: Recording) -> Analysis:
+    """Segment the recording and measure every segment against the closed form."""
+    with np.errstate(all='ignore'):  # absurd recorded values give inf/NaN, reported as null
+        segments, transitions = split_segments(recording.samples)
+        rows = [measure_segment(recording.samples, s, recording.geometry) for s in segments]
     return Analysis(recording, segments, rows, transitions)
 
 
@@ -358,13 +728,14 @@ def _fmt(value, spec):
     return format('-', '>' + width) if value is None else format(value, spec)
 
 
-def format_table(analysis):
+def format_table(analysis: Analysis) -> str:
+    """Return the per-segment table a person reads, with warnings and transitions."""
     recording = analysis.recording
     geometry = recording.geometry
     samples = recording.samples
+    span = float(np.ptp(samples.time)) if samples.time.size else 0.0
     lines = [
-        f'{recording.path}: {samples.time.size} joint-state samples over '
-        f'{samples.time[-1]:.3f} s',
+        f'{recording.path}: {samples.time.size} joint-state samples over {span:.3f} s',
         f'geometry: r1 = {geometry.coupling_radius * 1e3:g} mm, r = '
         f'{geometry.crank_radius * 1e3:g} mm, h = {geometry.pivot_distance * 1e3:g} mm, '
         f'H = {geometry.ram_height * 1e3:g} mm, crank phase = {geometry.crank_phase:g} rad',
@@ -396,41 +767,122 @@ def format_table(analysis):
     for t in analysis.transitions:
         lines.append(f'transition {t["start_time"]:.3f}-{t["end_time"]:.3f} s excluded: '
                      f'{t["change"]}')
+    if recording.repeated_stamps:
+        lines.append(f'note: {recording.repeated_stamps} messages repeat the previous one '
+                     '(same stamp, same values) and were counted once')
     return '\n'.join(lines)
 
 
-def to_document(analysis):
+def incompleteness(recording: Recording) -> List[str]:
+    """Lines saying what the analysis lacks; empty when the recording was read whole."""
+    lines = []
+    if recording.problem:
+        lines.append(f'{recording.path} is damaged or truncated: {recording.problem}')
+    for loss in recording.losses:
+        count = ('an unknown number of' if loss.messages is None else
+                 f'{loss.messages}')
+        when = ''
+        if loss.start_time is not None:
+            when = (f', log time {loss.start_time:.3f} s' + (
+                '' if loss.end_time is None else f' to {loss.end_time:.3f} s')
+                + ' after the first message')
+        verb = 'lost' if loss.stage == IN_FILE else 'excluded'
+        lines.append(f'{count} {JOINT_STATES_TOPIC} messages {verb}{when}: {loss.reason}')
+    return lines
+
+
+def _finite_or_none(value):
+    """Map NaN and infinities (and numpy scalars) to JSON-safe values, recursively."""
+    if isinstance(value, dict):
+        return {key: _finite_or_none(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite_or_none(item) for item in value]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else None
+    return value
+
+
+def to_document(analysis: Analysis) -> Dict[str, Any]:
+    """Return the JSON document of an analysis (no NaN or infinity: null instead)."""
     recording = analysis.recording
-    return {
+    return _finite_or_none({
         'file': recording.path,
+        'complete': recording.complete,
         'truncated': recording.problem,
         'units': 'SI (m, s, rad, rad/s, m/s); ratios dimensionless',
         'geometry': recording.geometry.as_dict(),
+        'messages': {'in_file': recording.messages_in_file, 'read': recording.messages_read,
+                     'used': int(recording.samples.time.size),
+                     'repeated': recording.repeated_stamps},
+        'losses': [loss._asdict() for loss in recording.losses],
         'segments': analysis.rows,
         'transitions': analysis.transitions,
-    }
+    })
 
 
-def write_csv(analysis, path):
+def _write_csv(analysis: Analysis, path: str) -> None:
     fields = list(analysis.rows[0]) if analysis.rows else ['offset']
     with open(path, 'w', newline='') as handle:
         writer = csv.DictWriter(handle, fieldnames=fields)
         writer.writeheader()
-        for row in analysis.rows:
+        for row in _finite_or_none(analysis.rows):
             writer.writerow({k: ('' if v is None else v) for k, v in row.items()})
 
 
-def write_json(analysis, path):
+def _write_json(analysis: Analysis, path: str) -> None:
     with open(path, 'w') as handle:
         json.dump(to_document(analysis), handle, indent=2, allow_nan=False)
         handle.write('\n')
 
 
-def main(argv=None):
+def write_csv(analysis: Analysis, path: str) -> None:
+    """Write the per-segment table as CSV, all or nothing."""
+    with staged_outputs() as stage:
+        _write_csv(analysis, stage(path))
+
+
+def write_json(analysis: Analysis, path: str) -> None:
+    """Write the results as JSON, all or nothing."""
+    with staged_outputs() as stage:
+        _write_json(analysis, stage(path))
+
+
+def write_outputs(analysis: Analysis, csv_path: Optional[str] = None,
+                  json_path: Optional[str] = None, plot_folder: Optional[str] = None
+                  ) -> List[str]:
+    """Write the asked-for outputs together, all or none; return the figure paths."""
+    figure_paths: List[str] = []
+    created = plot_folder is not None and not os.path.isdir(plot_folder)
+    try:
+        with staged_outputs() as stage:
+            if csv_path:
+                _write_csv(analysis, stage(csv_path))
+            if json_path:
+                _write_json(analysis, stage(json_path))
+            if plot_folder:
+                os.makedirs(plot_folder, exist_ok=True)
+                from qrm_ros.figures import write_figures
+                figure_paths = write_figures(analysis, plot_folder, stage)
+    except BaseException:
+        if created:
+            with contextlib.suppress(OSError):
+                os.rmdir(plot_folder)  # type: ignore[arg-type]
+        raise
+    return figure_paths
+
+
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog='qrm_analyze',
         description='Measure time ratio and speed ratio per offset in a recorded run and '
-                    'compare them with the closed form.')
+                    'compare them with the closed form.',
+        epilog='Exit status: 0 analysed, complete; 1 an output could not be written; 2 bad '
+               'usage or a file that cannot be analysed; 3 analysed, but incomplete (damaged '
+               'or truncated file, unusable messages: stderr says what was lost).')
     parser.add_argument('run', help='recorded run (.mcap) from mcap_recorder')
     parser.add_argument('--csv', metavar='FILE', help='write the per-segment table as CSV')
     parser.add_argument('--json', metavar='FILE', help='write the results as JSON')
@@ -438,31 +890,48 @@ def main(argv=None):
     geometry_group = parser.add_argument_group(
         'geometry', 'override (or supply, for files without it) the stored geometry')
     add_geometry_arguments(geometry_group, defaults=False)
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    """Run qrm_analyze; return the exit status (see the module's docstring)."""
+    args = _parser().parse_args(argv)
+    try:
+        return _main(args)
+    except KeyboardInterrupt:
+        print('qrm_analyze: interrupted; no output file was written', file=sys.stderr)
+        return 130
+    except Exception as error:  # a last resort: a bug must not print a traceback either
+        print(f'qrm_analyze: error: internal failure ({type(error).__name__}: {error}); '
+              'please report it with the file', file=sys.stderr)
+        return EXIT_FAILURE
+
+
+def _main(args: argparse.Namespace) -> int:
     overrides = {name: getattr(args, name) for name in GEOMETRY_FIELDS}
     try:
         recording = read_recording(args.run, overrides)
-        analysis = analyse(recording)
-        print(format_table(analysis))
-        if args.csv:
-            write_csv(analysis, args.csv)
-        if args.json:
-            write_json(analysis, args.json)
-        if args.plot:
-            from qrm_ros.figures import write_figures
-            for path in write_figures(analysis, args.plot):
-                print(f'figure: {path}')
     except AnalysisError as error:
         print(f'qrm_analyze: error: {error}', file=sys.stderr)
         return EXIT_BAD_INPUT
+    result = analyse(recording)
+    print(format_table(result))
+    try:
+        figure_paths = write_outputs(result, args.csv, args.json, args.plot)
     except OSError as error:
-        print(f'qrm_analyze: error: {error.filename or ""}: {error.strerror}', file=sys.stderr)
-        return EXIT_BAD_INPUT
-    if recording.problem:
-        print(f'qrm_analyze: warning: {args.run} is truncated: {recording.problem}; the '
-              'figures above cover what was whole', file=sys.stderr)
-        return EXIT_TRUNCATED
-    return 0
+        print(f'qrm_analyze: error: cannot write {error.filename or "an output"}: '
+              f'{error.strerror or error}; no output file was written', file=sys.stderr)
+        return EXIT_FAILURE
+    for path in figure_paths:
+        print(f'figure: {path}')
+    lines = incompleteness(recording)
+    for line in lines:
+        print(f'qrm_analyze: warning: {line}', file=sys.stderr)
+    if lines:
+        print('qrm_analyze: warning: the figures above cover only what was readable and '
+              'usable', file=sys.stderr)
+        return EXIT_INCOMPLETE
+    return EXIT_OK
 
 
 if __name__ == '__main__':

@@ -117,12 +117,18 @@ def speed_ratio_figure(analysis):
     return figure
 
 
-def _one_revolution(samples, row):
+def _one_revolution(samples, segment):
     """Return the samples of the first whole input revolution inside a segment."""
-    span = np.flatnonzero((samples.time >= row['start_time']) & (samples.time <= row['end_time']))
+    span = np.arange(segment.start, segment.end)  # by index: stamps may jump between segments
     unwrapped = np.unwrap(samples.input_angle[span])
     travelled = np.abs(unwrapped - unwrapped[0])
     return span[travelled <= 2 * math.pi], unwrapped[travelled <= 2 * math.pi]
+
+
+def _has_theory(geometry, row):
+    """Whether the closed form covers a segment (a damaged file can hold any setting)."""
+    return (abs(row['offset']) < geometry.coupling_radius
+            and math.isfinite(row['input_speed']))
 
 
 def _input_angle_grid():
@@ -134,13 +140,14 @@ def flywheel_speed_figure(analysis):
     samples = analysis.recording.samples
     figure, axes = plt.subplots(figsize=(8, 5.5))
     theta = _input_angle_grid()
-    for index, row in enumerate(analysis.rows):
+    for index, (row, segment) in enumerate(zip(analysis.rows, analysis.segments)):
         color = f'C{index % 10}'
         label = f'δ = {row["offset"] * 1e3:g} mm'
-        axes.plot(np.degrees(theta), kin.state(geometry, row['offset'], theta,
-                                               row['input_speed']).flywheel_speed,
-                  color=color, gid=THEORY, label=f'{label}, theory')
-        chosen, _ = _one_revolution(samples, row)
+        if _has_theory(geometry, row):
+            axes.plot(np.degrees(theta), kin.state(geometry, row['offset'], theta,
+                                                   row['input_speed']).flywheel_speed,
+                      color=color, gid=THEORY, label=f'{label}, theory')
+        chosen, _ = _one_revolution(samples, segment)
         angle = np.mod(samples.input_angle[chosen], 2 * math.pi)
         axes.plot(np.degrees(angle), samples.flywheel_speed[chosen], '.', color=color,
                   markersize=3, label=f'{label}, recorded')
@@ -158,16 +165,19 @@ def ram_motion_figure(analysis):
     samples = analysis.recording.samples
     figure, (top, bottom) = plt.subplots(2, 1, figsize=(8, 8), sharex=True)
     theta = _input_angle_grid()
-    for index, row in enumerate(analysis.rows):
+    for index, (row, segment) in enumerate(zip(analysis.rows, analysis.segments)):
         color = f'C{index % 10}'
         label = f'δ = {row["offset"] * 1e3:g} mm'
-        state = kin.state(geometry, row['offset'], theta, row['input_speed'])
-        top.plot(np.degrees(theta), state.ram_position * 1e3, color=color, gid=THEORY,
-                 label=label)
-        bottom.plot(np.degrees(theta), state.ram_velocity, color=color, gid=THEORY)
-        chosen, _ = _one_revolution(samples, row)
+        theory = _has_theory(geometry, row)
+        if theory:
+            state = kin.state(geometry, row['offset'], theta, row['input_speed'])
+            top.plot(np.degrees(theta), state.ram_position * 1e3, color=color, gid=THEORY,
+                     label=label)
+            bottom.plot(np.degrees(theta), state.ram_velocity, color=color, gid=THEORY)
+        chosen, _ = _one_revolution(samples, segment)
         angle = np.degrees(np.mod(samples.input_angle[chosen], 2 * math.pi))
-        top.plot(angle, samples.ram_position[chosen] * 1e3, '.', color=color, markersize=3)
+        top.plot(angle, samples.ram_position[chosen] * 1e3, '.', color=color, markersize=3,
+                 label=None if theory else f'{label} (no closed form)')
         bottom.plot(angle, samples.ram_velocity[chosen], '.', color=color, markersize=3)
     top.set_ylabel('ram position x [mm]')
     bottom.set_ylabel('ram velocity v [m/s] (< 0: cutting)')
@@ -189,15 +199,22 @@ FIGURES = {
 }
 
 
-def write_figures(analysis, directory):
-    """Write every figure as PNG into directory (created); return the paths."""
+def write_figures(analysis, directory, stage=None):
+    """
+    Write every figure as PNG into directory (created); return the paths.
+
+    ``stage`` (from qrm_ros.atomic_files.staged_outputs) maps each path to the temporary name
+    to write, so the figures appear together with the other outputs or not at all.
+    """
     os.makedirs(directory, exist_ok=True)
     paths = []
     for name, build in FIGURES.items():
         figure = build(analysis)
         path = os.path.join(directory, name)
-        figure.tight_layout()
-        figure.savefig(path, dpi=110)
-        plt.close(figure)
+        try:
+            figure.tight_layout()
+            figure.savefig(path if stage is None else stage(path), dpi=110, format='png')
+        finally:
+            plt.close(figure)
         paths.append(path)
     return paths

@@ -51,7 +51,8 @@ def schedule_states(geometry, offsets, hold=4.0, offset_rate=0.01, input_speed=2
 
 
 def write_run(path, geometry, offsets, with_geometry=True, joint_states_topic='/joint_states',
-              start_ns=1_700_000_000_000_000_000, chunk_size=256 * 1024, **schedule):
+              start_ns=1_700_000_000_000_000_000, chunk_size=256 * 1024, data_crc=False,
+              **schedule):
     """Write a synthetic run as a ros2-profile MCAP file; return the number of messages."""
     from mcap.writer import Writer
     from rosbags.typesys import get_typestore, Stores
@@ -65,7 +66,7 @@ def write_run(path, geometry, offsets, with_geometry=True, joint_states_topic='/
                                                                         **schedule)
     speed = schedule.get('input_speed', 2 * math.pi)
     with open(path, 'wb') as handle:
-        writer = Writer(handle, chunk_size=chunk_size)
+        writer = Writer(handle, chunk_size=chunk_size, enable_data_crcs=data_crc)
         writer.start(profile='ros2', library='qrm_ros test synthetic_run')
         text, _ = store.generate_msgdef(type_name, ros_version=2)
         schema = writer.register_schema(type_name, 'ros2msg', text.encode())

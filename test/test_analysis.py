@@ -244,9 +244,9 @@ def test_parallel_decoding_gives_the_same_samples_as_serial(tmp_path, monkeypatc
     write_run(path, PAPER, [-0.01, 0.01], hold=15.0, chunk_size=16 * 1024)
     serial = analysis.read_recording(str(path)).samples
     monkeypatch.setattr(analysis, 'PARALLEL_MIN_MESSAGES', 0)
-    monkeypatch.setattr(analysis.os, 'cpu_count', lambda: 3)
-    spans = analysis.open_run(str(path)).time_spans(3)
-    assert len(spans) == 3  # really split
+    monkeypatch.setattr(analysis, '_usable_cores', lambda: 3)
+    parts = analysis.open_run(str(path)).parts(3)
+    assert len(parts) == 3  # really split
     parallel = analysis.read_recording(str(path)).samples
     for name, values in serial._asdict().items():
         np.testing.assert_array_equal(getattr(parallel, name), values, err_msg=name)
@@ -262,3 +262,208 @@ def test_coarse_sampling_is_flagged(capsys):
     assert 'only 25 samples per input revolution' in analysis.format_table(
         analysis.analyse(coarse))
     assert 'warning' not in analysis.format_table(analysis.analyse(fine))
+
+
+# --- gaps, damage, outputs and exit codes ---------------------------------------------------
+
+def _with_jump(samples, at, seconds):
+    """Shift the stamps from sample `at` on: a pause (> 0, the motion resumes where it
+    stopped) or a clock jump back (< 0)."""
+    time = samples.time.copy()
+    time[at:] += seconds
+    return samples._replace(time=time)
+
+
+@pytest.mark.parametrize('seconds', [3.0, 0.05, -2.0])
+def test_a_gap_inside_a_steady_segment_splits_it_and_is_listed(seconds):
+    steady = samples_for([0.01], hold=8.0)
+    middle = steady.time.size // 2 + 7
+    result = analysis.analyse(analysis.Recording('paused', PAPER, _with_jump(
+        steady, middle, seconds), None))
+    assert [(row['offset'], row['input_speed']) for row in result.rows] == [
+        (0.01, 2 * math.pi)] * 2
+    assert [(s.start, s.end) for s in result.segments] == [(0, middle),
+                                                           (middle, steady.time.size)]
+    (gap,) = result.transitions
+    assert gap['kind'] == 'gap' and gap['offset_from'] == gap['offset_to'] == 0.01
+    assert (f'gap of {seconds + 0.01:.3f} s' if seconds > 0
+            else f'jumps back by {-seconds - 0.01:.3f} s') in gap['change']
+    expected = kin.time_ratio(PAPER, 0.01)
+    for row in result.rows:  # no stroke measured across the gap
+        assert row['time_ratio_measured'] == pytest.approx(expected, rel=TOLERANCE)
+        assert row['time_ratio_measured_std'] < TOLERANCE
+
+
+def test_a_gap_of_a_few_periods_is_tolerated():
+    steady = samples_for([0.01], hold=8.0)
+    jittered = _with_jump(steady, 300, 0.019)  # a 2.9-period step: still one segment
+    (row,) = analysis.analyse(analysis.Recording('late', PAPER, jittered, None)).rows
+    assert row['stroke_pairs'] >= 6
+
+
+def _chunk_indexes(path):
+    from mcap.reader import make_reader
+    with open(path, 'rb') as handle:
+        return sorted(make_reader(handle).get_summary().chunk_indexes,
+                      key=lambda c: c.chunk_start_offset)
+
+
+def _log_times(path):
+    """Log times of every joint state, by rosbags' own MCAP reader (independent)."""
+    from pathlib import Path
+    from rosbags.highlevel import AnyReader
+    with AnyReader([Path(path)]) as reader:
+        return [log_time for _, log_time, _ in reader.messages(connections=reader.connections)]
+
+
+def _messages_between(path, start, end):
+    return sum(1 for log_time in _log_times(path) if start <= log_time <= end)
+
+
+def _damage(path, offset, target):
+    data = bytearray(path.read_bytes())
+    data[offset:offset + 8] = b'\xa5' * 8
+    target.write_bytes(bytes(data))
+    return target
+
+
+@pytest.mark.parametrize('chunk', [0, 3])
+@pytest.mark.parametrize('parallel', [False, True])
+def test_a_damaged_chunk_is_skipped_and_what_it_held_reported(tmp_path, capsys, monkeypatch,
+                                                              chunk, parallel):
+    path = tmp_path / 'run.mcap'
+    total = write_run(path, PAPER, [-0.01, 0.01], hold=6.0, chunk_size=16 * 1024)
+    index = _chunk_indexes(path)[chunk]
+    held = _messages_between(path, index.message_start_time, index.message_end_time)
+    damaged = _damage(path, index.chunk_start_offset + 80, tmp_path / 'damaged.mcap')
+    if parallel:  # the path of long files: worker processes, one part each
+        monkeypatch.setattr(analysis, 'PARALLEL_MIN_MESSAGES', 0)
+        monkeypatch.setattr(analysis, '_usable_cores', lambda: 3)
+    code, out, err = run_main([damaged, '--json', tmp_path / 'r.json'], capsys)
+    assert code == analysis.EXIT_INCOMPLETE, err
+    document = json.loads((tmp_path / 'r.json').read_text())
+    assert not document['complete']
+    assert document['messages'] == {'in_file': total, 'read': total - held,
+                                    'used': total - held, 'repeated': 0}
+    (loss,) = document['losses']
+    assert loss['stage'] == 'file' and loss['messages'] == held
+    assert f'damaged chunk at byte {index.chunk_start_offset}' in loss['reason']
+    every = _log_times(path)
+    lost = [t for t in every if index.message_start_time <= t <= index.message_end_time]
+    assert loss['start_time'] == pytest.approx((min(lost) - min(every)) * 1e-9, abs=1e-12)
+    assert loss['end_time'] == pytest.approx((max(lost) - min(every)) * 1e-9, abs=1e-12)
+    assert f'{held} /joint_states messages lost, log time {loss["start_time"]:.3f} s' in err
+    if chunk:  # the lost second is a gap inside the first offset's segment
+        assert any(t['kind'] == 'gap' for t in document['transitions'])
+
+
+def test_a_damaged_chunk_of_an_unfinished_file_ends_the_readable_part(tmp_path, capsys):
+    path = tmp_path / 'run.mcap'
+    write_run(path, PAPER, [0.0, 0.01], hold=4.0, chunk_size=16 * 1024)
+    indexes = _chunk_indexes(path)
+    data = path.read_bytes()[:indexes[-1].chunk_start_offset]  # no summary: streamed
+    cut = tmp_path / 'cut.mcap'
+    cut.write_bytes(data)
+    damaged = _damage(cut, indexes[4].chunk_start_offset + 80, tmp_path / 'damaged.mcap')
+    code, _, err = run_main([damaged, '--json', tmp_path / 'r.json'], capsys)
+    assert code == analysis.EXIT_INCOMPLETE
+    document = json.loads((tmp_path / 'r.json').read_text())
+    readable = _messages_between(path, 0, indexes[4].message_start_time - 1)
+    assert document['messages']['read'] == readable
+    assert 'the record there is damaged' in document['truncated']
+    assert [loss['messages'] for loss in document['losses']] == [None]  # unknown, and said
+    assert 'an unknown number of /joint_states messages lost' in err
+
+
+def test_every_chunk_damaged_is_nothing_usable(tmp_path, capsys):
+    path = tmp_path / 'run.mcap'
+    write_run(path, PAPER, [0.0], hold=2.0)
+    (index,) = _chunk_indexes(path)
+    damaged = _damage(path, index.chunk_start_offset + 80, tmp_path / 'damaged.mcap')
+    code, _, err = run_main([damaged, '--json', tmp_path / 'r.json'], capsys)
+    assert code == analysis.EXIT_BAD_INPUT and len(err.strip().splitlines()) == 1
+    assert 'holds 0 usable /joint_states messages' in err
+    assert 'damaged chunk at byte' in err
+    assert not (tmp_path / 'r.json').exists()
+
+
+def test_outputs_are_all_or_nothing(tmp_path, capsys):
+    path = tmp_path / 'run.mcap'
+    write_run(path, PAPER, [0.01], hold=3.0)
+    (tmp_path / 'plots').write_text('a file where the figures folder should be')
+    code, _, err = run_main([path, '--json', tmp_path / 'r.json', '--csv', tmp_path / 'r.csv',
+                             '--plot', tmp_path / 'plots'], capsys)
+    assert code == analysis.EXIT_FAILURE
+    assert len(err.strip().splitlines()) == 1 and 'no output file was written' in err
+    assert sorted(os.listdir(tmp_path)) == ['plots', 'run.mcap']  # no JSON, CSV or temporary
+    code, _, err = run_main([path, '--json', tmp_path / 'missing' / 'r.json', '--csv',
+                             tmp_path / 'r.csv'], capsys)
+    assert code == analysis.EXIT_FAILURE and 'missing' in err
+    assert sorted(os.listdir(tmp_path)) == ['plots', 'run.mcap']
+    (tmp_path / 'r.json').write_text('the previous results')
+    code, _, _ = run_main([path, '--json', tmp_path / 'r.json'], capsys)
+    assert code == analysis.EXIT_OK
+    assert json.loads((tmp_path / 'r.json').read_text())['complete'] is True
+    assert oct(os.stat(tmp_path / 'r.json').st_mode & 0o777) == oct(0o666 & ~_umask())
+
+
+def _umask():
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def test_json_holds_null_where_a_figure_is_not_finite(capsys):
+    recording = analysis.Recording('huge', PAPER, samples_for([0.01]), None)
+    result = analysis.analyse(recording)
+    result.rows[0]['time_ratio_measured'] = math.inf
+    result.rows[0]['speed_ratio_measured'] = math.nan
+    document = analysis.to_document(result)
+    text = json.dumps(document, allow_nan=False)
+    assert document['segments'][0]['time_ratio_measured'] is None
+    assert json.loads(text)['segments'][0]['speed_ratio_measured'] is None
+
+
+@pytest.mark.parametrize('case', ['complete', 'incomplete', 'usage', 'bad input', 'output'])
+def test_exit_status_policy(tmp_path, capsys, case):
+    """0 complete, 1 failure at run time, 2 usage or unusable input, 3 incomplete."""
+    path = tmp_path / 'run.mcap'
+    write_run(path, PAPER, [0.0, 0.01], hold=3.0, chunk_size=16 * 1024)
+    if case == 'usage':
+        with pytest.raises(SystemExit) as stop:
+            analysis.main([str(path), '--crank-radius', 'wide'])
+        assert stop.value.code == 2
+        assert 'argument --crank-radius' in capsys.readouterr().err
+        return
+    args = {'complete': [path], 'bad input': [tmp_path / 'none.mcap'],
+            'output': [path, '--csv', tmp_path / 'no' / 'r.csv']}.get(case)
+    if case == 'incomplete':
+        cut = tmp_path / 'cut.mcap'
+        cut.write_bytes(path.read_bytes()[:-5000])
+        args = [cut]
+    code, _, err = run_main(args, capsys)
+    assert code == {'complete': 0, 'incomplete': 3, 'bad input': 2, 'output': 1}[case], err
+    if code in (1, 2):
+        assert len(err.strip().splitlines()) == 1 and err.startswith('qrm_analyze: error: ')
+
+
+@pytest.mark.parametrize('log', sorted(os.listdir(os.path.join(
+    os.path.dirname(os.path.abspath(__file__)), 'data'))))
+def test_fast_decoding_gives_what_rosbags_gives_message_by_message(log, monkeypatch):
+    if not log.endswith('.mcap'):
+        return
+    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'data', log)
+    fast = analysis.read_recording(path)
+    monkeypatch.setattr(analysis, 'FAST_DECODING', False)
+    slow = analysis.read_recording(path)
+    assert fast.messages_read == slow.messages_read > 0
+    for name, values in slow.samples._asdict().items():
+        np.testing.assert_array_equal(getattr(fast.samples, name), values, err_msg=name)
+
+
+def test_figures_of_a_setting_outside_the_closed_form_show_the_measurement_only(tmp_path):
+    narrow = kin.Geometry(0.005, PAPER.crank_radius, PAPER.pivot_distance)  # |δ| >= r1 below
+    result = analysis.analyse(analysis.Recording('odd', narrow, samples_for([0.01]), None))
+    (row,) = result.rows
+    assert row['time_ratio_theory'] is None and row['time_ratio_measured'] is not None
+    assert len(figures.write_figures(result, str(tmp_path))) == len(figures.FIGURES)

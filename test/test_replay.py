@@ -67,8 +67,9 @@ class Log:
         self.parameters = {k: json.loads(v) for k, v in
                            run.metadata['qrm_ros.parameters'].items()}
         stamps, positions, velocities, twists, self.events = [], [], [], {}, []
-        for topic, schema, _, _, data in run.messages():
-            message = STORE.deserialize_cdr(data, schema)
+        for recorded in run.messages():
+            message = STORE.deserialize_cdr(recorded.data, recorded.schema_name)
+            topic = recorded.topic
             if topic == '/joint_states':
                 assert list(message.name) == JOINTS
                 stamps.append(_ns(message.header.stamp))

@@ -1,0 +1,356 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+A seeded generator of damaged and odd recordings, for the fuzz tests (test_fuzz.py).
+
+Two families, both starting from the golden logs:
+- byte damage, which the file's CRCs and framing must catch: bit flips, overwritten, zeroed
+  and cut ranges, garbage, huge length fields;
+- rewrites through the mcap Writer (joint states only, the other topics' channels kept
+  without messages, to keep the suite fast), so every CRC is right and the damage reaches
+  the CDR decoder and the analysis: undecodable payloads, wrong schemas and message types, bad
+  metadata values, odd timestamps, non-finite values, arrays that do not match the names.
+Each case knows how many joint-state messages its file holds and which exit codes of
+``qrm_analyze`` are acceptable for it.
+"""
+
+import functools
+import io
+import math
+import random
+import struct
+from typing import Callable, Dict, FrozenSet, List, NamedTuple, Optional
+
+from mcap.reader import make_reader
+from mcap.writer import CompressionType, Writer
+from rosbags.typesys import get_typestore, Stores
+
+from qrm_ros.names import GEOMETRY_METADATA, JOINT_STATE_TYPE
+
+JOINT_STATES = '/joint_states'
+ANY_OUTCOME = frozenset({0, 2, 3})
+INCOMPLETE = frozenset({2, 3})  # 2 when nothing usable is left
+REFUSED = frozenset({2})
+GAP = frozenset({0})  # a pause or a clock jump: complete, with a gap listed
+
+
+class Case(NamedTuple):
+    name: str
+    data: bytes
+    messages: int  # joint-state messages in the file before byte damage
+    allowed: FrozenSet[int]  # acceptable exit codes of qrm_analyze
+    same_results: bool = False  # the analysis must equal the undamaged log's
+    gap: bool = False  # a pause or clock jump inside the run: a gap must be listed
+
+
+@functools.lru_cache(maxsize=None)
+def _store():
+    return get_typestore(Stores.ROS2_JAZZY)
+
+
+class Recorded(NamedTuple):
+    """A log taken apart: what the mcap Writer needs to write it again."""
+
+    schemas: Dict[int, tuple]  # id -> (name, encoding, data)
+    channels: Dict[int, tuple]  # id -> (topic, message encoding, schema id, metadata)
+    metadata: Dict[str, Dict[str, str]]
+    messages: List[list]  # [channel id, log time, publish time, sequence, data], file order
+    joint_channel: int
+
+    def joint_states(self):
+        return [m for m in self.messages if m[0] == self.joint_channel]
+
+
+def take_apart(data: bytes) -> Recorded:
+    reader = make_reader(io.BytesIO(data))
+    summary = reader.get_summary()
+    schemas = {i: (s.name, s.encoding, s.data) for i, s in summary.schemas.items()}
+    channels = {i: (c.topic, c.message_encoding, c.schema_id, dict(c.metadata))
+                for i, c in summary.channels.items()}
+    metadata = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
+    messages = [[m.channel_id, m.log_time, m.publish_time, m.sequence, m.data]
+                for _, _, m in reader.iter_messages(log_time_order=False)]
+    joint = next(i for i, c in channels.items() if c[0] == JOINT_STATES)
+    return Recorded(schemas, channels, metadata, messages, joint)
+
+
+def put_together(recorded: Recorded, chunk_size: int = 32 * 1024) -> bytes:
+    stream = io.BytesIO()
+    writer = Writer(stream, chunk_size=chunk_size, compression=CompressionType.ZSTD)
+    writer.start('ros2', 'qrm_ros test damaged_runs')
+    schema_ids = {i: writer.register_schema(*s) for i, s in recorded.schemas.items()}
+    channel_ids = {i: writer.register_channel(topic, encoding, schema_ids[schema], metadata)
+                   for i, (topic, encoding, schema, metadata) in recorded.channels.items()}
+    for name, values in recorded.metadata.items():
+        writer.add_metadata(name, values)
+    for channel, log_time, publish_time, sequence, data in recorded.messages:
+        writer.add_message(channel_ids[channel], log_time, bytes(data), publish_time, sequence)
+    writer.finish()
+    return stream.getvalue()
+
+
+def _decode(data):
+    decoded = _store().deserialize_cdr(bytes(data), JOINT_STATE_TYPE)
+    decoded.position, decoded.velocity = decoded.position.copy(), decoded.velocity.copy()
+    return decoded
+
+
+def _encode(message):
+    return bytes(_store().serialize_cdr(message, JOINT_STATE_TYPE))
+
+
+# --- byte damage ---------------------------------------------------------------------------
+
+def _top_level_records(data: bytes):
+    """Return (offset, opcode, length) of the records after the magic, as far as they parse."""
+    found, offset = [], 8
+    while offset + 9 <= len(data):
+        opcode, length = struct.unpack_from('<BQ', data, offset)
+        found.append((offset, opcode, length))
+        offset += 9 + length
+    return found
+
+
+def bit_flips(rng, data):
+    damaged = bytearray(data)
+    for _ in range(rng.randint(1, 3)):
+        damaged[rng.randrange(8, len(damaged))] ^= 1 << rng.randrange(8)
+    return bytes(damaged)
+
+
+def range_overwrite(rng, data):
+    damaged = bytearray(data)
+    start = rng.randrange(8, len(damaged))
+    length = min(rng.randint(1, 256), len(damaged) - start)
+    damaged[start:start + length] = rng.randbytes(length)
+    return bytes(damaged)
+
+
+def zeroed_range(rng, data):
+    damaged = bytearray(data)
+    start = rng.randrange(8, len(damaged))
+    length = min(rng.randint(1, 4096), len(damaged) - start)
+    damaged[start:start + length] = bytes(length)
+    return bytes(damaged)
+
+
+def truncation(rng, data):
+    return data[:rng.randrange(0, len(data))]
+
+
+def garbage(rng, data):
+    body = rng.randbytes(rng.randint(0, 4096))
+    return (data[:8] + body) if rng.random() < 0.7 else body
+
+
+def huge_length(rng, data):
+    records = _top_level_records(data)
+    offset, opcode, _ = rng.choice(records)
+    huge = rng.choice([2 ** 64 - 1, 2 ** 63, 2 ** 40, 4 * 2 ** 30 - 1, len(data) * 2, 0])
+    damaged = bytearray(data)
+    if opcode == 0x06 and rng.random() < 0.6:  # inside a chunk: sizes and string lengths
+        field = rng.choice([(9 + 16, '<Q'), (9 + 28, '<I')])  # uncompressed size, compression
+        struct.pack_into(field[1], damaged, offset + field[0], huge % (2 ** (8 * struct.calcsize(
+            field[1]))))
+    else:
+        struct.pack_into('<Q', damaged, offset + 1, huge)
+    return bytes(damaged)
+
+
+BYTE_DAMAGE = [bit_flips, range_overwrite, zeroed_range, truncation, garbage, huge_length]
+
+
+# --- rewrites with every CRC right ---------------------------------------------------------
+
+def _pick(rng, items, most=5):
+    return rng.sample(items, rng.randint(1, min(most, len(items))))
+
+
+def cdr_payload(rng, recorded):
+    for message in _pick(rng, recorded.joint_states()):
+        data = message[4]
+        how = rng.randrange(4)
+        if how == 0:
+            message[4] = data[:rng.randrange(len(data))]
+        elif how == 1:
+            message[4] = rng.randbytes(len(data))
+        elif how == 2:  # a sequence length far beyond the payload
+            at = rng.randrange(4, len(data) - 4)
+            message[4] = data[:at] + struct.pack('<I', rng.choice([2 ** 32 - 1, 2 ** 20])) \
+                + data[at + 4:]
+        else:
+            message[4] = data + rng.randbytes(rng.randint(1, 64))  # trailing bytes: harmless
+    # A changed length or random bytes may still decode (as other values): any exit status,
+    # but the counts must still add up.
+    return ANY_OUTCOME
+
+
+def wrong_schema(rng, recorded):
+    name, encoding, data = recorded.schemas[recorded.channels[recorded.joint_channel][2]]
+    topic, message_encoding, schema_id, metadata = recorded.channels[recorded.joint_channel]
+    how = rng.randrange(6)
+    if how == 0:
+        recorded.schemas[schema_id] = ('sensor_msgs/msg/JointStates', encoding, data)
+    elif how == 1:
+        recorded.schemas[schema_id] = (name, encoding, data.replace(b'float64[] position',
+                                                                    b'float32[] position'))
+    elif how == 2:
+        recorded.channels[recorded.joint_channel] = (topic, 'json', schema_id, metadata)
+    elif how == 3:
+        recorded.channels[recorded.joint_channel] = ('/joint_state', message_encoding,
+                                                     schema_id, metadata)
+    elif how == 4:
+        recorded.schemas[schema_id] = (name, 'jsonschema', data)
+    else:
+        recorded.schemas[schema_id] = (name, encoding, rng.randbytes(len(data)))
+    return REFUSED
+
+
+def bad_metadata(rng, recorded):
+    geometry = recorded.metadata.setdefault(GEOMETRY_METADATA, {})
+    key = rng.choice(sorted(set(geometry) - {'crank_phase'}))  # a phase may be 0 or negative
+    how = rng.randrange(3)
+    if how == 0:
+        geometry[key] = rng.choice(['nan', 'inf', '-inf', '-0.01', 'abc', '', '1e400', '0',
+                                    '0x1p-3', '\u00bd'])
+    elif how == 1:
+        del geometry[key]
+    else:
+        geometry['crank_radius'] = repr(float(geometry['pivot_distance']) * 1.5)
+    # ('0x1p-3' and '½' are no float literals Python reads: every value above is refused.)
+    return REFUSED
+
+
+def _rewrite_joint_states(recorded, change, targets=None):
+    for message in recorded.joint_states() if targets is None else targets:
+        decoded = _decode(message[4])
+        if change(decoded, message) is not False:
+            message[4] = _encode(decoded)
+
+
+def odd_timestamps(rng, recorded):
+    joints = recorded.joint_states()
+    start = rng.randrange(len(joints) // 4, 3 * len(joints) // 4)
+    how = rng.randrange(6)
+    if how in (0, 1):  # a pause (forward jump) or a clock jump back, from one message on
+        shift = int((3.0 if how == 0 else -2.0) * 1e9)
+        later = {id(m) for m in joints[start:]}
+
+        def move(decoded, message):
+            if id(message) not in later:
+                return False
+            ns = decoded.header.stamp.sec * 10 ** 9 + decoded.header.stamp.nanosec + shift
+            decoded.header.stamp.sec, decoded.header.stamp.nanosec = divmod(ns, 10 ** 9)
+        _rewrite_joint_states(recorded, move, joints[start:])
+        return GAP
+    picked = _pick(rng, joints)
+    chosen = {id(m) for m in picked}
+    if how == 2:
+        def odd(decoded, message):
+            if id(message) not in chosen:
+                return False
+            decoded.header.stamp.nanosec = rng.choice([10 ** 9, 2 ** 32 - 1])
+        _rewrite_joint_states(recorded, odd, picked)
+        return INCOMPLETE
+    if how == 3:
+        def extreme(decoded, message):
+            if id(message) not in chosen:
+                return False
+            decoded.header.stamp.sec = rng.choice([0, -2 ** 31, 2 ** 31 - 1])
+        _rewrite_joint_states(recorded, extreme, picked)
+        return frozenset({0, 3})
+    index = recorded.messages.index(joints[start])
+    copy = list(recorded.messages[index])
+    if how == 5:  # same stamp, other values: conflicting
+        decoded = _decode(copy[4])
+        decoded.position[3] += 1e-3
+        copy[4] = _encode(decoded)
+    recorded.messages.insert(index + 1, copy)
+    return frozenset({0}) if how == 4 else INCOMPLETE
+
+
+def non_finite(rng, recorded):
+    if rng.random() < 0.2:  # an infinite input speed everywhere: nothing usable
+        def everywhere(decoded, message):
+            decoded.velocity[0] = math.inf
+        _rewrite_joint_states(recorded, everywhere)
+        return REFUSED
+    picked = _pick(rng, recorded.joint_states())
+    chosen = {id(m) for m in picked}
+
+    def spoil(decoded, message):
+        if id(message) not in chosen:
+            return False
+        array = decoded.position if rng.random() < 0.5 else decoded.velocity
+        array[rng.randrange(len(array))] = rng.choice([math.nan, math.inf, -math.inf])
+    _rewrite_joint_states(recorded, spoil, picked)
+    return INCOMPLETE
+
+
+def odd_arrays(rng, recorded):
+    how = rng.randrange(4)
+    if how == 3:  # joints in another order, arrays to match: a valid message
+        order = list(range(5))
+        rng.shuffle(order)
+
+        def permute(decoded, message):
+            decoded.name = [decoded.name[i] for i in order]
+            decoded.position = decoded.position[order]
+            decoded.velocity = decoded.velocity[order]
+        _rewrite_joint_states(recorded, permute)
+        return None
+    picked = _pick(rng, recorded.joint_states())
+    chosen = {id(m) for m in picked}
+
+    def spoil(decoded, message):
+        if id(message) not in chosen:
+            return False
+        if how == 0:
+            decoded.position = decoded.position[:rng.randrange(len(decoded.position))]
+        elif how == 1:
+            decoded.velocity = decoded.velocity[:0]
+        else:
+            dropped = rng.choice(decoded.name)
+            decoded.name = [n for n in decoded.name if n != dropped]
+    _rewrite_joint_states(recorded, spoil, picked)
+    return INCOMPLETE
+
+
+REWRITES = [cdr_payload, wrong_schema, bad_metadata, odd_timestamps, non_finite, odd_arrays]
+
+
+def cases(logs: Dict[str, bytes], count: int, seed: int) -> List[Case]:
+    """Return `count` cases, the same for the same seed, over every class and log."""
+    rng = random.Random(seed)
+    names = sorted(logs)
+    apart = {name: take_apart(logs[name]) for name in names}
+    kinds: List[Callable] = BYTE_DAMAGE + REWRITES
+    made = []
+    for number in range(count):
+        kind = kinds[number % len(kinds)]
+        log = names[(number // len(kinds)) % len(names)]
+        label = f'{number}-{kind.__name__}-{log}'
+        messages = len(apart[log].joint_states())
+        if kind in BYTE_DAMAGE:
+            made.append(Case(label, kind(rng, logs[log]), messages, ANY_OUTCOME))
+            continue
+        original = apart[log]
+        recorded = Recorded(dict(original.schemas), dict(original.channels),
+                            {k: dict(v) for k, v in original.metadata.items()},
+                            [list(m) for m in original.joint_states()], original.joint_channel)
+        allowed: Optional[FrozenSet[int]] = kind(rng, recorded)
+        made.append(Case(label, put_together(recorded), len(recorded.joint_states()),
+                         allowed or frozenset({0}), same_results=allowed is None,
+                         gap=allowed is GAP))
+    return made
