@@ -33,7 +33,7 @@ setup(
     install_requires=['setuptools', 'numpy', 'scipy', 'mcap', 'rosbags', 'matplotlib'],
     extras_require={
         'test': ['pytest', 'flake8', 'pydocstyle', 'mcap-ros2-support', 'pyyaml',
-                 'yourdfpy'],
+                 'yourdfpy', 'mypy'],
     },
     zip_safe=True,
     maintainer='qrm_ros developers',
