@@ -108,6 +108,7 @@ class Conductor:
         self.executor = rclpy.executors.SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self.sim_parameters = AsyncParameterClient(self.node, SIM_NODE)
+        self.children = []  # (name, process, log path): one that exits ends any wait
         self.pairs = []
         self.node.create_subscription(DiagnosticArray, DIAGNOSTICS_TOPIC, self._on_diagnostics, 50)
 
@@ -116,11 +117,17 @@ class Conductor:
             if status.name == STROKE_PAIR_STATUS:
                 self.pairs.append({item.key: item.value for item in status.values})
 
+    def watch(self, name, process, log_path):
+        self.children.append((name, process, log_path))
+
     def wait_for(self, condition, timeout, what, interruptible=True):
         deadline = time.monotonic() + timeout
         while not condition():
             if interruptible and self._stop_request:
                 raise Interrupted(self._stop_request.signal_number)
+            for name, process, log_path in self.children if interruptible else ():
+                if process.poll() is not None:
+                    raise MainJobError(f'{name} exited ({process.returncode}); see {log_path}')
             if time.monotonic() > deadline:
                 raise MainJobError(f'timed out after {timeout:g} s waiting for {what}')
             self.executor.spin_once(timeout_sec=0.05)
@@ -221,28 +228,24 @@ def record(options, folder, stop):
     env = dict(os.environ)
     env.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     os.environ.update(env)
+    sim_log = os.path.join(folder, 'shaper_sim.log')
     sim = _start('shaper_sim', [
         '-p', f'coupling_offset:={offsets[0]!r}', '-p', f'input_speed:={options.input_speed!r}',
         '-p', f'publish_rate:={float(options.publish_rate)!r}',
         '-p', f'offset_rate_limit:={float(options.offset_rate_limit)!r}',
-    ], os.path.join(folder, 'shaper_sim.log'), env)
+    ], sim_log, env)
     print(f'qrm_main: started shaper_sim (pid {sim.pid})', flush=True)
     recorder = None
     conductor = Conductor(stop)
+    conductor.watch('shaper_sim', sim, sim_log)
     try:
-        conductor.wait_for(lambda: conductor.sim_ready() or sim.poll(), START_TIMEOUT,
-                           'shaper_sim to start')
-        if sim.poll() is not None:
-            raise MainJobError(f'shaper_sim exited ({sim.returncode}); see {folder}/'
-                               'shaper_sim.log')
-        recorder = _start('recorder', ['-p', f'output:={recording}'],
-                          os.path.join(folder, 'mcap_recorder.log'), env)
+        conductor.wait_for(conductor.sim_ready, START_TIMEOUT, 'shaper_sim to start')
+        recorder_log = os.path.join(folder, 'mcap_recorder.log')
+        recorder = _start('recorder', ['-p', f'output:={recording}'], recorder_log, env)
         print(f'qrm_main: started mcap_recorder (pid {recorder.pid})', flush=True)
-        conductor.wait_for(lambda: conductor.recorder_subscribed() or recorder.poll(),
-                           START_TIMEOUT, 'mcap_recorder to subscribe')
-        if recorder.poll() is not None:
-            raise MainJobError(f'mcap_recorder exited ({recorder.returncode}); see {folder}/'
-                               'mcap_recorder.log')
+        conductor.watch('mcap_recorder', recorder, recorder_log)
+        conductor.wait_for(conductor.recorder_subscribed, START_TIMEOUT,
+                           'mcap_recorder to subscribe')
         _run_schedule(conductor, options, offsets)
     finally:
         try:

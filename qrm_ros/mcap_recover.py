@@ -48,7 +48,7 @@ class Recovery:
     messages: int = 0
     topic_counts: dict = dataclasses.field(default_factory=dict)
     lost_chunks: list = dataclasses.field(default_factory=list)  # (start ns, end ns, reason)
-    lost_messages: int = 0  # of channels whose definition was lost with a chunk
+    lost_messages: int = 0  # of channels without a readable schema or channel record
     end_problem: str = ''  # why reading stopped before the summary ('' = the data was whole)
     read_bytes: int = 0
     size: int = 0
@@ -57,8 +57,8 @@ class Recovery:
         lines = [f'lost a damaged chunk holding log time {start} to {end} ns: {reason}'
                  for start, end, reason in self.lost_chunks]
         if self.lost_messages:
-            lines.append(f'lost {self.lost_messages} messages of channels whose schema or '
-                         'channel record was in a damaged chunk')
+            lines.append(f'lost {self.lost_messages} messages of channels without a readable '
+                         'schema or channel record (in a damaged chunk, or none written)')
         if self.end_problem:
             lines.append(f'the last {self.size - self.read_bytes} of {self.size} bytes are '
                          f'not readable ({self.end_problem}): what they held is lost')

@@ -38,6 +38,7 @@ import sys
 import time
 
 from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.client import Client
 from rclpy.exceptions import NameValidationException, ParameterException
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -323,12 +324,20 @@ class Recorder(Node):
         for name, data in records:
             self.run_file.add_metadata(name, data)
         self._metadata_done = True
+        self._release_sim_parameter_clients()
         if missing:
             self.get_logger().warning(
                 f'{self.settings["sim_node"]} lacks numeric geometry parameters {missing}: '
                 f'no {GEOMETRY_METADATA} record written')
         self.get_logger().info(f'stored {len(parameters)} parameters of '
                                f'{self.settings["sim_node"]} in the file metadata')
+
+    def _release_sim_parameter_clients(self):
+        # AsyncParameterClient has no destroy(): its six service clients would stay in every
+        # wait set the executor builds, at each of the thousands of wake-ups a second.
+        for client in [c for c in vars(self._sim_parameters).values() if isinstance(c, Client)]:
+            self.destroy_client(client)
+        self._sim_parameters = None
 
     def drain(self, executor):
         """Take what DDS already delivered: spin until idle a few times (at most a second)."""

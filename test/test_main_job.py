@@ -121,3 +121,14 @@ def test_a_stop_signal_stops_the_children_cleanly(tmp_path, signal_number, momen
         run = open_run(folder / 'run.mcap')
         assert not run.truncated and run.problem is None
         assert sum(1 for _ in run.messages(['/joint_states'])) > 0
+
+
+def test_a_failure_while_running_exits_1_with_one_line(tmp_path, capsys):
+    # The main job passes the publish rate on; shaper_sim itself refuses it at start-up.
+    code = main_job.main(['--publish-rate', '-5', '--output-dir', str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 1, err
+    errors = [line for line in err.splitlines() if line.startswith('qrm_main: error:')]
+    assert len(errors) == 1 and 'shaper_sim exited (2)' in errors[0], err
+    (folder,) = tmp_path.iterdir()
+    assert 'publish_rate' in (folder / 'shaper_sim.log').read_text()
