@@ -46,6 +46,23 @@ def _recorded_count(path):
         return make_reader(handle).get_summary().statistics.message_count
 
 
+def _joint_state_gaps(path):
+    """Runs of lost joint states: (count, largest run, log times of the 5 largest runs)."""
+    from mcap.reader import make_reader
+    import rclpy.serialization
+    from sensor_msgs.msg import JointState
+    runs, previous = [], None
+    with open(path, 'rb') as handle:
+        for _, channel, message in make_reader(handle).iter_messages(topics=['/joint_states']):
+            state = rclpy.serialization.deserialize_message(message.data, JointState)
+            sequence = round(state.position[0] * 1e3)  # the publisher's message number
+            if previous is not None and sequence > previous + 1:
+                runs.append((sequence - previous - 1, message.log_time))
+            previous = sequence
+    runs.sort(reverse=True)
+    return len(runs), (runs[0][0] if runs else 0), runs[:5]
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[1])
     parser.add_argument('--minutes', type=float, default=10.0,
@@ -91,10 +108,16 @@ def main():
         received = int(bare.communicate(timeout=60)[0].split()[-1])
         recorded = _recorded_count(output)
         size = os.path.getsize(output)
+        gaps = _joint_state_gaps(output) if recorded < offered else None
     counted = [rss for t, rss in samples if t >= args.warm_up] or [samples[-1][1]]
     print(f'\nsoak: {args.minutes:g} min at 2 x {args.rate:g} Hz: offered {offered}, recorded '
           f'{recorded} (lost {offered - recorded}), parallel subscriber {received} (lost '
           f'{offered - received}); file {size / 2**20:.1f} MiB')
+    if gaps:
+        start_ns = time.time_ns() - int((time.monotonic() - started) * 1e9)
+        print(f'joint states lost in {gaps[0]} runs, the longest {gaps[1]} messages; largest '
+              'runs (messages, s after start): ' + ', '.join(
+                  f'{count} at {(log_ns - start_ns) / 1e9:.0f} s' for count, log_ns in gaps[2]))
     print(f'recorder RSS {counted[0] / 2**20:.1f} MiB after {args.warm_up:g} s -> '
           f'{counted[-1] / 2**20:.1f} MiB at the end (growth '
           f'{(counted[-1] - counted[0]) / 2**20:+.1f} MiB, max '

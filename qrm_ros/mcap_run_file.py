@@ -15,12 +15,14 @@
 The MCAP file of one run, written as rosbag2's MCAP storage plugin writes it; no ROS in here.
 
 Chunks are closed (and fsynced) whenever ``max_chunk_duration`` of log time has passed, so
-SIGKILL or power loss costs at most that much; ``qrm_ros.bag_reader`` reads such an
+SIGKILL or power loss costs at most that much (plus one fsync: fsync runs on a thread of its
+own, so a slow disk never stalls the caller's message intake); ``qrm_ros.bag_reader`` reads such an
 unfinished file up to its last whole chunk and ``mcap_recorder --recover`` finishes it. A
 write that fails cuts the file back to its last whole chunk; one that fails before anything
 was written leaves no file at all.
 """
 
+from concurrent.futures import ThreadPoolExecutor
 import errno
 import os
 
@@ -77,12 +79,14 @@ class McapRunFile:
         self._good_offset = 0
         self.message_count = 0
         self.message_count_on_disk = 0
+        self._syncer = ThreadPoolExecutor(max_workers=1, thread_name_prefix='mcap_fsync')
+        self._sync = None  # the fsync in flight: a future of (offset, message count)
         self.start_ns = None
         self.end_ns = None
         self.failed = False
         try:
             self._writer.start('ros2', LIBRARY)
-            self._commit()
+            self._commit(wait=True)
         except OSError as error:
             # Nothing worth keeping was written: an empty file would only mislead.
             self._abandon()
@@ -112,18 +116,33 @@ class McapRunFile:
                 'complete chunk (finish it with mcap_recorder --recover)'
                 + self._what_to_do(error)) from None
 
-    def _commit(self):
-        # Everything buffered goes to the OS and the disk: a kill now loses nothing before it.
+    def _commit(self, wait=False):
+        # Everything buffered goes to the OS now; to the disk by an fsync on the sync thread.
         self._writer.flush()
-        os.fsync(self._stream.fileno())
-        self._good_offset = self._stream.tell()
-        self.message_count_on_disk = self.message_count
         self._chunk_start_ns = None
         self._chunk_bytes = 0
+        self._collect_sync(wait=wait)  # when waiting, for the one in flight first
+        if self._sync is None:  # else the next commit syncs this too
+            fd, offset, count = self._stream.fileno(), self._stream.tell(), self.message_count
+            self._sync = self._syncer.submit(lambda: (os.fsync(fd), offset, count)[1:])
+        if wait:
+            self._collect_sync(wait=True)
+
+    def _collect_sync(self, wait):
+        """Take the result of a finished fsync (raising its OSError), or wait for it."""
+        if self._sync is None or not (wait or self._sync.done()):
+            return
+        sync, self._sync = self._sync, None
+        self._good_offset, self.message_count_on_disk = sync.result()
 
     def _abandon(self):
         # Cut any half-written record so the file ends on a whole record, then let go of it.
         self.failed = True
+        try:
+            self._collect_sync(wait=True)
+        except OSError:
+            pass
+        self._syncer.shutdown()
         fd = self._stream.fileno()
         try:
             os.ftruncate(fd, self._good_offset)
@@ -209,7 +228,8 @@ class McapRunFile:
                                           self.end_ns or 0)
         self._guard(self._writer.add_metadata, 'rosbag2', {'serialized_metadata': yaml_text})
         self._guard(self._writer.finish)
-        self._guard(self._commit)
+        self._guard(self._commit, True)
+        self._syncer.shutdown()
         self._stream.close()
 
     def topic_counts(self):
