@@ -19,6 +19,10 @@ steps the coupling offset through a schedule by the node's parameter service (wh
 ``ros2 param set /shaper_sim coupling_offset ...`` calls), moves on once the node's
 diagnostics report enough steady stroke pairs at each offset, stops the recorder cleanly
 (SIGINT), and analyses the recording offline like ``qrm_analyze --plot``.
+
+Exit codes: 0 done, 1 a failure while running (a child that exits, a time-out, a refused
+setting, an analysis error), 2 bad options (argparse), 128 + the signal number when stopped
+by SIGINT (130, Ctrl-C) or SIGTERM (143); the children are stopped cleanly either way.
 """
 
 import argparse
@@ -35,6 +39,7 @@ from qrm_ros import kinematics as kin
 from qrm_ros.figures import write_figures
 from qrm_ros.names import (absolute_topic, DIAGNOSTICS_TOPIC, JOINT_STATES_TOPIC,
                            RECORDER_NODE_NAME, SIM_NODE_NAME, STROKE_PAIR_STATUS)
+from qrm_ros.ros_process import init_rclpy, StopRequest
 
 SIM_NODE = '/' + SIM_NODE_NAME
 # Both signs, and the offset of equal mid-stroke speeds (SR = 1, paper eq. 26: -r r1 / h).
@@ -42,10 +47,29 @@ UNITY_SPEED_RATIO_MM = kin.offset_for_speed_ratio(kin.Geometry.paper(), 1.0) * 1
 DEFAULT_OFFSETS_MM = [-15.0, UNITY_SPEED_RATIO_MM, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0]
 # Margin after the recorder's subscription appears before its data is surely flowing.
 RECORDER_SETTLE_TIME = 0.5
+START_TIMEOUT = 30.0  # s, for each child to come up
+PARAMETER_CALL_TIMEOUT = 10.0  # s
+CHILD_STOP_TIMEOUT = 15.0  # s, after SIGINT, before SIGKILL
 
 
 class MainJobError(Exception):
     """A step of the main job failed; the message says which and what to look at."""
+
+
+class UsageError(MainJobError):
+    """An option outside what the job accepts (exit code 2)."""
+
+
+class Interrupted(MainJobError):
+    """SIGINT or SIGTERM arrived while recording; the children were stopped cleanly."""
+
+    def __init__(self, signal_number, folder=None):
+        text = f'interrupted by {signal.Signals(signal_number).name}'
+        if folder:
+            text += (f'; shaper_sim and mcap_recorder were stopped, the recording so far is '
+                     f'in {folder}')
+        super().__init__(text)
+        self.signal_number = signal_number
 
 
 def _start(module, ros_arguments, log_path, env):
@@ -57,7 +81,7 @@ def _start(module, ros_arguments, log_path, env):
                                 start_new_session=True)
 
 
-def _stop(process, timeout=15.0):
+def _stop(process, timeout=CHILD_STOP_TIMEOUT):
     """SIGINT (a clean finish), then SIGKILL if it hangs; return the exit code."""
     if process.poll() is None:
         process.send_signal(signal.SIGINT)
@@ -72,18 +96,19 @@ def _stop(process, timeout=15.0):
 class Conductor:
     """The main job's own ROS node: sets parameters and counts steady stroke pairs."""
 
-    def __init__(self):
+    def __init__(self, stop=None):
         import rclpy
+        from rclpy.parameter_client import AsyncParameterClient
         from diagnostic_msgs.msg import DiagnosticArray
-        from rcl_interfaces.srv import SetParameters
         self._rclpy = rclpy
+        self._stop_request = stop
         self.context = rclpy.Context()
-        rclpy.init(context=self.context, args=[])
+        init_rclpy(args=[], context=self.context)  # stop signals: StopRequest, not rclpy
         self.node = rclpy.create_node('qrm_main_job', context=self.context)
         self.executor = rclpy.executors.SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
-        self.set_client = self.node.create_client(SetParameters,
-                                                  SIM_NODE + '/set_parameters')
+        self.sim_parameters = AsyncParameterClient(self.node, SIM_NODE)
+        self.children = []  # (name, process, log path): one that exits ends any wait
         self.pairs = []
         self.node.create_subscription(DiagnosticArray, DIAGNOSTICS_TOPIC, self._on_diagnostics, 50)
 
@@ -92,12 +117,38 @@ class Conductor:
             if status.name == STROKE_PAIR_STATUS:
                 self.pairs.append({item.key: item.value for item in status.values})
 
-    def wait_for(self, condition, timeout, what):
+    def watch(self, name, process, log_path):
+        self.children.append((name, process, log_path))
+
+    def wait_for(self, condition, timeout, what, interruptible=True):
         deadline = time.monotonic() + timeout
         while not condition():
+            if interruptible and self._stop_request:
+                raise Interrupted(self._stop_request.signal_number)
+            for name, process, log_path in self.children if interruptible else ():
+                if process.poll() is not None:
+                    raise MainJobError(f'{name} exited ({process.returncode}); see {log_path}')
             if time.monotonic() > deadline:
                 raise MainJobError(f'timed out after {timeout:g} s waiting for {what}')
             self.executor.spin_once(timeout_sec=0.05)
+
+    def sim_ready(self):
+        return self.sim_parameters.services_are_ready()
+
+    def node_up(self, name):
+        """Whether a node of that name is on the graph (it then handles stop signals)."""
+        return name in self.node.get_node_names()
+
+    def let_start(self, children):
+        """
+        Wait (at most START_TIMEOUT) until each running child's node is up.
+
+        A child signalled while still importing Python would die with a traceback: the
+        package's nodes catch stop signals only once they exist.
+        """
+        self.wait_for(lambda: all(process.poll() is not None or self.node_up(name)
+                                  for name, process in children), START_TIMEOUT,
+                      'the children to start before stopping them', interruptible=False)
 
     def recorder_subscribed(self):
         infos = self.node.get_subscriptions_info_by_topic(
@@ -106,17 +157,14 @@ class Conductor:
 
     def set_parameters(self, **values):
         """Set shaper_sim parameters (floats) as `ros2 param set` does; raise if refused."""
-        from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
-        from rcl_interfaces.srv import SetParameters
-        request = SetParameters.Request(parameters=[Parameter(
-            name=name, value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE,
-                                            double_value=float(value)))
-            for name, value in values.items()])
-        future = self.set_client.call_async(request)
-        self.wait_for(future.done, 10.0, 'the answer of /shaper_sim/set_parameters')
+        from rclpy.parameter import Parameter
+        future = self.sim_parameters.set_parameters(
+            [Parameter(name, value=float(value)) for name, value in values.items()])
+        self.wait_for(future.done, PARAMETER_CALL_TIMEOUT,
+                      f'the answer of {SIM_NODE}/set_parameters')
         for name, result in zip(values, future.result().results):
             if not result.successful:
-                raise MainJobError(f'/shaper_sim refused {name} = {values[name]}: '
+                raise MainJobError(f'{SIM_NODE} refused {name} = {values[name]}: '
                                    f'{result.reason}')
 
     def steady_pairs_at(self, offset, since, input_speed=None):
@@ -131,13 +179,15 @@ class Conductor:
 
     def close(self):
         self.node.destroy_node()
-        self._rclpy.shutdown(context=self.context)
+        self._rclpy.try_shutdown(context=self.context)
 
 
-def _options(argv):
+def _parser():
     parser = argparse.ArgumentParser(
         prog='qrm_main', description='Run shaper_sim through a schedule of coupling offsets, '
-        'record it to MCAP and report measured vs theoretical time and speed ratios.')
+        'record it to MCAP and report measured vs theoretical time and speed ratios.',
+        epilog='Exit codes: 0 done, 1 a failure while running, 2 bad options, 130 Ctrl-C, '
+               '143 SIGTERM.')
     parser.add_argument('--offsets-mm', type=float, nargs='+', default=DEFAULT_OFFSETS_MM,
                         help='offset schedule [mm] (default: -15, -r r1/h = '
                         f'{UNITY_SPEED_RATIO_MM:.4f} (SR = 1), -10, -5, 0, 5, 10, 15)')
@@ -151,71 +201,83 @@ def _options(argv):
                         help='offset actuator speed [m/s] (default: 0.02)')
     parser.add_argument('--output-dir', default='runs',
                         help='folder for the run folder (default: runs)')
-    return parser.parse_args(argv)
+    return parser
 
 
-def run(options):
-    """Run the experiment; return the run folder."""
+def validate(options):
+    """Refuse options the run cannot use, before anything starts (raises UsageError)."""
     if options.pairs < 1:
-        raise MainJobError(f'--pairs must be at least 1, got {options.pairs}')
+        raise UsageError(f'--pairs must be at least 1, got {options.pairs}')
     if options.input_speed == 0.0 or not math.isfinite(options.input_speed):
-        raise MainJobError(f'--input-speed must be finite and non-zero, got '
-                           f'{options.input_speed}')
-    offsets = [value / 1e3 for value in options.offsets_mm]
+        raise UsageError(f'--input-speed must be finite and non-zero, got '
+                         f'{options.input_speed}')
     geometry = kin.Geometry.paper()  # shaper_sim's default geometry
-    for offset in offsets:
+    for offset_mm in options.offsets_mm:
         try:
-            kin.check_offset(geometry, offset, geometry.max_safe_offset)
+            kin.check_offset(geometry, offset_mm / 1e3, geometry.max_safe_offset)
         except kin.KinematicsError:
-            raise MainJobError(f'--offsets-mm: {offset * 1e3:g} mm is outside what shaper_sim '
-                               f'accepts, |offset| <= {geometry.max_safe_offset * 1e3:g} mm'
-                               ) from None
-    folder = os.path.join(options.output_dir,
-                          datetime.now().strftime('qrm_%Y%m%d_%H%M%S_%f')[:-3])
-    os.makedirs(folder)
+            raise UsageError(f'--offsets-mm: {offset_mm:g} mm is outside what shaper_sim '
+                             f'accepts, |offset| <= {geometry.max_safe_offset * 1e3:g} mm'
+                             ) from None
+
+
+def record(options, folder, stop):
+    """Run shaper_sim and mcap_recorder through the schedule; return the recording's path."""
+    offsets = [value / 1e3 for value in options.offsets_mm]
     recording = os.path.join(folder, 'run.mcap')
     env = dict(os.environ)
     env.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     os.environ.update(env)
-    print(f'qrm_main: run folder {folder}', flush=True)
+    sim_log = os.path.join(folder, 'shaper_sim.log')
     sim = _start('shaper_sim', [
         '-p', f'coupling_offset:={offsets[0]!r}', '-p', f'input_speed:={options.input_speed!r}',
         '-p', f'publish_rate:={float(options.publish_rate)!r}',
         '-p', f'offset_rate_limit:={float(options.offset_rate_limit)!r}',
-    ], os.path.join(folder, 'shaper_sim.log'), env)
+    ], sim_log, env)
+    print(f'qrm_main: started shaper_sim (pid {sim.pid})', flush=True)
     recorder = None
-    conductor = Conductor()
+    conductor = Conductor(stop)
+    conductor.watch('shaper_sim', sim, sim_log)
     try:
-        conductor.wait_for(lambda: conductor.set_client.service_is_ready() or sim.poll(), 30.0,
-                           'shaper_sim to start')
-        if sim.poll() is not None:
-            raise MainJobError(f'shaper_sim exited ({sim.returncode}); see {folder}/'
-                               'shaper_sim.log')
-        recorder = _start('recorder', ['-p', f'output:={recording}'],
-                          os.path.join(folder, 'mcap_recorder.log'), env)
-        conductor.wait_for(lambda: conductor.recorder_subscribed() or recorder.poll(), 30.0,
+        conductor.wait_for(conductor.sim_ready, START_TIMEOUT, 'shaper_sim to start')
+        recorder_log = os.path.join(folder, 'mcap_recorder.log')
+        recorder = _start('recorder', ['-p', f'output:={recording}'], recorder_log, env)
+        print(f'qrm_main: started mcap_recorder (pid {recorder.pid})', flush=True)
+        conductor.watch('mcap_recorder', recorder, recorder_log)
+        conductor.wait_for(conductor.recorder_subscribed, START_TIMEOUT,
                            'mcap_recorder to subscribe')
-        if recorder.poll() is not None:
-            raise MainJobError(f'mcap_recorder exited ({recorder.returncode}); see {folder}/'
-                               'mcap_recorder.log')
-        period = 2 * math.pi / abs(options.input_speed)
-        # Pairs that began before the recorder was surely receiving do not count.
-        recording_since = time.time() + RECORDER_SETTLE_TIME
-        for offset in offsets:
-            conductor.set_parameters(coupling_offset=offset)
-            started = time.monotonic()
-            conductor.wait_for(lambda: conductor.steady_pairs_at(
-                offset, recording_since) >= options.pairs,
-                               (options.pairs + 3) * period + 20.0,
-                               f'{options.pairs} steady stroke pairs at offset {offset} m')
-            print(f'qrm_main: offset {offset * 1e3:+7.2f} mm: {options.pairs} steady stroke '
-                  f'pairs in {time.monotonic() - started:.1f} s', flush=True)
+        _run_schedule(conductor, options, offsets)
     finally:
+        try:
+            conductor.let_start([(SIM_NODE_NAME, sim)] + (
+                [(RECORDER_NODE_NAME, recorder)] if recorder is not None else []))
+        except MainJobError as error:
+            print(f'qrm_main: warning: {error}', file=sys.stderr)
         conductor.close()
         if recorder is not None and _stop(recorder) != 0:
             print(f'qrm_main: warning: mcap_recorder exited with {recorder.returncode}; see '
                   f'{folder}/mcap_recorder.log', file=sys.stderr)
         _stop(sim)
+    return recording
+
+
+def _run_schedule(conductor, options, offsets):
+    period = 2 * math.pi / abs(options.input_speed)
+    # Pairs that began before the recorder was surely receiving do not count.
+    recording_since = time.time() + RECORDER_SETTLE_TIME
+    for offset in offsets:
+        conductor.set_parameters(coupling_offset=offset)
+        started = time.monotonic()
+        conductor.wait_for(lambda: conductor.steady_pairs_at(
+            offset, recording_since) >= options.pairs,
+                           (options.pairs + 3) * period + 20.0,
+                           f'{options.pairs} steady stroke pairs at offset {offset} m')
+        print(f'qrm_main: offset {offset * 1e3:+7.2f} mm: {options.pairs} steady stroke '
+              f'pairs in {time.monotonic() - started:.1f} s', flush=True)
+
+
+def report(recording, folder):
+    """Analyse the recording; print the table and write results and figures into folder."""
     result = analysis.analyse(analysis.read_recording(recording))
     print()
     print(analysis.format_table(result))
@@ -228,19 +290,41 @@ def run(options):
           f'{os.path.join(folder, "results.csv")}')
     for path in figures:
         print(f'qrm_main: figure     {path}')
+
+
+def run(options):
+    """Run the experiment (options already validated); return the run folder."""
+    folder = os.path.join(options.output_dir,
+                          datetime.now().strftime('qrm_%Y%m%d_%H%M%S_%f')[:-3])
+    os.makedirs(folder)
+    print(f'qrm_main: run folder {folder}', flush=True)
+    try:
+        with StopRequest() as stop:  # a stop signal ends the schedule; children stop cleanly
+            recording = record(options, folder, stop)
+    except Interrupted as error:
+        raise Interrupted(error.signal_number, folder) from None
+    report(recording, folder)
     return folder
 
 
 def main(argv=None):
-    options = _options(argv)
+    parser = _parser()
+    options = parser.parse_args(argv)
+    try:
+        validate(options)
+    except UsageError as error:
+        parser.error(str(error))  # exit code 2
     try:
         run(options)
+    except Interrupted as error:
+        print(f'qrm_main: {error}', file=sys.stderr)
+        return 128 + error.signal_number
     except (MainJobError, analysis.AnalysisError) as error:
         print(f'qrm_main: error: {error}', file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
+    except KeyboardInterrupt:  # Ctrl-C while analysing
         print('qrm_main: interrupted', file=sys.stderr)
-        return 130
+        return 128 + signal.SIGINT
     return 0
 
 

@@ -15,172 +15,60 @@
 The ``mcap_recorder`` node: records a shaper_sim run to an MCAP file in rosbag2's form.
 
 The file is what rosbag2's MCAP storage plugin (Jazzy) writes, so ``ros2 bag info/play``,
-Foxglove and the ``rosbags`` library open it unchanged: profile ``ros2``, the CDR bytes exactly
-as received, ``ros2msg`` schemas built like rosbag2 builds them, channel metadata
-``offered_qos_profiles`` and ``topic_type_hash``, chunks with message indexes, a summary with
-statistics, and a ``rosbag2`` metadata record on a clean finish. On top of that the run is made
+Foxglove and the ``rosbags`` library open it unchanged (the text formats are in
+``rosbag2_formats``, the file itself in ``mcap_run_file``). On top of that the run is made
 self-describing with two metadata records read from the sim node's parameter services:
 ``qrm_ros.geometry`` (the five geometry parameters, ``repr(float)`` strings) and
 ``qrm_ros.parameters`` (every parameter, JSON-encoded).
 
-Chunks are closed (and fsynced) whenever ``max_chunk_duration`` seconds of log time have
-passed, so SIGKILL or power loss costs at most that much; ``qrm_ros.bag_reader`` reads such an
-unfinished file up to its last whole chunk.
+``mcap_recorder --recover BROKEN.mcap FIXED.mcap`` finishes a file left by SIGKILL, a power
+loss or a full disk (``mcap_recover``).
+
+Exit codes: 0 done, 1 a failure while running (a write error, a full disk), 2 a usage or
+configuration error (bad arguments or parameters, an existing output file).
 """
 
+import argparse
 import datetime
 import importlib
 import json
 import math
 import os
-import re
-import signal
 import sys
 import time
 
-from ament_index_python.packages import get_package_share_directory, PackageNotFoundError
-from mcap.writer import CompressionType, Writer
 from rcl_interfaces.msg import ParameterDescriptor
-from rcl_interfaces.srv import GetParameters, ListParameters
-import rclpy
+from rclpy.client import Client
 from rclpy.exceptions import NameValidationException, ParameterException
-import rclpy.executors
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import parameter_value_to_python
-from rclpy.qos import (DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile,
-                       ReliabilityPolicy)
-from rclpy.signals import SignalHandlerOptions
+from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.utilities import remove_ros_args, try_shutdown
 
 from qrm_ros.kinematics import Geometry
+from qrm_ros.mcap_recover import recover_command
+from qrm_ros.mcap_run_file import COMPRESSIONS, ConfigurationError, McapRunFile, RecorderError
 from qrm_ros.names import (DIAGNOSTICS_TOPIC, GEOMETRY_METADATA, JOINT_STATES_TOPIC,
                            PARAMETERS_METADATA, RAM_TWIST_TOPIC, RECORDER_NODE_NAME,
                            SPEED_COMMAND_TOPIC)
+from qrm_ros.ros_process import (init_rclpy, RCLError, rcl_error_text, spin_until_stopped,
+                                 StopRequest)
 
 NODE_NAME = RECORDER_NODE_NAME
 DEFAULT_TOPICS = [JOINT_STATES_TOPIC, RAM_TWIST_TOPIC, SPEED_COMMAND_TOPIC, DIAGNOSTICS_TOPIC,
                   '/parameter_events']
-COMPRESSIONS = {'zstd': CompressionType.ZSTD, 'lz4': CompressionType.LZ4,
-                'none': CompressionType.NONE}
 GEOMETRY_PARAMETERS = list(Geometry.field_names())
 MAX_CHUNK_DURATION_RANGE = (0.001, 3600.0)
-# Closing a chunk early by size keeps memory bounded at high rates; duration is the usual limit.
-CHUNK_SIZE_BYTES = 4 * 1024 * 1024
+SIM_WAIT_TIMEOUT_RANGE = (0.0, 3600.0)
 # Deep reader queue: a Python callback can lag a 1 kHz burst; KEEP_LAST 10 would drop then.
 SUBSCRIPTION_DEPTH = 1000
 TOPIC_POLL_PERIOD = 0.1
-DEFINITION_DELIMITER = '=' * 80 + '\n'
-
-# rmw_qos_*_policy_to_str spellings (rosbag2 metadata version 9), keyed by rclpy enum value.
-_HISTORY_NAMES = {HistoryPolicy.SYSTEM_DEFAULT: 'system_default',
-                  HistoryPolicy.KEEP_LAST: 'keep_last', HistoryPolicy.KEEP_ALL: 'keep_all'}
-_RELIABILITY_NAMES = {ReliabilityPolicy.SYSTEM_DEFAULT: 'system_default',
-                      ReliabilityPolicy.RELIABLE: 'reliable',
-                      ReliabilityPolicy.BEST_EFFORT: 'best_effort',
-                      ReliabilityPolicy.BEST_AVAILABLE: 'best_available'}
-_DURABILITY_NAMES = {DurabilityPolicy.SYSTEM_DEFAULT: 'system_default',
-                     DurabilityPolicy.TRANSIENT_LOCAL: 'transient_local',
-                     DurabilityPolicy.VOLATILE: 'volatile',
-                     DurabilityPolicy.BEST_AVAILABLE: 'best_available'}
-_LIVELINESS_NAMES = {LivelinessPolicy.SYSTEM_DEFAULT: 'system_default',
-                     LivelinessPolicy.AUTOMATIC: 'automatic',
-                     LivelinessPolicy.MANUAL_BY_TOPIC: 'manual_by_topic',
-                     LivelinessPolicy.BEST_AVAILABLE: 'best_available'}
-
-# rosbag2's dependency scan of .msg text: a type at the start of a line, then whitespace.
-_MSG_FIELD_TYPE = re.compile(r'(?:^|\n)\s*([a-zA-Z0-9_/]+)(?:\[[^\]]*\])?\s+')
-_TYPE_NAME = re.compile(r'^([a-zA-Z0-9_]+)/(?:msg/)?([a-zA-Z0-9_]+)$')
-_PRIMITIVE_TYPES = {'bool', 'byte', 'char', 'float32', 'float64', 'int8', 'uint8', 'int16',
-                    'uint16', 'int32', 'uint32', 'int64', 'uint64', 'string'}
-
-
-class RecorderError(Exception):
-    """A condition that ends the recording with a one-line message and a non-zero exit."""
-
-
-# --- schema text, as rosbag2's LocalMessageDefinitionSource builds it ----------------------
-
-def _load_msg_text(type_name, share_directory):
-    match = _TYPE_NAME.match(type_name)
-    if not match:
-        raise LookupError(f'message type name {type_name!r} is not pkg/Type or pkg/msg/Type')
-    package, name = match.groups()
-    try:
-        folder = share_directory(package)
-    except PackageNotFoundError:
-        raise LookupError(f'package {package!r} of {type_name!r} is not in the ament index '
-                          '(is AMENT_PREFIX_PATH set?)') from None
-    path = os.path.join(folder, 'msg', name + '.msg')
-    try:
-        with open(path, encoding='utf-8', newline='') as handle:
-            return package, handle.read()
-    except OSError:
-        raise LookupError(f'no message definition {path}') from None
-
-
-def _msg_dependencies(text, package):
-    found = set()
-    for match in _MSG_FIELD_TYPE.finditer(text):
-        field_type = match.group(1)
-        if field_type in _PRIMITIVE_TYPES:
-            continue
-        found.add(field_type if '/' in field_type else package + '/' + field_type)
-    return sorted(found)
-
-
-def message_definition(type_name, share_directory=get_package_share_directory):
-    """
-    Full ``ros2msg`` text of a type: its .msg text, then every nested type once.
-
-    Each nested type (depth first, dependencies in sorted order, as rosbag2 does) follows a
-    newline, a line of 80 '=', and ``MSG: pkg/Type``. Raises LookupError if a .msg is missing.
-    """
-    seen = set()
-
-    def append(name, depth):
-        if depth <= 0:
-            raise LookupError(f'nesting too deep resolving {type_name!r}')
-        package, text = _load_msg_text(name, share_directory)
-        result = text
-        for dependency in _msg_dependencies(text, package):
-            if dependency not in seen:
-                seen.add(dependency)
-                result += '\n' + DEFINITION_DELIMITER + 'MSG: ' + dependency + '\n'
-                result += append(dependency, depth - 1)
-        return result
-
-    return append(type_name, 50)
-
-
-# --- QoS metadata, as rosbag2_storage::serialize_rclcpp_qos_vector (version 9) writes it -----
-
-def _duration_yaml(duration, indent):
-    nanoseconds = duration.nanoseconds
-    return (f'{indent}  sec: {nanoseconds // 1_000_000_000}\n'
-            f'{indent}  nsec: {nanoseconds % 1_000_000_000}')
-
-
-def qos_profile_yaml_lines(profile, indent=''):
-    """One QoS profile as the YAML block-sequence item rosbag2 writes (every field)."""
-    lines = [
-        f'- history: {_HISTORY_NAMES.get(profile.history, "unknown")}',
-        f'  depth: {int(profile.depth)}',
-        f'  reliability: {_RELIABILITY_NAMES.get(profile.reliability, "unknown")}',
-        f'  durability: {_DURABILITY_NAMES.get(profile.durability, "unknown")}',
-        '  deadline:', _duration_yaml(profile.deadline, '  '),
-        '  lifespan:', _duration_yaml(profile.lifespan, '  '),
-        f'  liveliness: {_LIVELINESS_NAMES.get(profile.liveliness, "unknown")}',
-        '  liveliness_lease_duration:', _duration_yaml(profile.liveliness_lease_duration, '  '),
-        '  avoid_ros_namespace_conventions: '
-        + ('true' if profile.avoid_ros_namespace_conventions else 'false'),
-    ]
-    return [indent + line for text in lines for line in text.split('\n')]
-
-
-def offered_qos_profiles_yaml(profiles):
-    """Return the ``offered_qos_profiles`` channel metadata value (yaml-cpp Dump style)."""
-    if not profiles:
-        return '[]'
-    return '\n'.join(line for p in profiles for line in qos_profile_yaml_lines(p))
+# After a stop request, take what DDS already delivered: spin until idle this many times...
+DRAIN_IDLE_SPINS = 3
+DRAIN_SPIN_TIMEOUT = 0.01  # s, each
+DRAIN_LIMIT = 1.0  # s, at most
 
 
 def adapted_request_qos(offered_profiles):
@@ -239,182 +127,15 @@ def default_output_path(now=None):
     return os.path.join('runs', now.strftime('qrm_%Y%m%d_%H%M%S.mcap'))
 
 
-def _yaml_string(text):
-    return json.dumps(text)  # a JSON string literal is a valid YAML double-quoted scalar
-
-
-def rosbag2_metadata_yaml(path, topics, start_ns, end_ns):
-    """
-    Build the ``serialized_metadata`` of rosbag2's ``rosbag2`` metadata record (version 9).
-
-    ``topics`` is a list of (name, type, offered_profiles, type_hash, message_count).
-    """
-    count = sum(t[4] for t in topics)
-    duration = max(0, end_ns - start_ns) if count else 0
-    start = start_ns if count else 0
-    name = _yaml_string(os.path.basename(path))
-    lines = ['version: 9', 'storage_identifier: mcap', 'duration:',
-             f'  nanoseconds: {duration}', 'starting_time:',
-             f'  nanoseconds_since_epoch: {start}', f'message_count: {count}']
-    if topics:
-        lines.append('topics_with_message_count:')
-        for topic, type_name, profiles, type_hash, messages in topics:
-            lines += ['  - topic_metadata:', f'      name: {_yaml_string(topic)}',
-                      f'      type: {_yaml_string(type_name)}',
-                      '      serialization_format: cdr']
-            if profiles:
-                lines.append('      offered_qos_profiles:')
-                for profile in profiles:
-                    lines += qos_profile_yaml_lines(profile, ' ' * 8)
-            else:
-                lines.append('      offered_qos_profiles: []')
-            lines += [f'      type_description_hash: {_yaml_string(type_hash)}',
-                      f'    message_count: {messages}']
-    else:
-        lines.append('topics_with_message_count: []')
-    lines += ['compression_format: ""', 'compression_mode: ""', 'relative_file_paths:',
-              f'  - {name}', 'files:', f'  - path: {name}', '    starting_time:',
-              f'      nanoseconds_since_epoch: {start}', '    duration:',
-              f'      nanoseconds: {duration}', f'    message_count: {count}',
-              'custom_data: {}',
-              f'ros_distro: {_yaml_string(os.environ.get("ROS_DISTRO") or "jazzy")}']
-    return '\n'.join(lines)
-
-
-class McapRunFile:
-    """The MCAP writer plus the chunk, fsync and error bookkeeping; no ROS in here."""
-
-    def __init__(self, path, compression, max_chunk_duration_ns):
-        folder = os.path.dirname(os.path.abspath(path))
-        try:
-            os.makedirs(folder, exist_ok=True)
-        except OSError as error:
-            raise RecorderError(f'cannot create output {path!r}: folder {folder!r}: '
-                                f'{error.strerror} (errno {error.errno})') from None
-        try:
-            self._stream = open(path, 'xb', buffering=1024 * 1024)
-        except FileExistsError:
-            raise RecorderError(f'output {path!r} already exists; refusing to overwrite it '
-                                '(choose another output path)') from None
-        except OSError as error:
-            raise RecorderError(f'cannot create output {path!r}: {error.strerror} '
-                                f'(errno {error.errno})') from None
-        self.path = path
-        self._max_chunk_duration_ns = max_chunk_duration_ns
-        self._writer = Writer(self._stream, chunk_size=1 << 62, compression=compression)
-        self._schemas = {}
-        self._counts = {}
-        self._channel_info = {}
-        self._chunk_start_ns = None
-        self._chunk_bytes = 0
-        self._good_offset = 0
-        self.message_count = 0
-        self.message_count_on_disk = 0
-        self.start_ns = None
-        self.end_ns = None
-        self.failed = False
-        self._guard(self._writer.start, 'ros2', 'qrm_ros mcap_recorder')
-        self._guard(self._commit)
-
-    def _guard(self, operation, *args):
-        try:
-            return operation(*args)
-        except OSError as error:
-            self._abandon()
-            raise RecorderError(
-                f'cannot write {self.path!r}: {error.strerror or error} (errno {error.errno}); '
-                f'the file keeps the {self.message_count_on_disk} messages up to its last '
-                'complete chunk (read it with qrm_ros.bag_reader)') from None
-
-    def _commit(self):
-        # Everything buffered goes to the OS and the disk: a kill now loses nothing before it.
-        self._writer.flush()
-        os.fsync(self._stream.fileno())
-        self._good_offset = self._stream.tell()
-        self.message_count_on_disk = self.message_count
-        self._chunk_start_ns = None
-        self._chunk_bytes = 0
-
-    def _abandon(self):
-        # Cut any half-written record so the file ends on a whole record, then let go of it.
-        self.failed = True
-        fd = self._stream.fileno()
-        try:
-            os.ftruncate(fd, self._good_offset)
-        except OSError:
-            pass
-        try:
-            os.close(fd)
-        except OSError:
-            pass
-        try:
-            self._stream.close()
-        except (OSError, ValueError):
-            pass
-
-    def add_channel(self, topic, type_name, offered_profiles, type_hash):
-        schema_id = self._schemas.get(type_name)
-        if schema_id is None:
-            try:
-                text = message_definition(type_name)
-                schema_id = self._guard(self._writer.register_schema, type_name, 'ros2msg',
-                                        text.encode('utf-8'))
-            except LookupError:
-                schema_id = 0
-                raise
-            finally:
-                self._schemas[type_name] = schema_id
-        metadata = {'offered_qos_profiles': offered_qos_profiles_yaml(offered_profiles),
-                    'topic_type_hash': type_hash}
-        channel_id = self._guard(self._writer.register_channel, topic, 'cdr', schema_id,
-                                 metadata)
-        self._counts[channel_id] = 0
-        self._channel_info[channel_id] = (topic, type_name, list(offered_profiles), type_hash)
-        return channel_id
-
-    def add_message(self, channel_id, log_time_ns, publish_time_ns, data):
-        if self._chunk_start_ns is None:
-            self._chunk_start_ns = log_time_ns
-        elif log_time_ns - self._chunk_start_ns >= self._max_chunk_duration_ns:
-            self._guard(self._commit)
-            self._chunk_start_ns = log_time_ns
-        self._guard(self._writer.add_message, channel_id, log_time_ns, data, publish_time_ns)
-        self._counts[channel_id] += 1
-        self.message_count += 1
-        if self.start_ns is None or log_time_ns < self.start_ns:
-            self.start_ns = log_time_ns
-        if self.end_ns is None or log_time_ns > self.end_ns:
-            self.end_ns = log_time_ns
-        self._chunk_bytes += len(data)
-        if self._chunk_bytes >= CHUNK_SIZE_BYTES:
-            self._guard(self._commit)
-
-    def close_chunk_if_due(self, now_ns):
-        if (self._chunk_start_ns is not None
-                and now_ns - self._chunk_start_ns >= self._max_chunk_duration_ns):
-            self._guard(self._commit)
-
-    def add_metadata(self, name, data):
-        self._guard(self._writer.add_metadata, name, data)
-
-    def finish(self):
-        topics = [info + (self._counts[cid],) for cid, info in self._channel_info.items()]
-        yaml_text = rosbag2_metadata_yaml(self.path, topics, self.start_ns or 0,
-                                          self.end_ns or 0)
-        self._guard(self._writer.add_metadata, 'rosbag2', {'serialized_metadata': yaml_text})
-        self._guard(self._writer.finish)
-        self._guard(self._commit)
-        self._stream.close()
-
-    def topic_counts(self):
-        return {info[0]: self._counts[cid] for cid, info in self._channel_info.items()}
+class SettingsError(ConfigurationError):
+    """A parameter of the recorder outside what it accepts."""
 
 
 def _seconds_in(name, value, low, high):
     """Return a duration parameter as float, or refuse it naming the allowed range."""
     if (isinstance(value, bool) or not isinstance(value, (int, float))
             or not math.isfinite(value) or not low <= value <= high):
-        raise RecorderError(f'parameter {name}={value!r} s is outside [{low:g}, {high:g}] s')
+        raise SettingsError(f'parameter {name}={value!r} s is outside [{low:g}, {high:g}] s')
     return float(value)
 
 
@@ -447,24 +168,20 @@ class Recorder(Node):
         self.run_file = McapRunFile(self.settings['output'],
                                     COMPRESSIONS[self.settings['compression']],
                                     int(round(self.settings['max_chunk_duration'] * 1e9)))
-        self.fatal_error = None
-        self._wanted = {}
-        for topic in self.settings['topics']:
-            self._wanted[self.resolve_topic_name(topic)] = topic
+        self._wanted = {self.resolve_topic_name(topic): topic
+                        for topic in self.settings['topics']}
         self._recorded_topics = {}
         self._requested = {}
         self._warned = set()
         self._metadata_done = False
         self._sim_started = time.monotonic()
         self._sim_warned = False
-        self._pending_call = None
-        sim = self.settings['sim_node'].rstrip('/')
-        self._list_client = self.create_client(ListParameters, sim + '/list_parameters')
-        self._get_client = self.create_client(GetParameters, sim + '/get_parameters')
+        self._sim_call = None
+        self._sim_parameters = AsyncParameterClient(self, self.settings['sim_node'].rstrip('/'))
         self._poll_count = 0
-        self.create_timer(TOPIC_POLL_PERIOD, self._guarded(self._poll))
+        self.create_timer(TOPIC_POLL_PERIOD, self._poll)
         chunk_check = min(0.25, max(0.001, self.settings['max_chunk_duration'] / 10.0))
-        self.create_timer(chunk_check, self._guarded(self._close_chunk_if_due))
+        self.create_timer(chunk_check, self._close_chunk_if_due)
         self.get_logger().info(
             f'recording {", ".join(sorted(self._wanted))} to {self.run_file.path} '
             f'({self.settings["compression"]}, chunks of at most '
@@ -478,7 +195,7 @@ class Recorder(Node):
         if not value['output']:
             value['output'] = default_output_path()
         if value['compression'] not in COMPRESSIONS:
-            raise RecorderError(f'parameter compression={value["compression"]!r} is not one of '
+            raise SettingsError(f'parameter compression={value["compression"]!r} is not one of '
                                 f'{", ".join(COMPRESSIONS)}')
         value['max_chunk_duration'] = _seconds_in('max_chunk_duration',
                                                   value['max_chunk_duration'],
@@ -486,21 +203,11 @@ class Recorder(Node):
         topics = value['topics']
         if (not isinstance(topics, list) or not topics
                 or not all(isinstance(t, str) and t for t in topics)):
-            raise RecorderError(f'parameter topics={topics!r} must be a non-empty list of topic '
+            raise SettingsError(f'parameter topics={topics!r} must be a non-empty list of topic '
                                 'names')
         value['sim_wait_timeout'] = _seconds_in('sim_wait_timeout', value['sim_wait_timeout'],
-                                                0.0, 3600.0)
+                                                *SIM_WAIT_TIMEOUT_RANGE)
         return value
-
-    def _guarded(self, callback):
-        def run(*args):
-            if self.fatal_error is not None:
-                return
-            try:
-                callback(*args)
-            except RecorderError as error:
-                self.fatal_error = str(error)
-        return run
 
     def _close_chunk_if_due(self):
         self.run_file.close_chunk_if_due(time.time_ns())
@@ -563,22 +270,16 @@ class Recorder(Node):
         qos, warning = adapted_request_qos(offered)
         if warning:
             self.get_logger().warning(f'{topic}: {warning}')
-        try:
-            channel_id = self.run_file.add_channel(topic, type_name, offered, type_hash)
-        except LookupError as error:
-            self.get_logger().warning(f'{topic}: {error}; recording without a schema')
-            channel_id = self.run_file.add_channel(topic, type_name, offered, type_hash)
+        problem = self.run_file.add_schema(type_name)
+        if problem:
+            self.get_logger().warning(f'{topic}: {problem}; recording without a schema')
+        channel_id = self.run_file.add_channel(topic, type_name, offered, type_hash)
         write = self.run_file.add_message
 
         def on_message(data, info):
             # Two parameters exactly: rclpy passes the message info only to such callbacks.
-            if self.fatal_error is not None:
-                return
             received = info.get('received_timestamp') or time.time_ns()
-            try:
-                write(channel_id, received, info.get('source_timestamp') or received, data)
-            except RecorderError as error:
-                self.fatal_error = str(error)
+            write(channel_id, received, info.get('source_timestamp') or received, data)
 
         self._recorded_topics[topic] = self.create_subscription(
             message_class, topic, on_message, qos, raw=True)
@@ -586,9 +287,9 @@ class Recorder(Node):
         self.get_logger().info(f'recording {topic} ({type_name})')
 
     def _poll_sim_parameters(self):
-        if self._pending_call is not None:
+        if self._sim_call is not None:
             return
-        if not (self._list_client.service_is_ready() and self._get_client.service_is_ready()):
+        if not self._sim_parameters.services_are_ready():
             if (not self._sim_warned and time.monotonic() - self._sim_started
                     > self.settings['sim_wait_timeout']):
                 self._sim_warned = True
@@ -597,47 +298,54 @@ class Recorder(Node):
                     f'{self.settings["sim_wait_timeout"]} s: the file has no geometry/parameter '
                     'metadata yet (they are added if the node appears later)')
             return
-        request = ListParameters.Request()
-        request.depth = ListParameters.Request.DEPTH_RECURSIVE
-        self._pending_call = self._list_client.call_async(request)
-        self._pending_call.add_done_callback(self._guarded(self._on_parameter_list))
+        self._sim_call = self._sim_parameters.list_parameters(callback=self._on_parameter_list)
 
     def _answer(self, future):
-        # A failed or cancelled call (the sim went away meanwhile): try again on the next poll.
+        """Return the answer of a parameter call, or None to ask again on the next poll."""
         if future.cancelled() or future.exception() is not None or future.result() is None:
-            self._pending_call = None
+            self._sim_call = None  # the sim went away meanwhile
             return None
         return future.result()
 
     def _on_parameter_list(self, future):
         answer = self._answer(future)
-        if answer is None:
-            return
-        names = list(answer.result.names)
-        request = GetParameters.Request()
-        request.names = names
-        call = self._get_client.call_async(request)
-        self._pending_call = call
-        call.add_done_callback(self._guarded(lambda done: self._on_parameters(names, done)))
+        if answer is not None:
+            names = list(answer.result.names)
+            self._sim_call = self._sim_parameters.get_parameters(
+                names, callback=lambda done: self._on_parameters(names, done))
 
     def _on_parameters(self, names, future):
         answer = self._answer(future)
         if answer is None:
             return
-        values = answer.values
         parameters = {name: parameter_value_to_python(value)
-                      for name, value in zip(names, values)}
+                      for name, value in zip(names, answer.values)}
         records, missing = sim_metadata_records(parameters)
         for name, data in records:
             self.run_file.add_metadata(name, data)
         self._metadata_done = True
-        self._pending_call = None
+        self._release_sim_parameter_clients()
         if missing:
             self.get_logger().warning(
                 f'{self.settings["sim_node"]} lacks numeric geometry parameters {missing}: '
                 f'no {GEOMETRY_METADATA} record written')
         self.get_logger().info(f'stored {len(parameters)} parameters of '
                                f'{self.settings["sim_node"]} in the file metadata')
+
+    def _release_sim_parameter_clients(self):
+        # AsyncParameterClient has no destroy(): its six service clients would stay in every
+        # wait set the executor builds, at each of the thousands of wake-ups a second.
+        for client in [c for c in vars(self._sim_parameters).values() if isinstance(c, Client)]:
+            self.destroy_client(client)
+        self._sim_parameters = None
+
+    def drain(self, executor):
+        """Take what DDS already delivered: spin until idle a few times (at most a second)."""
+        idle, deadline = 0, time.monotonic() + DRAIN_LIMIT
+        while idle < DRAIN_IDLE_SPINS and time.monotonic() < deadline:
+            before = self.run_file.message_count
+            executor.spin_once(timeout_sec=DRAIN_SPIN_TIMEOUT)
+            idle = idle + 1 if self.run_file.message_count == before else 0
 
     def finish(self):
         if not self._metadata_done:
@@ -651,42 +359,63 @@ class Recorder(Node):
             + ', '.join(f'{topic} {count}' for topic, count in sorted(counts.items())))
 
 
-def main(args=None):
-    stop = []
+def _options(argv):
+    parser = argparse.ArgumentParser(
+        prog='mcap_recorder',
+        description='Record a shaper_sim run to MCAP (ROS parameters after --ros-args), or '
+                    'finish a recording left unfinished.',
+        epilog='Recording: mcap_recorder --ros-args -p output:=runs/run.mcap')
+    parser.add_argument('--recover', nargs=2, metavar=('BROKEN', 'FIXED'),
+                        help='rewrite what is readable in BROKEN (left by SIGKILL, a power '
+                             'loss or a full disk) into a new, finished file FIXED')
+    return parser, parser.parse_args(argv)
 
-    def request_stop(signum, frame):
-        stop.append(signum)
 
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    previous = {s: signal.signal(s, request_stop) for s in (signal.SIGINT, signal.SIGTERM)}
-    recorder = None
-    exit_code = 0
+def _error(text):
+    print(f'{NODE_NAME}: error: {text}', file=sys.stderr, flush=True)
+
+
+def _record(args):
+    """Run the recorder node until SIGINT/SIGTERM; return the exit code."""
     try:
-        recorder = Recorder()
-        executor = rclpy.executors.SingleThreadedExecutor()
-        executor.add_node(recorder)
-        while not stop and recorder.fatal_error is None:
-            executor.spin_once(timeout_sec=0.1)
-        # Take what DDS already delivered before closing: spin until it stays idle briefly.
-        idle, deadline = 0, time.monotonic() + 1.0
-        while recorder.fatal_error is None and idle < 3 and time.monotonic() < deadline:
-            before = recorder.run_file.message_count
-            executor.spin_once(timeout_sec=0.01)
-            idle = idle + 1 if recorder.run_file.message_count == before else 0
-        if recorder.fatal_error is not None:
-            raise RecorderError(recorder.fatal_error)
-        recorder.finish()
-    except (RecorderError, ParameterException, NameValidationException) as error:
-        print(f'{NODE_NAME}: error: {error}', file=sys.stderr, flush=True)
-        exit_code = 1
+        init_rclpy(args)
+    except RCLError as error:  # a malformed -p or params file, said by rcl
+        _error(rcl_error_text(error))
+        return 2
+    recorder = None
+    try:
+        with StopRequest() as stop:
+            recorder = Recorder()
+            executor = SingleThreadedExecutor()
+            executor.add_node(recorder)
+            spin_until_stopped(executor, stop)
+            recorder.drain(executor)
+            recorder.finish()
+    except (ConfigurationError, ParameterException, NameValidationException) as error:
+        _error(error)
+        return 2
+    except RecorderError as error:
+        _error(error)
+        return 1
     finally:
         if recorder is not None:
             recorder.destroy_node()
-        if rclpy.ok():
-            rclpy.shutdown()
-        for number, handler in previous.items():
-            signal.signal(number, handler)
-    return exit_code
+        try_shutdown()
+    return 0
+
+
+def main(args=None):
+    """Record (ROS arguments after --ros-args) or, with --recover, finish a broken file."""
+    argv = sys.argv if args is None else args
+    try:
+        own_arguments = remove_ros_args(argv)[1:]
+    except RCLError as error:
+        _error(rcl_error_text(error))
+        return 2
+    parser, options = _options(own_arguments)
+    if options.recover:
+        return recover_command(*options.recover, parser.error)
+    return _record(args)
 
 
 if __name__ == '__main__':

@@ -20,6 +20,8 @@ under test (or probing them) are spun on a daemon thread.
 
 import os
 import shutil
+import signal
+import subprocess
 import threading
 import time
 
@@ -49,6 +51,24 @@ def wait_for(predicate, timeout=10.0, what='condition'):
     while not predicate():
         assert time.monotonic() < deadline, f'timed out after {timeout} s waiting for {what}'
         time.sleep(0.005)
+
+
+def stop_process(popen, signal_number=signal.SIGINT, timeout=10.0):
+    """
+    Send a stop signal (SIGINT by default), wait; return the exit code.
+
+    A process that does not stop within timeout seconds is killed and the test fails, naming
+    the process and the signal it ignored.
+    """
+    if popen.poll() is None:
+        popen.send_signal(signal_number)
+    try:
+        return popen.wait(timeout)
+    except subprocess.TimeoutExpired:
+        popen.kill()
+        popen.wait()
+        raise AssertionError(f'{popen.args[0]} (pid {popen.pid}) ignored '
+                             f'{signal.Signals(signal_number).name} for {timeout} s') from None
 
 
 def call(client, request, timeout=10.0):

@@ -16,11 +16,18 @@
 import json
 import math
 import os
+import re
+import signal
+import subprocess
+import sys
 
 import pytest
 
 from qrm_ros import kinematics as kin
 from qrm_ros import main_job
+from qrm_ros.bag_reader import open_run
+
+from ros_probe import installed_executable, stop_process, wait_for
 
 
 def test_main_job_runs_a_short_schedule_end_to_end(tmp_path, capsys):
@@ -51,12 +58,77 @@ def test_main_job_runs_a_short_schedule_end_to_end(tmp_path, capsys):
         assert segment['speed_ratio_measured'] == pytest.approx(eq25, rel=tolerance)
 
 
-def test_main_job_refuses_bad_options(tmp_path, capsys):
-    assert main_job.main(['--pairs', '0', '--output-dir', str(tmp_path)]) == 1
-    assert '--pairs must be at least 1' in capsys.readouterr().err
-    assert main_job.main(['--input-speed', 'nan', '--output-dir', str(tmp_path)]) == 1
-    assert '--input-speed must be finite and non-zero' in capsys.readouterr().err
-    assert main_job.main(['--offsets-mm', '0', '23', '--output-dir', str(tmp_path)]) == 1
-    assert ('--offsets-mm: 23 mm is outside what shaper_sim accepts, |offset| <= 22.5 mm'
-            in capsys.readouterr().err)
+@pytest.mark.parametrize('arguments, words', [
+    (['--pairs', '0'], '--pairs must be at least 1'),
+    (['--input-speed', 'nan'], '--input-speed must be finite and non-zero'),
+    (['--offsets-mm', '0', '23'],
+     '--offsets-mm: 23 mm is outside what shaper_sim accepts, |offset| <= 22.5 mm'),
+    (['--pairs', 'three'], "--pairs: invalid int value: 'three'"),
+])
+def test_main_job_refuses_bad_options_with_exit_code_2(tmp_path, capsys, arguments, words):
+    with pytest.raises(SystemExit) as stop:
+        main_job.main(arguments + ['--output-dir', str(tmp_path)])
+    assert stop.value.code == 2
+    errors = [line for line in capsys.readouterr().err.splitlines()
+              if line.startswith('qrm_main: error:')]
+    assert len(errors) == 1 and words in errors[0], errors
     assert not list(tmp_path.iterdir())  # nothing started, nothing written
+
+
+def _gone(pid):
+    """Whether a process has ended (a zombie waiting for init to reap it counts as ended)."""
+    try:
+        with open(f'/proc/{pid}/stat') as handle:
+            return handle.read().rsplit(')', 1)[1].split()[0] in ('Z', 'X')
+    except FileNotFoundError:
+        return True
+
+
+@pytest.mark.parametrize('signal_number, moment', [
+    (signal.SIGTERM, 'recording'), (signal.SIGINT, 'recording'), (signal.SIGTERM, 'starting'),
+], ids=['SIGTERM-recording', 'SIGINT-recording', 'SIGTERM-starting'])
+def test_a_stop_signal_stops_the_children_cleanly(tmp_path, signal_number, moment):
+    executable = installed_executable('qrm_main')
+    command = [executable] if executable else [sys.executable, '-m', 'qrm_ros.main_job']
+    out, err = tmp_path / 'out', tmp_path / 'err'
+    with open(out, 'w') as out_file, open(err, 'w') as err_file:
+        job = subprocess.Popen(command + ['--offsets-mm', '5', '--pairs', '1000',
+                                          '--output-dir', str(tmp_path / 'runs')],
+                               stdout=out_file, stderr=err_file)
+    try:
+        wanted = 'started shaper_sim' if moment == 'starting' else 'started mcap_recorder'
+        wait_for(lambda: wanted in out.read_text() or job.poll() is not None, 30.0, wanted)
+        (folder,) = (tmp_path / 'runs').iterdir()
+        if moment == 'recording':
+            # A first chunk of messages on disk (closed after 1 s of log time).
+            wait_for(lambda: (folder / 'run.mcap').exists() and os.path.getsize(
+                folder / 'run.mcap') > 4096, 30.0, 'the recorder writing a chunk')
+        code = stop_process(job, signal_number, timeout=60.0)
+    finally:
+        if job.poll() is None:
+            job.kill()
+    text = out.read_text() + err.read_text()
+    assert code == 128 + signal_number, text
+    assert f'qrm_main: interrupted by {signal.Signals(signal_number).name}' in err.read_text()
+    for name in ('shaper_sim', 'mcap_recorder'):
+        log = folder / f'{name}.log'
+        if log.exists():
+            assert 'Traceback' not in log.read_text(), log.read_text()
+    assert 'Traceback' not in text, text
+    pids = [int(pid) for pid in re.findall(r'started \S+ \(pid (\d+)\)', text)]
+    assert pids and all(_gone(pid) for pid in pids), text
+    if moment == 'recording':
+        run = open_run(folder / 'run.mcap')
+        assert not run.truncated and run.problem is None
+        assert sum(1 for _ in run.messages(['/joint_states'])) > 0
+
+
+def test_a_failure_while_running_exits_1_with_one_line(tmp_path, capsys):
+    # The main job passes the publish rate on; shaper_sim itself refuses it at start-up.
+    code = main_job.main(['--publish-rate', '-5', '--output-dir', str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 1, err
+    errors = [line for line in err.splitlines() if line.startswith('qrm_main: error:')]
+    assert len(errors) == 1 and 'shaper_sim exited (2)' in errors[0], err
+    (folder,) = tmp_path.iterdir()
+    assert 'publish_rate' in (folder / 'shaper_sim.log').read_text()

@@ -26,11 +26,14 @@ import importlib.util
 import json
 import os
 import resource
+import shlex
+import shutil
 import signal
 import subprocess
 import sys
 import threading
 import time
+import types
 
 from ament_index_python.packages import get_package_share_directory
 from mcap.reader import make_reader
@@ -39,7 +42,7 @@ import pytest
 from qrm_ros.bag_reader import open_run, RunFileError
 import yaml
 
-from ros_probe import BackgroundSpinner, call, installed_executable, wait_for
+from ros_probe import BackgroundSpinner, call, installed_executable, stop_process, wait_for
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 PUBLISHER = os.path.join(HERE, 'stand_in_publisher.py')
@@ -54,10 +57,13 @@ QOS_FIELDS = {'history', 'depth', 'reliability', 'durability', 'deadline', 'life
 GEOMETRY = ['coupling_radius', 'crank_radius', 'pivot_distance', 'ram_height', 'crank_phase']
 
 
-def _recorder_command(*parameters):
+def _recorder_executable():
     executable = installed_executable('mcap_recorder')
-    command = [executable] if executable else [sys.executable, '-m', 'qrm_ros.recorder']
-    command += ['--ros-args']
+    return [executable] if executable else [sys.executable, '-m', 'qrm_ros.recorder']
+
+
+def _recorder_command(*parameters):
+    command = _recorder_executable() + ['--ros-args']
     for parameter in parameters:
         command += ['-p', parameter]
     return command
@@ -96,16 +102,17 @@ class Process:
             time.sleep(0.05)
         return False
 
-    def stop(self, number=signal.SIGINT, timeout=10.0):
-        if self.popen.poll() is None:
-            self.popen.send_signal(number)
+    def stop(self, number=signal.SIGINT, timeout=10.0, check=True):
+        """Stop it (SIGINT, then kill); fail if it had to be killed, unless not check."""
         try:
-            return self.popen.wait(timeout)
-        except subprocess.TimeoutExpired:
-            self.popen.kill()
-            self.popen.wait()
-            raise AssertionError(f'{self.popen.args[0]} ignored signal {number}:\n'
-                                 + self.output())
+            return stop_process(self.popen, number, timeout)
+        except AssertionError as error:
+            if check:
+                raise AssertionError(f'{error}:\n{self.output()}') from None
+            return self.popen.returncode
+
+    def exit_code(self, timeout=15.0):
+        return self.popen.wait(timeout)
 
 
 @pytest.fixture(autouse=True)
@@ -264,9 +271,10 @@ def _read_with_rosbags(path):
         storage.close()
 
 
-def _check_one_line_error(process, *fragments):
+def _check_one_line_error(process, exit_code, *fragments):
+    """One 'mcap_recorder: error:' line holding each fragment, no traceback, this exit code."""
     text = process.output()
-    assert process.popen.returncode not in (0, None), text
+    assert process.popen.returncode == exit_code, text
     assert 'Traceback' not in text, text
     errors = [line for line in text.splitlines() if line.startswith('mcap_recorder: error:')]
     assert len(errors) == 1, text
@@ -275,20 +283,29 @@ def _check_one_line_error(process, *fragments):
     return errors[0]
 
 
-def test_real_run_matches_parallel_subscriber_and_independent_readers(tmp_path, listener):
-    import rclpy.serialization
+@pytest.fixture(scope='module')
+def recording(tmp_path_factory):
+    """
+    One real run, recorded once for the focused tests below.
+
+    The recorder runs next to a publisher and the parallel listener; a speed command burst
+    and a parameter change are sent while it records. The listener is closed before the
+    tests run, so other tests' stand-in publishers count their subscribers right.
+    """
     from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
     from rcl_interfaces.srv import GetParameters, SetParameters
     from std_msgs.msg import Float64
-    output = str(tmp_path / 'runs' / 'nested' / 'run.mcap')
+    folder = tmp_path_factory.mktemp('recording')
+    output = str(folder / 'runs' / 'nested' / 'run.mcap')
+    listener = Listener()
     recorder = Process(_recorder_command(f'output:={output}', 'max_chunk_duration:=0.5'),
-                       str(tmp_path), 'recorder')
-    publisher = Process(_publisher_command(300, 100.0, 2), str(tmp_path), 'publisher')
+                       str(folder), 'recorder')
+    publisher = Process(_publisher_command(300, 100.0, 2), str(folder), 'publisher')
+    speeds = [3.0, 3.5, 4.0, 4.5, 5.0]
     try:
         command = listener.node.create_publisher(Float64, 'input_speed_cmd', 10)
         wait_for(lambda: command.get_subscription_count() >= 3, 15.0,
                  'input_speed_cmd subscribers (sim, recorder, listener)')
-        speeds = [3.0, 3.5, 4.0, 4.5, 5.0]
         for speed in speeds:
             command.publish(Float64(data=speed))
             time.sleep(0.05)
@@ -310,106 +327,149 @@ def test_real_run_matches_parallel_subscriber_and_independent_readers(tmp_path, 
                      'two more stroke-pair diagnostics')
         else:
             assert publisher.wait_for_output('published 300', 15.0), publisher.output()
-        if not REAL_SIM:
             listener.wait_quiet()  # the stand-in is idle now; the real sim keeps publishing
-        assert recorder.stop() == 0, recorder.output()
+        exit_code = recorder.stop()
+        sent = {topic: listener.messages(topic) for topic in TYPES}
     finally:
-        assert publisher.stop() in (0, -signal.SIGINT), publisher.output()
-    assert 'Traceback' not in recorder.output()
-
-    header, summary, mcap_decoded = _read_with_mcap(output)
-    connections, rosbags_messages = _read_with_rosbags(output)
+        publisher.stop(check=False)
+        recorder.stop(check=False)
+        listener.close()
+    assert exit_code == 0, recorder.output()
     run = open_run(output)
-    assert header.profile == 'ros2'
-    assert not run.truncated and run.problem is None
-    # Summary, statistics and indexes are there and agree with the messages.
-    assert summary.statistics.message_count == sum(len(v) for v in mcap_decoded.values())
-    assert summary.chunk_indexes and all(c.message_index_offsets for c in summary.chunk_indexes)
-    by_topic = {c.topic: c for c in summary.channels.values()}
-    for topic in ('/joint_states', '/ram/twist', '/diagnostics', '/input_speed_cmd',
-                  '/parameter_events'):
-        assert topic in by_topic, sorted(by_topic)
-        channel = by_topic[topic]
-        schema = summary.schemas[channel.schema_id]
-        assert (channel.message_encoding, schema.encoding, schema.name) == (
-            'cdr', 'ros2msg', TYPES[topic])
-        assert summary.statistics.channel_message_counts.get(channel.id, 0) == len(
-            mcap_decoded.get(topic, []))
-        # Schema text exactly as rosbag2 builds it, built here independently.
-        assert schema.data.decode() == _expected_definition(TYPES[topic]), topic
-        # QoS metadata: YAML, every field rosbag2 writes, the publishers' actual offer.
-        profiles = yaml.safe_load(channel.metadata['offered_qos_profiles'])
-        assert profiles and all(set(p) == QOS_FIELDS for p in profiles), profiles
-        assert all(p['reliability'] == 'reliable' and p['durability'] == 'volatile'
-                   and set(p['deadline']) == {'sec', 'nsec'} for p in profiles), profiles
-        assert channel.metadata['topic_type_hash'].startswith('RIHS01_')
-        assert run.topics()[topic] == TYPES[topic]
-    assert {c.topic for c in connections} == set(by_topic)
-    assert all(c.ext.offered_qos_profiles for c in connections)
-
     ours = {}
+    for message in run.messages():
+        ours.setdefault(message[0], []).append(message)
+    return types.SimpleNamespace(
+        output=output, folder=folder, log=recorder.output(), sent=sent, speeds=speeds,
+        geometry=geometry, run=run, ours=ours, mcap=_read_with_mcap(output),
+        rosbags=_read_with_rosbags(output))
+
+
+def _common_part(topic, sent, recorded):
+    """The recorded and sent messages from the first one both hold (both matched late)."""
+    if REAL_SIM and topic != '/input_speed_cmd':
+        # The real sim publishes at once: the recorder and the listener each match it after
+        # their own discovery. From the first message both hold, they must agree.
+        common = set(sent)
+        skipped = next(i for i, data in enumerate(recorded) if data in common)
+        start = sent.index(recorded[skipped])
+        assert 0 in (skipped, start), topic
+        return sent[start:start + len(recorded) - skipped], recorded[skipped:]
+    return sent, recorded
+
+
+def test_recording_is_finished_with_summary_statistics_and_indexes(recording):
+    header, summary, decoded = recording.mcap
+    assert header.profile == 'ros2'
+    assert not recording.run.truncated and recording.run.problem is None
+    assert 'Traceback' not in recording.log
+    assert summary.statistics.message_count == sum(len(v) for v in decoded.values())
+    assert summary.chunk_indexes and all(c.message_index_offsets for c in summary.chunk_indexes)
+    for channel in summary.channels.values():
+        assert summary.statistics.channel_message_counts.get(channel.id, 0) == len(
+            decoded.get(channel.topic, []))
+
+
+@pytest.mark.parametrize('topic', sorted(TYPES))
+def test_channel_schema_and_qos_metadata_are_rosbag2s(recording, topic):
+    _, summary, _ = recording.mcap
+    by_topic = {c.topic: c for c in summary.channels.values()}
+    assert topic in by_topic, sorted(by_topic)
+    channel = by_topic[topic]
+    schema = summary.schemas[channel.schema_id]
+    assert (channel.message_encoding, schema.encoding, schema.name) == (
+        'cdr', 'ros2msg', TYPES[topic])
+    # Schema text exactly as rosbag2 builds it, built here independently.
+    assert schema.data.decode() == _expected_definition(TYPES[topic])
+    # QoS metadata: YAML, every field rosbag2 writes, the publishers' actual offer.
+    profiles = yaml.safe_load(channel.metadata['offered_qos_profiles'])
+    assert profiles and all(set(p) == QOS_FIELDS for p in profiles), profiles
+    assert all(p['reliability'] == 'reliable' and p['durability'] == 'volatile'
+               and set(p['deadline']) == {'sec', 'nsec'} for p in profiles), profiles
+    assert channel.metadata['topic_type_hash'].startswith('RIHS01_')
+    assert recording.run.topics()[topic] == TYPES[topic]
+    connections, _ = recording.rosbags
+    (connection,) = [c for c in connections if c.topic == topic]
+    assert connection.ext.offered_qos_profiles
+
+
+def test_times_are_receive_and_source_times_in_order(recording):
     log_times = []
-    for topic, schema_name, log_ns, publish_ns, data in run.messages():
-        ours.setdefault(topic, []).append((log_ns, publish_ns, data))
+    for topic, schema_name, log_ns, publish_ns, _ in recording.run.messages():
         log_times.append(log_ns)
         assert schema_name == TYPES[topic]
         assert 0 <= log_ns - publish_ns < 1_000_000_000  # sent, then received, same clock
     assert log_times == sorted(log_times)
-    for topic in ('/joint_states', '/ram/twist', '/diagnostics', '/input_speed_cmd'):
-        sent = listener.messages(topic)
-        recorded = [m[2] for m in ours.get(topic, [])]
-        assert recorded, topic
-        if REAL_SIM and topic != '/input_speed_cmd':
-            # The real sim publishes at once: the recorder and this listener each match it
-            # after their own discovery. From the first message both hold, they must agree.
-            common = set(sent)
-            skipped = next(i for i, data in enumerate(recorded) if data in common)
-            start = sent.index(recorded[skipped])
-            recorded = recorded[skipped:]
-            sent = sent[start:start + len(recorded)]
-            assert 0 in (skipped, start) and recorded == sent, topic
-        else:
-            assert len(recorded) == len(sent), topic
-            assert recorded == sent, topic
-        first = len(ours[topic]) - len(recorded)
-        assert [m.data for m, _ in mcap_decoded[topic][first:]] == recorded
-        assert [d for _, d, _ in rosbags_messages[topic][first:]] == recorded
-        message_class = _message_class(TYPES[topic])
-        for data, (_, from_mcap), (_, _, from_rosbags) in zip(
-                recorded, mcap_decoded[topic][first:], rosbags_messages[topic][first:]):
-            expected = _plain(rclpy.serialization.deserialize_message(data, message_class))
-            assert _plain(from_mcap) == expected
-            assert _plain(from_rosbags) == expected
-    assert [_plain(v)['data'] for _, v in mcap_decoded['/input_speed_cmd']] == speeds
+
+
+@pytest.mark.parametrize('topic', ['/joint_states', '/ram/twist', '/diagnostics',
+                                   '/input_speed_cmd'])
+def test_recorded_bytes_are_what_a_parallel_subscriber_received(recording, topic):
+    recorded = [m[4] for m in recording.ours.get(topic, [])]
+    assert recorded, topic
+    sent, recorded = _common_part(topic, recording.sent[topic], recorded)
+    assert len(recorded) == len(sent) and recorded == sent
+
+
+@pytest.mark.parametrize('topic', ['/joint_states', '/ram/twist', '/diagnostics',
+                                   '/input_speed_cmd', '/parameter_events'])
+def test_independent_readers_decode_the_same_values_as_rclpy(recording, topic):
+    import rclpy.serialization
+    _, _, mcap_decoded = recording.mcap
+    _, rosbags_messages = recording.rosbags
+    recorded = [m[4] for m in recording.ours[topic]]
+    assert [m.data for m, _ in mcap_decoded[topic]] == recorded
+    assert [d for _, d, _ in rosbags_messages[topic]] == recorded
+    message_class = _message_class(TYPES[topic])
+    for data, (_, from_mcap), (_, _, from_rosbags) in zip(
+            recorded, mcap_decoded[topic], rosbags_messages[topic]):
+        expected = _plain(rclpy.serialization.deserialize_message(data, message_class))
+        assert _plain(from_mcap) == expected
+        assert _plain(from_rosbags) == expected
+
+
+def test_speed_commands_and_the_parameter_change_are_recorded(recording):
+    _, _, mcap_decoded = recording.mcap
+    assert [_plain(v)['data'] for _, v in mcap_decoded['/input_speed_cmd']] == recording.speeds
     events = [v for _, v in mcap_decoded['/parameter_events']]
     assert any(e.node == '/shaper_sim' and any(
         p.name == 'coupling_offset' and p.value.double_value == 0.012
         for p in e.changed_parameters) for e in events)
 
-    # The run describes itself: geometry exactly as the sim reported it, and all parameters.
-    assert [float(run.metadata['qrm_ros.geometry'][n]) for n in GEOMETRY] == geometry
-    assert [run.metadata['qrm_ros.geometry'][n] for n in GEOMETRY] == [repr(g) for g in
-                                                                       geometry]
-    parameters = {k: json.loads(v) for k, v in run.metadata['qrm_ros.parameters'].items()}
+
+def test_run_metadata_holds_the_geometry_and_all_parameters(recording):
+    metadata = recording.run.metadata
+    geometry = recording.geometry
+    assert [float(metadata['qrm_ros.geometry'][n]) for n in GEOMETRY] == geometry
+    assert [metadata['qrm_ros.geometry'][n] for n in GEOMETRY] == [repr(g) for g in geometry]
+    parameters = {k: json.loads(v) for k, v in metadata['qrm_ros.parameters'].items()}
     assert [parameters[n] for n in GEOMETRY] == geometry
     assert parameters['coupling_offset'] in (0.01, 0.012) or REAL_SIM
 
-    # rosbags' high-level reader on the rosbag2 folder the file's own rosbag2 record describes.
+
+def _anyreader_counts(path, folder):
+    """Messages per topic from rosbags' AnyReader on a rosbag2 folder of the file's record."""
     from pathlib import Path
     from rosbags.highlevel import AnyReader
-    bag = tmp_path / 'bag'
+    run = open_run(path)
+    bag = folder / 'bag'
     bag.mkdir()
     metadata = yaml.safe_load(run.metadata['rosbag2']['serialized_metadata'])
     (bag / 'metadata.yaml').write_text(yaml.safe_dump(
         {'rosbag2_bagfile_information': metadata}))
-    os.symlink(output, bag / metadata['relative_file_paths'][0])
+    os.symlink(os.path.abspath(path), bag / metadata['relative_file_paths'][0])
     with AnyReader([Path(bag)]) as reader:
         counts = {}
         for connection, _, data in reader.messages(connections=reader.connections):
             reader.deserialize(data, connection.msgtype)
             counts[connection.topic] = counts.get(connection.topic, 0) + 1
-    assert counts == {t: len(v) for t, v in ours.items()}
     assert metadata['message_count'] == sum(counts.values())
+    return counts
+
+
+def test_rosbags_anyreader_opens_the_folder_its_rosbag2_record_describes(recording):
+    counts = _anyreader_counts(recording.output, recording.folder)
+    assert counts == {t: len(v) for t, v in recording.ours.items()}
 
 
 def test_sigterm_finishes_the_file(tmp_path, listener):
@@ -432,7 +492,7 @@ def test_sigterm_finishes_the_file(tmp_path, listener):
     assert {c.compression for c in summary.chunk_indexes} == {'lz4'}
 
 
-def test_sigkill_loses_at_most_one_chunk_duration(tmp_path, listener):
+def test_sigkill_loses_at_most_one_chunk_and_recover_finishes_the_file(tmp_path, listener):
     from sensor_msgs.msg import JointState
     import rclpy.serialization
     chunk_duration = 0.3
@@ -466,14 +526,109 @@ def test_sigkill_loses_at_most_one_chunk_duration(tmp_path, listener):
         span = killed_ns - stamp_ns(lost[0])
         # One chunk plus the 30 ms chunk timer and scheduling slack on a loaded machine.
         assert span <= (chunk_duration + 0.15) * 1e9, span / 1e9
+    _check_recovered(output, tmp_path)
 
 
-def test_existing_output_is_refused(tmp_path):
+def _recover(broken, fixed, folder, name='recover'):
+    process = Process(_recorder_executable() + ['--recover', str(broken), str(fixed)],
+                      str(folder), name)
+    process.exit_code()
+    return process
+
+
+def _by_time(message):
+    return message[1], message[0], message[2]
+
+
+def _check_recovered(broken, folder):
+    """Recover a broken file; rosbags reads back exactly what bag_reader reads of it."""
+    from pathlib import Path
+    from rosbags.rosbag2.storage_mcap import McapReader
+    fixed = folder / 'fixed.mcap'
+    process = _recover(broken, fixed, folder)
+    assert process.popen.returncode == 0, process.output()
+    assert 'Traceback' not in process.output()
+    readable = open_run(broken)
+    expected = [(m[0], m[2], m[4]) for m in readable.messages()]
+    assert f'recovered {len(expected)} messages into {fixed}' in process.output()
+    storage = McapReader(Path(fixed))
+    storage.open()
+    try:
+        got = [(c.topic, t, d) for c, t, d in storage.messages(storage.connections)]
+    finally:
+        storage.close()
+    # rosbags yields in log-time order, bag_reader in file order: compare as sets in order.
+    assert sorted(got, key=_by_time) == sorted(expected, key=_by_time) and expected
+    recovered = open_run(fixed)
+    assert not recovered.truncated and recovered.problem is None
+    assert {k: v for k, v in recovered.metadata.items() if k != 'rosbag2'} == {
+        k: v for k, v in readable.metadata.items() if k != 'rosbag2'}
+    with open(fixed, 'rb') as handle:
+        summary = make_reader(handle).get_summary()
+    assert summary.statistics.message_count == len(expected)
+    counts = {}
+    for topic, _, _ in expected:
+        counts[topic] = counts.get(topic, 0) + 1
+    assert {summary.channels[i].topic: n for i, n in
+            summary.statistics.channel_message_counts.items()} == counts
+    assert _anyreader_counts(fixed, folder) == counts
+    return process
+
+
+def test_recover_keeps_the_whole_chunks_of_a_file_cut_mid_chunk(recording, tmp_path):
+    with open(recording.output, 'rb') as handle:
+        chunks = make_reader(handle).get_summary().chunk_indexes
+    assert len(chunks) >= 3
+    middle = chunks[len(chunks) // 2]
+    cut = tmp_path / 'cut.mcap'
+    with open(recording.output, 'rb') as handle:
+        cut.write_bytes(handle.read(middle.chunk_start_offset + middle.chunk_length // 2))
+    process = _check_recovered(cut, tmp_path)
+    assert 'warning: the last' in process.output() and 'are not readable' in process.output()
+
+
+def test_recover_skips_a_damaged_chunk_says_which_and_keeps_the_rest(tmp_path):
+    path = tmp_path / 'full.mcap'
+    ends = _synthetic_run(path)
+    data = bytearray(path.read_bytes()[:ends[3] + 10])  # four whole chunks and a bit
+    inside = ends[0] + 100  # the second chunk's compressed records
+    data[inside:inside + 8] = b'\xff' * 8
+    damaged = tmp_path / 'damaged.mcap'
+    damaged.write_bytes(bytes(data))
+    fixed = tmp_path / 'fixed.mcap'
+    process = _recover(damaged, fixed, tmp_path)
+    assert process.popen.returncode == 0, process.output()
+    # Messages 20..39 were in the damaged chunk (log times 1020..1039); 0..19, 40..79 remain.
+    assert 'lost a damaged chunk holding log time 1020 to 1039 ns' in process.output()
+    assert 'recovered 60 messages' in process.output()
+    with open(fixed, 'rb') as handle:
+        values = [m.data for _, _, m in make_reader(handle).iter_messages()]
+    assert values == [i.to_bytes(4, 'little') for i in list(range(20)) + list(range(40, 80))]
+
+
+@pytest.mark.parametrize('case', ['missing input', 'existing output', 'not mcap'])
+def test_recover_refuses_bad_requests_with_one_line(tmp_path, case):
+    broken, fixed = tmp_path / 'broken.mcap', tmp_path / 'fixed.mcap'
+    if case != 'missing input':
+        broken.write_bytes(b'not an mcap file at all')
+    if case == 'existing output':
+        fixed.write_bytes(b'precious')
+    process = _recover(broken, fixed, tmp_path)
+    words = {'missing input': ['does not exist'], 'existing output': ['already exists'],
+             'not mcap': ['not an MCAP file', 'nothing to recover']}[case]
+    _check_one_line_error(process, 1 if case == 'not mcap' else 2, *words)
+    if case == 'existing output':
+        assert fixed.read_bytes() == b'precious'
+    else:
+        assert not fixed.exists()
+
+
+def test_existing_output_is_refused_as_a_configuration_error(tmp_path):
     output = tmp_path / 'run.mcap'
     output.write_bytes(b'precious')
     recorder = Process(_recorder_command(f'output:={output}'), str(tmp_path), 'recorder')
-    recorder.popen.wait(15)
-    _check_one_line_error(recorder, 'already exists', str(output))
+    recorder.exit_code()
+    _check_one_line_error(recorder, 2, 'already exists', str(output))
     assert output.read_bytes() == b'precious'
 
 
@@ -481,33 +636,71 @@ def test_existing_output_is_refused(tmp_path):
     ('max_chunk_duration:=0.0', ['max_chunk_duration=0.0', '[0.001, 3600] s']),
     ('sim_wait_timeout:=-1.0', ['sim_wait_timeout=-1.0', '[0, 3600] s']),
     ('compression:=gzip', ["compression='gzip'", 'zstd, lz4, none']),
+    ('topics:=5', ['topics']),
 ])
 def test_bad_settings_are_refused_naming_the_allowed_values(tmp_path, parameter, words):
     output = tmp_path / 'run.mcap'
     recorder = Process(_recorder_command(f'output:={output}', parameter), str(tmp_path),
                        'recorder')
-    recorder.popen.wait(15)
-    _check_one_line_error(recorder, *words)
+    recorder.exit_code()
+    _check_one_line_error(recorder, 2, *words)
     assert not output.exists()
 
 
-def test_unwritable_output_gives_one_clear_line(tmp_path):
+@pytest.mark.parametrize('arguments, words', [
+    (['--ros-args', '-p'], ['parse ROS arguments']),
+    (['--record-everything'], ['unrecognized arguments: --record-everything']),
+    (['--recover', 'only_one.mcap'], ['--recover: expected 2 arguments']),
+])
+def test_usage_errors_exit_2_with_one_line(tmp_path, arguments, words):
+    recorder = Process(_recorder_executable() + arguments, str(tmp_path), 'recorder')
+    recorder.exit_code()
+    _check_one_line_error(recorder, 2, *words)
+
+
+def test_unwritable_output_is_a_failure_with_one_clear_line(tmp_path):
     blocker = tmp_path / 'not_a_folder'
     blocker.write_text('')
     output = blocker / 'run.mcap'
     recorder = Process(_recorder_command(f'output:={output}'), str(tmp_path), 'recorder')
-    recorder.popen.wait(15)
-    _check_one_line_error(recorder, 'cannot create output', str(output))
+    recorder.exit_code()
+    _check_one_line_error(recorder, 1, 'cannot create output', str(output))
     if os.geteuid() != 0:  # root writes anywhere, so only a normal user can check permissions
         locked = tmp_path / 'locked'
         locked.mkdir(mode=0o500)
         recorder = Process(_recorder_command(f'output:={locked / "run.mcap"}'),
                            str(tmp_path), 'recorder2')
-        recorder.popen.wait(15)
-        _check_one_line_error(recorder, 'Permission denied')
+        recorder.exit_code()
+        _check_one_line_error(recorder, 1, 'Permission denied')
 
 
-def test_full_disk_stops_with_one_line_and_keeps_what_was_written(tmp_path):
+def _can_mount_tmpfs():
+    if not shutil.which('unshare'):
+        return False
+    probe = subprocess.run(['unshare', '-rm', 'sh', '-c', 'mount -t tmpfs -o size=16k tmpfs '
+                            '/mnt'], capture_output=True)
+    return probe.returncode == 0
+
+
+def test_a_full_disk_at_start_leaves_no_file_and_says_what_to_do(tmp_path):
+    """A real ENOSPC: a 64 KiB tmpfs filled up, in a user and mount namespace of its own."""
+    if not _can_mount_tmpfs():
+        pytest.skip('cannot mount a tmpfs in a user namespace here (unshare -rm)')
+    disk = tmp_path / 'disk'
+    disk.mkdir()
+    recorder = ' '.join(shlex.quote(a) for a in _recorder_command(
+        f'output:={disk / "runs" / "run.mcap"}'))
+    script = (f'mount -t tmpfs -o size=64k tmpfs {disk} && mkdir {disk}/runs && '
+              f'(dd if=/dev/zero of={disk}/filler bs=4k 2>/dev/null; true) && '
+              f'{recorder}; code=$?; echo "left: $(ls -A {disk}/runs)"; exit $code')
+    process = Process(['unshare', '-rm', 'sh', '-c', script], str(tmp_path), 'recorder')
+    process.exit_code(30)
+    _check_one_line_error(process, 1, 'No space left on device', 'no file was left',
+                          'free space')
+    assert 'left: \n' in process.output(), process.output()  # nothing in runs/
+
+
+def test_full_disk_while_recording_stops_with_one_line_and_keeps_what_was_written(tmp_path):
     limit = 24_000
 
     def small_disk():
@@ -522,10 +715,11 @@ def test_full_disk_stops_with_one_line_and_keeps_what_was_written(tmp_path):
     publisher = Process(_publisher_command(0, 100.0, 1, forever=True), str(tmp_path),
                         'publisher')
     try:
-        recorder.popen.wait(30)
+        recorder.exit_code(30)
     finally:
         publisher.stop()
-    _check_one_line_error(recorder, 'cannot write', output, 'errno')
+    _check_one_line_error(recorder, 1, 'cannot write', output, 'errno', '--recover',
+                          'free space')
     run = open_run(output)
     assert run.truncated and os.path.getsize(output) <= limit
     assert sum(1 for _ in run.messages(['/joint_states'])) > 0
