@@ -47,7 +47,7 @@ def _recorded_count(path):
 
 
 def _joint_state_gaps(path):
-    """Runs of lost joint states: (count, largest run, log times of the 5 largest runs)."""
+    """Find the runs of lost joint states: (count, largest run, log times of the 5 largest)."""
     from mcap.reader import make_reader
     import rclpy.serialization
     from sensor_msgs.msg import JointState

@@ -36,9 +36,10 @@ import time
 
 from qrm_ros import analysis
 from qrm_ros import kinematics as kin
-from qrm_ros.figures import write_figures
 from qrm_ros.names import (absolute_topic, DIAGNOSTICS_TOPIC, JOINT_STATES_TOPIC,
-                           RECORDER_NODE_NAME, SIM_NODE_NAME, STROKE_PAIR_STATUS)
+                           LINKAGE_MARKERS_TOPIC, RECORDER_NODE_NAME, SIM_NODE_NAME,
+                           STROKE_PAIR_STATUS)
+from qrm_ros.recorder import DEFAULT_TOPICS
 from qrm_ros.ros_process import init_rclpy, StopRequest
 
 SIM_NODE = '/' + SIM_NODE_NAME
@@ -72,10 +73,11 @@ class Interrupted(MainJobError):
         self.signal_number = signal_number
 
 
-def _start(module, ros_arguments, log_path, env):
+def _start(command_name, ros_arguments, log_path, env):
     """Start a package executable as its own process (works in a venv and under colcon)."""
-    command = [sys.executable, '-c', f'import sys; from qrm_ros.{module} import main; '
-               'sys.exit(main())', '--ros-args'] + ros_arguments
+    # Through the console script's entry point, so a stop during start-up is quiet too.
+    command = [sys.executable, '-c', 'import sys; from qrm_ros import entry_points; '
+               f'sys.exit(entry_points.{command_name}())', '--ros-args'] + ros_arguments
     with open(log_path, 'w') as log:  # the child keeps its own copy of the descriptor
         return subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, env=env,
                                 start_new_session=True)
@@ -241,7 +243,11 @@ def record(options, folder, stop):
     try:
         conductor.wait_for(conductor.sim_ready, START_TIMEOUT, 'shaper_sim to start')
         recorder_log = os.path.join(folder, 'mcap_recorder.log')
-        recorder = _start('recorder', ['-p', f'output:={recording}'], recorder_log, env)
+        # The recorder's topics and the linkage markers: the run then shows the machine
+        # in Foxglove's 3D panel (config/foxglove_layout.json).
+        topics = ', '.join(DEFAULT_TOPICS + [LINKAGE_MARKERS_TOPIC])
+        recorder = _start('mcap_recorder', ['-p', f'output:={recording}',
+                                            '-p', f'topics:=[{topics}]'], recorder_log, env)
         print(f'qrm_main: started mcap_recorder (pid {recorder.pid})', flush=True)
         conductor.watch('mcap_recorder', recorder, recorder_log)
         conductor.wait_for(conductor.recorder_subscribed, START_TIMEOUT,
@@ -277,23 +283,32 @@ def _run_schedule(conductor, options, offsets):
 
 
 def report(recording, folder):
-    """Analyse the recording; print the table and write results and figures into folder."""
-    result = analysis.analyse(analysis.read_recording(recording))
+    """
+    Analyse the recording; print the table, write results and figures into folder.
+
+    Returns what the analysis lacks (lines; empty when the recording was read whole).
+    """
+    loaded = analysis.read_recording(recording)
+    result = analysis.analyse(loaded)
     print()
     print(analysis.format_table(result))
-    analysis.write_json(result, os.path.join(folder, 'results.json'))
-    analysis.write_csv(result, os.path.join(folder, 'results.csv'))
-    figures = write_figures(result, os.path.join(folder, 'figures'))
+    figures = analysis.write_outputs(  # all or none
+        result, os.path.join(folder, 'results.csv'), os.path.join(folder, 'results.json'),
+        os.path.join(folder, 'figures'))
+    missing = analysis.incompleteness(loaded)
+    for line in missing:
+        print(f'qrm_main: warning: {line}', file=sys.stderr)
     print()
     print(f'qrm_main: recording  {recording}')
     print(f'qrm_main: results    {os.path.join(folder, "results.json")}, '
           f'{os.path.join(folder, "results.csv")}')
     for path in figures:
         print(f'qrm_main: figure     {path}')
+    return missing
 
 
 def run(options):
-    """Run the experiment (options already validated); return the run folder."""
+    """Run the experiment (options validated); return the run folder and what it lacks."""
     folder = os.path.join(options.output_dir,
                           datetime.now().strftime('qrm_%Y%m%d_%H%M%S_%f')[:-3])
     os.makedirs(folder)
@@ -303,8 +318,8 @@ def run(options):
             recording = record(options, folder, stop)
     except Interrupted as error:
         raise Interrupted(error.signal_number, folder) from None
-    report(recording, folder)
-    return folder
+    missing = report(recording, folder)
+    return folder, missing
 
 
 def main(argv=None):
@@ -315,7 +330,7 @@ def main(argv=None):
     except UsageError as error:
         parser.error(str(error))  # exit code 2
     try:
-        run(options)
+        folder, missing = run(options)
     except Interrupted as error:
         print(f'qrm_main: {error}', file=sys.stderr)
         return 128 + error.signal_number
@@ -325,6 +340,10 @@ def main(argv=None):
     except KeyboardInterrupt:  # Ctrl-C while analysing
         print('qrm_main: interrupted', file=sys.stderr)
         return 128 + signal.SIGINT
+    if missing:  # analysed, but the recording was damaged or incomplete
+        print(f'qrm_main: the results in {folder} cover only what was readable',
+              file=sys.stderr)
+        return analysis.EXIT_INCOMPLETE
     return 0
 
 

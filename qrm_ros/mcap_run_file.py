@@ -70,7 +70,9 @@ class McapRunFile:
                                 f'(errno {error.errno})') from None
         self.path = path
         self._max_chunk_duration_ns = max_chunk_duration_ns
-        self._writer = Writer(self._stream, chunk_size=1 << 62, compression=compression)
+        # Data-section CRC: the reader then also checks the metadata records.
+        self._writer = Writer(self._stream, chunk_size=1 << 62, compression=compression,
+                              enable_data_crcs=True)
         self._schemas = {}
         self._counts = {}
         self._channel_info = {}

@@ -42,18 +42,7 @@ from rclpy.qos import qos_profile_parameters
 from sensor_msgs.msg import JointState
 from std_srvs.srv import SetBool, Trigger
 
-from ros_probe import BackgroundSpinner, call, installed_executable, wait_for
-
-
-def stop_process(process, timeout=10.0):
-    """SIGINT, then SIGKILL if it does not stop in time."""
-    if process.poll() is None:
-        process.send_signal(signal.SIGINT)
-    try:
-        return process.wait(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        process.kill()
-        return process.wait()
+from ros_probe import BackgroundSpinner, call, installed_executable, stop_process, wait_for
 
 
 NS = 1_000_000_000
