@@ -26,7 +26,7 @@ For a positive input speed the slow stroke, which moves the ram toward -x (ram v
 
 from dataclasses import dataclass, fields
 import math
-from typing import NamedTuple
+from typing import Any, NamedTuple, Optional, Tuple, Union
 
 import numpy as np
 from scipy import optimize
@@ -48,6 +48,12 @@ SAFE_OFFSET_FRACTION = 0.9
 _SEARCH_FRACTION = 1.0 - 1e-9
 # Samples per stroke that bracket the speed extrema before exact root-finding.
 _PEAK_BRACKET_SAMPLES = 48
+
+
+# A float for scalar arguments, an array of their broadcast shape otherwise; arguments
+# take the same (numbers or numpy arrays, broadcast together).
+FloatOrArray = Union[float, np.ndarray]
+ArrayLike = FloatOrArray
 
 
 class KinematicsError(ValueError):
@@ -125,16 +131,17 @@ class Geometry:
 class MechanismState(NamedTuple):
     """Positions and rates of every joint at one instant (rad, rad/s, m, m/s, m/s^2)."""
 
-    flywheel_angle: object
-    flywheel_speed: object
-    lever_angle: object
-    lever_speed: object
-    ram_position: object
-    ram_velocity: object
-    ram_acceleration: object
+    flywheel_angle: FloatOrArray
+    flywheel_speed: FloatOrArray
+    lever_angle: FloatOrArray
+    lever_speed: FloatOrArray
+    ram_position: FloatOrArray
+    ram_velocity: FloatOrArray
+    ram_acceleration: FloatOrArray
 
 
-def check_offset(geometry, offset, limit=None):
+def check_offset(geometry: 'Geometry', offset: ArrayLike,
+                 limit: Optional[float] = None) -> FloatOrArray:
     """
     Refuse an offset the coupling cannot turn with; return it as float or array.
 
@@ -190,8 +197,9 @@ def _slot_rates(crank_radius, centre_distance, crank_angle, crank_speed, crank_a
     return rate, acceleration
 
 
-def state(geometry, offset, input_angle, input_speed, input_acceleration=0.0,
-          offset_rate=0.0):
+def state(geometry: 'Geometry', offset: ArrayLike, input_angle: ArrayLike,
+          input_speed: ArrayLike, input_acceleration: ArrayLike = 0.0,
+          offset_rate: ArrayLike = 0.0) -> 'MechanismState':
     """
     Exact state of every joint for an input shaft angle, speed and acceleration.
 
@@ -204,7 +212,8 @@ def state(geometry, offset, input_angle, input_speed, input_acceleration=0.0,
     scalar = all(type(value) is float for value in (
         offset, input_angle, input_speed, input_acceleration, offset_rate, r1, r, h,
         geometry.ram_height, geometry.crank_phase))
-    if scalar and math.isfinite(offset) and abs(offset) < r1:
+    xp: Any
+    if scalar and math.isfinite(offset) and abs(offset) < r1:  # type: ignore
         xp, theta = _ScalarMath, input_angle
     else:
         offset = check_offset(geometry, offset)
@@ -238,7 +247,8 @@ def state(geometry, offset, input_angle, input_speed, input_acceleration=0.0,
     return MechanismState(*(np.broadcast_arrays(*result)))
 
 
-def input_angle_for_flywheel_angle(geometry, offset, flywheel_angle):
+def input_angle_for_flywheel_angle(geometry: 'Geometry', offset: ArrayLike,
+                                   flywheel_angle: ArrayLike) -> FloatOrArray:
     """Inverse of the coupling: the input angle that puts the flywheel at flywheel_angle."""
     offset = check_offset(geometry, offset)
     r1 = geometry.coupling_radius
@@ -248,7 +258,7 @@ def input_angle_for_flywheel_angle(geometry, offset, flywheel_angle):
     return np.arctan2(pin_distance * sin_p - offset, pin_distance * cos_p)
 
 
-def reversal_flywheel_angles(geometry):
+def reversal_flywheel_angles(geometry: 'Geometry') -> Tuple[FloatOrArray, FloatOrArray]:
     """
     Flywheel angles where the ram reverses: (start of the cut, end of the cut).
 
@@ -275,7 +285,8 @@ def _check_speed(input_speed):
     return input_speed
 
 
-def stroke_times(geometry, offset, input_speed=1.0):
+def stroke_times(geometry: 'Geometry', offset: ArrayLike,
+                 input_speed: ArrayLike = 1.0) -> Tuple[FloatOrArray, FloatOrArray]:
     """(cutting time, return time) in seconds at a constant input speed (rad/s)."""
     input_speed = _check_speed(input_speed)
     forward_cut = _forward_cut_input_arc(geometry, offset)
@@ -285,7 +296,8 @@ def stroke_times(geometry, offset, input_speed=1.0):
     return _scalar(cut_arc / speed), _scalar((TWO_PI - cut_arc) / speed)
 
 
-def time_ratio(geometry, offset, input_speed=1.0):
+def time_ratio(geometry: 'Geometry', offset: ArrayLike,
+               input_speed: ArrayLike = 1.0) -> FloatOrArray:
     """
     Cutting time over return time, exact.
 
@@ -297,7 +309,8 @@ def time_ratio(geometry, offset, input_speed=1.0):
     return _scalar(np.asarray(cutting) / returning)
 
 
-def speed_ratio(geometry, offset, input_speed=1.0):
+def speed_ratio(geometry: 'Geometry', offset: ArrayLike,
+                input_speed: ArrayLike = 1.0) -> FloatOrArray:
     """
     Return the paper's speed ratio (eq. 25): mid-return over mid-cut ram speed.
 
@@ -317,7 +330,7 @@ def speed_ratio(geometry, offset, input_speed=1.0):
     return _scalar(np.where(np.asarray(input_speed) < 0.0, 1.0 / forward, forward))
 
 
-def speed_ratio_eq25(geometry, offset):
+def speed_ratio_eq25(geometry: 'Geometry', offset: ArrayLike) -> FloatOrArray:
     """Paper eq. 25, SR = (h + r)(r1 + d) / ((h - r)(r1 - d)), valid for crank_phase = 0."""
     offset = check_offset(geometry, offset)
     r1, r, h = geometry.coupling_radius, geometry.crank_radius, geometry.pivot_distance
@@ -376,7 +389,8 @@ def _speed_growth(flywheel_angle, offset, r1, r, h, height, phase):
     return sampled.ram_velocity * sampled.ram_acceleration
 
 
-def peak_ram_speeds(geometry, offset, input_speed=1.0):
+def peak_ram_speeds(geometry: 'Geometry', offset: ArrayLike,
+                    input_speed: ArrayLike = 1.0) -> Tuple[FloatOrArray, FloatOrArray]:
     """(largest cutting speed, largest return speed) in m/s at a constant input speed."""
     input_speed = _check_speed(input_speed)
     forward_cut, forward_return = _peak_speeds_forward(geometry, offset)
@@ -388,7 +402,8 @@ def peak_ram_speeds(geometry, offset, input_speed=1.0):
     return _scalar(cutting), _scalar(returning)
 
 
-def peak_speed_ratio(geometry, offset, input_speed=1.0):
+def peak_speed_ratio(geometry: 'Geometry', offset: ArrayLike,
+                     input_speed: ArrayLike = 1.0) -> FloatOrArray:
     """Largest return speed over largest cutting speed (the peaks need not be mid-stroke)."""
     cutting, returning = peak_ram_speeds(geometry, offset, input_speed)
     return _scalar(np.asarray(returning) / cutting)
@@ -397,16 +412,17 @@ def peak_speed_ratio(geometry, offset, input_speed=1.0):
 class SteadyTheory(NamedTuple):
     """Exact figures of steady running at one offset and input speed (s, m/s, ratios)."""
 
-    cutting_time: object
-    return_time: object
-    time_ratio: object
-    speed_ratio: object
-    peak_speed_ratio: object
-    peak_cutting_speed: object
-    peak_return_speed: object
+    cutting_time: FloatOrArray
+    return_time: FloatOrArray
+    time_ratio: FloatOrArray
+    speed_ratio: FloatOrArray
+    peak_speed_ratio: FloatOrArray
+    peak_cutting_speed: FloatOrArray
+    peak_return_speed: FloatOrArray
 
 
-def steady_theory(geometry, offset, input_speed):
+def steady_theory(geometry: 'Geometry', offset: ArrayLike,
+                  input_speed: ArrayLike) -> 'SteadyTheory':
     """
     Every theory figure of steady running, from one place.
 
@@ -423,7 +439,7 @@ def steady_theory(geometry, offset, input_speed):
         peak_cutting_speed=peak_cut, peak_return_speed=peak_return)
 
 
-def offset_for_speed_ratio(geometry, speed_ratio_target):
+def offset_for_speed_ratio(geometry: 'Geometry', speed_ratio_target: ArrayLike) -> FloatOrArray:
     """Offset giving a mid-stroke speed ratio (eq. 27; numerical inversion if phased)."""
     target = _as_float('speed_ratio', speed_ratio_target)
     if target <= 0.0:
@@ -435,13 +451,14 @@ def offset_for_speed_ratio(geometry, speed_ratio_target):
     return _invert(lambda d: speed_ratio(geometry, d), target, geometry, 'speed_ratio')
 
 
-def offset_for_time_ratio(geometry, time_ratio_target):
+def offset_for_time_ratio(geometry: 'Geometry', time_ratio_target: ArrayLike) -> FloatOrArray:
     """Offset giving a wanted time ratio (forward running), by inverting the exact TR."""
     target = _as_float('time_ratio', time_ratio_target)
     return _invert(lambda d: time_ratio(geometry, d), target, geometry, 'time_ratio')
 
 
-def offset_for_cutting_speed(geometry, input_speed, cutting_speed):
+def offset_for_cutting_speed(geometry: 'Geometry', input_speed: ArrayLike,
+                             cutting_speed: ArrayLike) -> FloatOrArray:
     """Offset giving a wanted peak cutting speed (m/s) at an input speed (rad/s)."""
     input_speed = _check_speed(input_speed)
     target = _as_float('cutting_speed', cutting_speed)
@@ -481,7 +498,8 @@ def _flywheel_speed_from_angle(flywheel_angle, offset, r1, input_speed):
         pin_distance * pin_distance)
 
 
-def time_ratio_rk4(geometry, offset, steps_per_revolution=8192):
+def time_ratio_rk4(geometry: 'Geometry', offset: float,
+                   steps_per_revolution: int = 8192) -> float:
     """
     Time ratio the paper's way: integrate eq. (20) for the flywheel angle with classic RK4.
 

@@ -37,8 +37,10 @@ its absolute precision does not decay over long runs at high speed.
 """
 
 import math
+from typing import Optional
 
-from qrm_ros.kinematics import check_offset, KinematicsError, state
+from qrm_ros.kinematics import (check_offset, Geometry, KinematicsError, MechanismState,
+                                state)
 
 __all__ = ['ShaperStepper', 'wrap_angle']
 
@@ -52,7 +54,7 @@ _BELOW_PI = math.nextafter(math.pi, 0.0)
 _NANOSECONDS = 1e9
 
 
-def wrap_angle(angle):
+def wrap_angle(angle: float) -> float:
     """Return angle minus whole turns, in [-pi, pi) (floats: [-math.pi, math.pi))."""
     turns = math.floor((angle + math.pi) / _TWO_PI_HIGH)
     if turns:
@@ -115,8 +117,8 @@ class ShaperStepper:
     it. The same happens on the first step and after reset() or resync().
     """
 
-    def __init__(self, geometry, input_speed, offset, input_acceleration_limit,
-                 offset_rate_limit):
+    def __init__(self, geometry: Geometry, input_speed: float, offset: float,
+                 input_acceleration_limit: float, offset_rate_limit: float) -> None:
         self._geometry = geometry
         self._acceleration_limit = _positive('input_acceleration_limit',
                                              input_acceleration_limit, 'rad/s^2')
@@ -126,15 +128,16 @@ class ShaperStepper:
 
     # Commands -----------------------------------------------------------------------------
 
-    def set_speed_command(self, input_speed):
+    def set_speed_command(self, input_speed: float) -> None:
         """Command the input shaft speed (rad/s); reached at input_acceleration_limit."""
         self._speed_command = _finite('input_speed', input_speed, 'rad/s')
 
-    def set_offset_command(self, offset):
+    def set_offset_command(self, offset: float) -> None:
         """Command the coupling offset (m, |offset| < coupling_radius); moved at the limit."""
         self._offset_command = float(check_offset(self._geometry, offset))
 
-    def set_limits(self, input_acceleration_limit=None, offset_rate_limit=None):
+    def set_limits(self, input_acceleration_limit: Optional[float] = None,
+                   offset_rate_limit: Optional[float] = None) -> None:
         """Change either limit (rad/s^2, m/s; > 0); None keeps the present value."""
         acceleration = self._acceleration_limit
         rate = self._offset_rate_limit
@@ -145,7 +148,7 @@ class ShaperStepper:
             rate = _positive('offset_rate_limit', offset_rate_limit, 'm/s')
         self._acceleration_limit, self._offset_rate_limit = acceleration, rate
 
-    def reset(self, input_speed, offset):
+    def reset(self, input_speed: float, offset: float) -> None:
         """
         Input angle to zero; speed and offset (state and command) set at once, no ramp.
 
@@ -156,9 +159,10 @@ class ShaperStepper:
         self._input_angle = 0.0
         self._input_speed = self._speed_command = input_speed
         self._offset = self._offset_command = offset
-        self._stamp_ns = None
+        self._stamp_ns: Optional[int] = None
 
-    def restore(self, stamp_ns, input_angle, input_speed, offset):
+    def restore(self, stamp_ns: int, input_angle: float, input_speed: float,
+                offset: float) -> None:
         """
         Take a recorded state as the present one, at its stamp (to replay a logged run).
 
@@ -170,13 +174,13 @@ class ShaperStepper:
         self._input_angle = wrap_angle(input_angle)
         self._stamp_ns = int(stamp_ns)
 
-    def resync(self):
+    def resync(self) -> None:
         """Hold the state: the next step starts a new time base (used after a pause)."""
         self._stamp_ns = None
 
     # Stepping -----------------------------------------------------------------------------
 
-    def integrate_to(self, stamp_ns):
+    def integrate_to(self, stamp_ns: int) -> None:
         """Advance the input angle, speed and offset to stamp_ns (int nanoseconds)."""
         stamp_ns = int(stamp_ns)
         previous = self._stamp_ns
@@ -195,12 +199,12 @@ class ShaperStepper:
         self._offset = offset
         self._input_angle = wrap_angle(self._input_angle + angle_change)
 
-    def mechanism_state(self):
+    def mechanism_state(self) -> MechanismState:
         """Return the kinematics core's exact state (MechanismState) at the present stamp."""
         return state(self._geometry, self._offset, self._input_angle, self._input_speed,
                      self.input_acceleration, self.offset_rate)
 
-    def advance_to(self, stamp_ns):
+    def advance_to(self, stamp_ns: int) -> MechanismState:
         """Step to stamp_ns (int nanoseconds) and return the mechanism's state there."""
         self.integrate_to(stamp_ns)
         return self.mechanism_state()
@@ -208,53 +212,53 @@ class ShaperStepper:
     # State --------------------------------------------------------------------------------
 
     @property
-    def geometry(self):
+    def geometry(self) -> Geometry:
         return self._geometry
 
     @property
-    def stamp_ns(self):
+    def stamp_ns(self) -> Optional[int]:
         """Stamp of the last step (int ns), or None when the next step starts a time base."""
         return self._stamp_ns
 
     @property
-    def input_angle(self):
+    def input_angle(self) -> float:
         """Input shaft angle, rad, in [-pi, pi)."""
         return self._input_angle
 
     @property
-    def input_speed(self):
+    def input_speed(self) -> float:
         """Input shaft speed, rad/s."""
         return self._input_speed
 
     @property
-    def input_acceleration(self):
+    def input_acceleration(self) -> float:
         """Input shaft acceleration from the present stamp on, rad/s^2."""
         gap = self._speed_command - self._input_speed
         return math.copysign(self._acceleration_limit, gap) if gap else 0.0
 
     @property
-    def offset(self):
+    def offset(self) -> float:
         """Coupling offset in force, m."""
         return self._offset
 
     @property
-    def offset_rate(self):
+    def offset_rate(self) -> float:
         """Rate of the coupling offset from the present stamp on, m/s."""
         gap = self._offset_command - self._offset
         return math.copysign(self._offset_rate_limit, gap) if gap else 0.0
 
     @property
-    def speed_command(self):
+    def speed_command(self) -> float:
         return self._speed_command
 
     @property
-    def offset_command(self):
+    def offset_command(self) -> float:
         return self._offset_command
 
     @property
-    def input_acceleration_limit(self):
+    def input_acceleration_limit(self) -> float:
         return self._acceleration_limit
 
     @property
-    def offset_rate_limit(self):
+    def offset_rate_limit(self) -> float:
         return self._offset_rate_limit

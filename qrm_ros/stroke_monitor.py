@@ -22,7 +22,7 @@ force. The node only wraps the returned reports in DiagnosticStatus messages.
 
 from array import array
 import math
-from typing import Dict, List, NamedTuple
+from typing import Dict, List, NamedTuple, Optional
 
 from qrm_ros.kinematics import Geometry, steady_theory, SteadyTheory
 from qrm_ros.strokes import find_stroke_pairs
@@ -70,7 +70,7 @@ class PairReport(NamedTuple):
 def theory_figures(theory_per_unit_speed: SteadyTheory, input_speed: float) -> Dict[str, float]:
     """Scale the theory at unit |speed| to a speed (times / |speed|, speeds x |speed|)."""
     unit, scale = theory_per_unit_speed, abs(input_speed)
-    return {
+    figures = {
         'time_ratio_theory': unit.time_ratio,
         'speed_ratio_theory': unit.speed_ratio,
         'peak_speed_ratio_theory': unit.peak_speed_ratio,
@@ -79,6 +79,7 @@ def theory_figures(theory_per_unit_speed: SteadyTheory, input_speed: float) -> D
         'peak_cutting_speed_theory': unit.peak_cutting_speed * scale,
         'peak_return_speed_theory': unit.peak_return_speed * scale,
     }
+    return {name: float(value) for name, value in figures.items()}  # one sample: floats
 
 
 class StrokeMonitor:
@@ -93,7 +94,7 @@ class StrokeMonitor:
         """Forget the samples (after a reset, a pause or a clock jump: no pair spans it)."""
         self._stamp_ns: List[int] = []
         self._columns = {name: array('d') for name in _SAMPLE_FIELDS}
-        self._last_velocity_positive = None
+        self._last_velocity_positive: Optional[bool] = None
 
     def __len__(self):
         return len(self._stamp_ns)
@@ -109,7 +110,7 @@ class StrokeMonitor:
             self._keep_from(len(self._stamp_ns) - BUFFER_LIMIT // 2)
         positive = ram_velocity >= 0.0
         # A cutting stroke beginning ends the pair before it: measure only then.
-        reports = []
+        reports: List[PairReport] = []
         if self._last_velocity_positive and not positive:
             reports = self._measure(stamp_ns)
         self._last_velocity_positive = positive

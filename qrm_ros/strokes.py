@@ -23,11 +23,14 @@ Sign convention: a stroke whose ram velocity is negative (toward -x) is a cuttin
 pair is a cutting stroke followed by a return stroke.
 """
 
-from typing import NamedTuple
+from typing import NamedTuple, Sequence, Tuple, Union
 
 import numpy as np
 
 __all__ = ['StrokePairs', 'find_reversals', 'find_stroke_pairs']
+
+# Sampled values: a sequence of floats or a numpy array.
+ArrayLike = Union[Sequence[float], np.ndarray]
 
 
 class StrokePairs(NamedTuple):
@@ -76,7 +79,8 @@ def _quadratic_root_in_unit(a, b, c):
     return np.clip(np.nan_to_num(root, nan=0.0), 0.0, 1.0)
 
 
-def find_reversals(time, ram_position, ram_velocity):
+def find_reversals(time: ArrayLike, ram_position: ArrayLike, ram_velocity: ArrayLike
+                   ) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
     """
     Locate where the ram velocity changes sign, and the direction it turns to.
 
@@ -125,14 +129,15 @@ def _mid_stroke_speeds(t, x, v):
     return t[k] + s * step, np.abs((a * s + b) * s + c)
 
 
-def find_stroke_pairs(time, ram_position, ram_velocity):
+def find_stroke_pairs(time: ArrayLike, ram_position: ArrayLike,
+                      ram_velocity: ArrayLike) -> StrokePairs:
     """Every complete cutting + return stroke pair in a sampled run, with its measurements."""
     t = np.asarray(time, dtype=float)
     x = np.asarray(ram_position, dtype=float)
     v = np.asarray(ram_velocity, dtype=float)
     empty = np.empty(0)
     if t.size < 3:
-        return StrokePairs(*([empty] * 12), np.empty(0, int), np.empty(0, int))
+        return StrokePairs._make([empty] * 12 + [np.empty(0, int), np.empty(0, int)])
     when, cut_begins, interval = find_reversals(t, x, v)
     starts = np.nonzero(cut_begins[:-2] & ~cut_begins[1:-1] & cut_begins[2:])[0]
     cut_start, cut_end, ret_end = when[starts], when[starts + 1], when[starts + 2]
