@@ -36,10 +36,10 @@ import numpy as np
 
 from qrm_ros import analysis
 from qrm_ros import kinematics as kin
+from qrm_ros.names import JOINT_NAMES
 from qrm_ros.recorder import COMPRESSIONS, McapRunFile
 
-JOINTS = ['input_shaft_joint', 'flywheel_joint', 'lever_joint', 'ram_joint',
-          'coupling_offset_joint']
+JOINTS = list(JOINT_NAMES)
 
 
 def write_synthetic_run(path, seconds, rate=100.0):

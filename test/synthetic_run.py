@@ -24,9 +24,9 @@ import math
 import numpy as np
 
 from qrm_ros import kinematics as kin
+from qrm_ros import names
 
-JOINT_NAMES = ['input_shaft_joint', 'flywheel_joint', 'lever_joint', 'ram_joint',
-               'coupling_offset_joint']
+JOINT_NAMES = list(names.JOINT_NAMES)
 
 
 def schedule_states(geometry, offsets, hold=4.0, offset_rate=0.01, input_speed=2 * math.pi,

@@ -89,3 +89,11 @@ def test_bad_geometry_exits_with_a_message(capsys):
     assert 'crank_radius' in capsys.readouterr().err
     assert design_table.main(['--offsets-mm', '30']) == 2
     assert 'offset 0.03 m is out of range' in capsys.readouterr().err
+
+
+def test_usage_errors_exit_2_naming_the_argument(capsys):
+    # One exit-code policy for every command: 2 for usage or configuration errors.
+    with pytest.raises(SystemExit) as stopped:
+        design_table.main(['--input-speed', 'fast'])
+    assert stopped.value.code == 2
+    assert '--input-speed' in capsys.readouterr().err

@@ -40,6 +40,7 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 import pytest
 from qrm_ros.bag_reader import open_run, RunFileError
+from qrm_ros.kinematics import Geometry
 import yaml
 
 from ros_probe import BackgroundSpinner, call, installed_executable, stop_process, wait_for
@@ -54,7 +55,7 @@ TYPES = {'/joint_states': 'sensor_msgs/msg/JointState',
          '/parameter_events': 'rcl_interfaces/msg/ParameterEvent'}
 QOS_FIELDS = {'history', 'depth', 'reliability', 'durability', 'deadline', 'lifespan',
               'liveliness', 'liveliness_lease_duration', 'avoid_ros_namespace_conventions'}
-GEOMETRY = ['coupling_radius', 'crank_radius', 'pivot_distance', 'ram_height', 'crank_phase']
+GEOMETRY = list(Geometry.field_names())
 
 
 def _recorder_executable():

@@ -38,12 +38,12 @@ from rosbags.typesys import get_typestore, Stores
 from qrm_ros import analysis
 from qrm_ros import kinematics as kin
 from qrm_ros.bag_reader import open_run
+from qrm_ros.names import JOINT_NAMES
 from qrm_ros.stepping import ShaperStepper
 
 DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'data')
 LOGS = sorted(glob.glob(os.path.join(DATA, '*.mcap')))
-JOINTS = ['input_shaft_joint', 'flywheel_joint', 'lever_joint', 'ram_joint',
-          'coupling_offset_joint']
+JOINTS = list(JOINT_NAMES)
 # The settings make_golden_logs.py commanded: (offset m, input speed rad/s) per log.
 COMMANDED = {
     'steady_positive_offset': [(0.010, 2 * math.pi)],
