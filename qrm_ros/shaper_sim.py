@@ -145,7 +145,7 @@ class ShaperSimNode(Node):
     def _view(self, values, speed_command=None):
         if speed_command is None:
             speed_command = values['input_speed']
-        return View(values, getattr(self, '_geometry', _PAPER), speed_command)
+        return View(values, self._geometry, speed_command)
 
     def _declare(self, name, geometry):
         spec = PARAMETERS[name]
