@@ -389,7 +389,8 @@ class ShaperSimNode(Node):
         self._twist_publisher.publish(twist)
         for report in self._monitor.add(stamp_ns, sample.ram_position, sample.ram_velocity,
                                         stepper.offset, stepper.offset_rate,
-                                        stepper.input_speed):
+                                        stepper.input_speed, joint_efforts[0],
+                                        joint_efforts[-1]):
             self._publish_pair(report)
         return True
 

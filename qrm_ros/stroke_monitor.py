@@ -25,7 +25,7 @@ import math
 from typing import Dict, List, NamedTuple, Optional
 
 from qrm_ros.kinematics import Geometry, steady_theory, SteadyTheory
-from qrm_ros.strokes import find_stroke_pairs
+from qrm_ros.strokes import find_stroke_pairs, measure_pair_efforts, PairEffortsMeasured
 
 __all__ = ['BUFFER_LIMIT', 'MEASURED_FIGURES', 'PairReport', 'StrokeMonitor']
 
@@ -35,8 +35,9 @@ BUFFER_LIMIT = 2 ** 18
 # StrokePairs fields reported per pair, in the order they are published.
 MEASURED_FIGURES = ('cutting_time', 'return_time', 'time_ratio', 'peak_cutting_speed',
                     'peak_return_speed', 'mid_cutting_speed', 'mid_return_speed',
-                    'speed_ratio', 'peak_speed_ratio')
-_SAMPLE_FIELDS = ('ram_position', 'ram_velocity', 'offset', 'offset_rate', 'input_speed')
+                    'speed_ratio', 'peak_speed_ratio') + PairEffortsMeasured._fields
+_SAMPLE_FIELDS = ('ram_position', 'ram_velocity', 'offset', 'offset_rate', 'input_speed',
+                  'input_torque', 'offset_force')
 _THEORY_CACHE_LIMIT = 64
 _NANOSECONDS = 1e9
 
@@ -100,11 +101,13 @@ class StrokeMonitor:
         return len(self._stamp_ns)
 
     def add(self, stamp_ns: int, ram_position: float, ram_velocity: float, offset: float,
-            offset_rate: float, input_speed: float) -> List[PairReport]:
+            offset_rate: float, input_speed: float, input_torque: float,
+            offset_force: float) -> List[PairReport]:
         """Take one sample; return the pairs it completed (usually none, at most a few)."""
         self._stamp_ns.append(stamp_ns)
         for name, value in zip(_SAMPLE_FIELDS, (ram_position, ram_velocity, offset,
-                                                offset_rate, input_speed)):
+                                                offset_rate, input_speed, input_torque,
+                                                offset_force)):
             self._columns[name].append(value)
         if len(self._stamp_ns) > BUFFER_LIMIT:
             self._keep_from(len(self._stamp_ns) - BUFFER_LIMIT // 2)
@@ -126,13 +129,17 @@ class StrokeMonitor:
         time = [(ns - origin) / _NANOSECONDS for ns in self._stamp_ns]
         columns = self._columns
         pairs = find_stroke_pairs(time, columns['ram_position'], columns['ram_velocity'])
-        reports = [self._report(stamp_ns, origin, pairs, index)
+        pair_efforts = measure_pair_efforts(time, columns['input_speed'],
+                                            columns['input_torque'], columns['offset_force'],
+                                            pairs)
+        figures = {**pairs._asdict(), **pair_efforts._asdict()}
+        reports = [self._report(stamp_ns, origin, pairs, figures, index)
                    for index in range(len(pairs.cutting_time))]
         # Keep the two samples around the reversal just found: the next pair starts there.
         self._keep_from(len(self._stamp_ns) - 2)
         return reports
 
-    def _report(self, stamp_ns, origin, pairs, index):
+    def _report(self, stamp_ns, origin, pairs, figures, index):
         columns = self._columns
         first, last = int(pairs.first_sample[index]), int(pairs.last_sample[index])
         offsets = columns['offset'][first:last + 1]
@@ -146,7 +153,7 @@ class StrokeMonitor:
             offset_steady=(min(offsets) == max(offsets)
                            and not any(columns['offset_rate'][first:last])),
             input_speed_steady=min(speeds) == max(speeds),
-            measured={name: float(getattr(pairs, name)[index]) for name in MEASURED_FIGURES},
+            measured={name: float(figures[name][index]) for name in MEASURED_FIGURES},
             theory=self.theory(offset, speed) if speed != 0.0 else {})
 
     def theory(self, offset: float, input_speed: float) -> Dict[str, float]:

@@ -27,7 +27,8 @@ from typing import NamedTuple, Sequence, Tuple, Union
 
 import numpy as np
 
-__all__ = ['StrokePairs', 'find_reversals', 'find_stroke_pairs']
+__all__ = ['PairEffortsMeasured', 'StrokePairs', 'find_reversals', 'find_stroke_pairs',
+           'measure_pair_efforts']
 
 # Sampled values: a sequence of floats or a numpy array.
 ArrayLike = Union[Sequence[float], np.ndarray]
@@ -176,3 +177,78 @@ def _first_between(times, values, start, end):
     index = np.minimum(np.searchsorted(times, start, side='right'), times.size - 1)
     found = (times[index] > start) & (times[index] < end)
     return np.where(found, values[index], np.nan)
+
+
+class PairEffortsMeasured(NamedTuple):
+    """Per stroke pair, from sampled input torque and speed (arrays; SI units)."""
+
+    peak_input_torque: np.ndarray   # N·m, largest |input torque| in the pair
+    rms_input_torque: np.ndarray    # N·m, over the pair's time
+    mean_input_power: np.ndarray    # W, energy_per_pair / pair time
+    energy_per_pair: np.ndarray     # J, integral of input torque x input speed
+    peak_offset_force: np.ndarray   # N, largest |offset actuator force| in the pair
+    speed_fluctuation: np.ndarray   # (max - min input speed) / mean input speed
+
+
+def _cumulative_trapezoid(t, f):
+    return np.concatenate(([0.0], np.cumsum(0.5 * np.diff(t) * (f[1:] + f[:-1]))))
+
+
+def _integral_up_to(t, f, cumulative, when):
+    """Integral of the linear interpolant of f from t[0] to each time in when."""
+    k = np.clip(np.searchsorted(t, when, side='right') - 1, 0, t.size - 2)
+    step = when - t[k]
+    at = f[k] + (f[k + 1] - f[k]) * step / (t[k + 1] - t[k])
+    return cumulative[k] + 0.5 * step * (f[k] + at)
+
+
+def _window_extremes(t, f, start, end):
+    """Max and min of f over [start, end]: samples inside plus the interpolated ends."""
+    ends = np.interp(np.stack([start, end]), t, f)
+    first = np.searchsorted(t, start, side='left')
+    last = np.searchsorted(t, end, side='right')
+    high, low = np.max(ends, axis=0), np.min(ends, axis=0)
+    for index in range(start.size):
+        inside = f[first[index]:last[index]]
+        if inside.size:
+            high[index] = max(high[index], inside.max())
+            low[index] = min(low[index], inside.min())
+    return high, low
+
+
+def measure_pair_efforts(time: ArrayLike, input_speed: ArrayLike, input_torque: ArrayLike,
+                         offset_force: ArrayLike, pairs: StrokePairs) -> PairEffortsMeasured:
+    """
+    The effort figures of each pair in pairs (from find_stroke_pairs on the same samples).
+
+    Between samples every signal is taken as linear (trapezoid integrals, the pair's ends
+    interpolated), so a load switch between two samples costs an error of order its jump x
+    the sample spacing: these are measurements, compared with the exact theory of
+    qrm_ros.dynamics. The mean input speed is the angle swept over the pair's time.
+    """
+    t = np.asarray(time, dtype=float)
+    speed = np.asarray(input_speed, dtype=float)
+    torque = np.asarray(input_torque, dtype=float)
+    force = np.asarray(offset_force, dtype=float)
+    start, end = pairs.cutting_start, pairs.return_end
+    if start.size == 0:
+        return PairEffortsMeasured._make([np.empty(0)] * len(PairEffortsMeasured._fields))
+
+    def over_pair(values):
+        cumulative = _cumulative_trapezoid(t, values)
+        return (_integral_up_to(t, values, cumulative, end)
+                - _integral_up_to(t, values, cumulative, start))
+
+    duration = end - start
+    energy = over_pair(torque * speed)
+    torque_high, torque_low = _window_extremes(t, torque, start, end)
+    force_high, force_low = _window_extremes(t, force, start, end)
+    speed_high, speed_low = _window_extremes(t, speed, start, end)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        return PairEffortsMeasured(
+            peak_input_torque=np.maximum(torque_high, -torque_low),
+            rms_input_torque=np.sqrt(over_pair(torque * torque) / duration),
+            mean_input_power=energy / duration,
+            energy_per_pair=energy,
+            peak_offset_force=np.maximum(force_high, -force_low),
+            speed_fluctuation=(speed_high - speed_low) / np.abs(over_pair(speed) / duration))

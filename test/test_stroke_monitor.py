@@ -33,7 +33,7 @@ def feed(monitor, offset, speed, seconds, rate=1000.0, start_ns=NS, offsets=None
         moving = offsets(index) if offsets else offset
         sample = state(GEOMETRY, moving, angle, speed)
         reports += monitor.add(stamp, float(sample.ram_position), float(sample.ram_velocity),
-                               moving, 0.0, speed)
+                               moving, 0.0, speed, 0.0, 0.0)
     return reports
 
 
