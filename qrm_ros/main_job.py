@@ -36,11 +36,13 @@ import time
 
 from qrm_ros import analysis
 from qrm_ros import kinematics as kin
+from qrm_ros.dynamics import DynamicsError, Loads
 from qrm_ros.names import (absolute_topic, DIAGNOSTICS_TOPIC, JOINT_STATES_TOPIC,
                            LINKAGE_MARKERS_TOPIC, RECORDER_NODE_NAME, SIM_NODE_NAME,
                            STROKE_PAIR_STATUS)
 from qrm_ros.recorder import DEFAULT_TOPICS
 from qrm_ros.ros_process import init_rclpy, StopRequest
+from qrm_ros.shaper_parameters import DRIVES
 
 SIM_NODE = '/' + SIM_NODE_NAME
 # Both signs, and the offset of equal mid-stroke speeds (SR = 1, paper eq. 26: -r r1 / h).
@@ -201,6 +203,20 @@ def _parser():
                         help='shaper_sim publish rate [Hz] (default: 100)')
     parser.add_argument('--offset-rate-limit', type=float, default=0.02,
                         help='offset actuator speed [m/s] (default: 0.02)')
+    loads = Loads.small_shaper()
+    parser.add_argument('--cutting-force', type=float, default=loads.cutting_force,
+                        help='cutting force on the ram while the tool is in the work [N] '
+                        f'(default: {loads.cutting_force:g}, the small shaper of '
+                        'dynamics.Loads.small_shaper; 0: no cutting)')
+    parser.add_argument('--ram-friction', type=float, default=loads.ram_friction,
+                        help=f'Coulomb friction on the ram [N] (default: {loads.ram_friction:g})')
+    parser.add_argument('--cutting-length', type=float, default=loads.cutting_length,
+                        help='workpiece length, centred on ram position 0 [m] (default: '
+                        f'{loads.cutting_length:g})')
+    parser.add_argument('--drive', choices=DRIVES, default=DRIVES[0],
+                        help="'speed': an ideal speed source (the ratios then match theory "
+                        "exactly); 'motor': the small shaper's motor, whose speed fluctuates "
+                        'with the load (default: speed)')
     parser.add_argument('--output-dir', default='runs',
                         help='folder for the run folder (default: runs)')
     return parser
@@ -214,6 +230,11 @@ def validate(options):
         raise UsageError(f'--input-speed must be finite and non-zero, got '
                          f'{options.input_speed}')
     geometry = kin.Geometry.paper()  # shaper_sim's default geometry
+    try:
+        Loads(options.cutting_force, options.ram_friction,
+              options.cutting_length).check_against(geometry.ram_stroke)
+    except DynamicsError as error:
+        raise UsageError(f'loads: {error}') from None
     for offset_mm in options.offsets_mm:
         try:
             kin.check_offset(geometry, offset_mm / 1e3, geometry.max_safe_offset)
@@ -235,6 +256,10 @@ def record(options, folder, stop):
         '-p', f'coupling_offset:={offsets[0]!r}', '-p', f'input_speed:={options.input_speed!r}',
         '-p', f'publish_rate:={float(options.publish_rate)!r}',
         '-p', f'offset_rate_limit:={float(options.offset_rate_limit)!r}',
+        '-p', f'cutting_force:={float(options.cutting_force)!r}',
+        '-p', f'ram_friction:={float(options.ram_friction)!r}',
+        '-p', f'cutting_length:={float(options.cutting_length)!r}',
+        '-p', f'drive:={options.drive}',
     ], sim_log, env)
     print(f'qrm_main: started shaper_sim (pid {sim.pid})', flush=True)
     recorder = None

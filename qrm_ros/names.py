@@ -18,11 +18,11 @@ A recording made by one version must stay readable by the next, so these are par
 package's interface: change one only with a migration.
 """
 
-__all__ = ['DIAGNOSTICS_TOPIC', 'GEOMETRY_METADATA', 'JOINT_NAMES', 'JOINT_STATES_TOPIC',
-           'JOINT_STATE_TYPE', 'LINKAGE_MARKERS_TOPIC', 'LINKAGE_MARKERS_TYPE',
-           'PARAMETERS_METADATA', 'RAM_TWIST_TOPIC', 'RECORDER_NODE_NAME',
-           'ROBOT_DESCRIPTION_TOPIC', 'SIM_NODE_NAME', 'SPEED_COMMAND_TOPIC',
-           'STROKE_PAIR_STATUS', 'absolute_topic']
+__all__ = ['CUTTING_SPEED_STATUS', 'DIAGNOSTICS_TOPIC', 'DRIVE_STATUS', 'GEOMETRY_METADATA',
+           'JOINT_NAMES', 'JOINT_STATES_TOPIC', 'JOINT_STATE_TYPE', 'LINKAGE_MARKERS_TOPIC',
+           'LINKAGE_MARKERS_TYPE', 'PARAMETERS_METADATA', 'RAM_TWIST_TOPIC',
+           'RECORDER_NODE_NAME', 'ROBOT_DESCRIPTION_TOPIC', 'SIM_NODE_NAME',
+           'SPEED_COMMAND_TOPIC', 'STROKE_PAIR_STATUS', 'absolute_topic']
 
 SIM_NODE_NAME = 'shaper_sim'
 RECORDER_NODE_NAME = 'mcap_recorder'
@@ -40,6 +40,10 @@ JOINT_STATE_TYPE = 'sensor_msgs/msg/JointState'
 
 # DiagnosticStatus.name of the node's per-stroke-pair report.
 STROKE_PAIR_STATUS = f'{SIM_NODE_NAME}: stroke pair'
+# DiagnosticStatus name of the drive's state (motor stalled or running).
+DRIVE_STATUS = f'{SIM_NODE_NAME}: drive'
+# DiagnosticStatus name of the cutting-speed hold (cutting_speed_target).
+CUTTING_SPEED_STATUS = f'{SIM_NODE_NAME}: cutting speed'
 
 # MCAP metadata records the recorder writes and the analysis reads.
 GEOMETRY_METADATA = 'qrm_ros.geometry'

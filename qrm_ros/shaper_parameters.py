@@ -23,11 +23,12 @@ the node turns specs into descriptors and reasons into SetParametersResults.
 import math
 from typing import Callable, NamedTuple, Optional, Tuple
 
-from qrm_ros.dynamics import Loads, MassProperties
+from qrm_ros.cutting_speed_hold import CUTTING_SPEED_DEFINITIONS, reachable_cutting_speeds
+from qrm_ros.dynamics import Loads, MassProperties, MotorDrive
 from qrm_ros.kinematics import Geometry, KinematicsError
 
-__all__ = ['AtLeast', 'DoubleRange', 'GEOMETRY_NAMES', 'NonEmptyText', 'ParameterSpec',
-           'PARAMETERS', 'PositiveLength', 'SymmetricRange', 'View', 'allowed_text',
+__all__ = ['AtLeast', 'DoubleRange', 'DRIVES', 'GEOMETRY_NAMES', 'MOTOR_PREFIX', 'NonEmptyText',
+           'OneOf', 'ParameterSpec', 'PARAMETERS', 'PositiveLength', 'SymmetricRange', 'View', 'allowed_text',
            'default_values', 'refusal_reason', 'shown']
 
 GEOMETRY_NAMES = Geometry.field_names()
@@ -158,6 +159,23 @@ class NonEmptyText(NamedTuple):
         return f'must be {self.allowed(unit, view)}'
 
 
+class OneOf(NamedTuple):
+    """One of a few words (modes)."""
+
+    choices: Tuple[str, ...]
+
+    def descriptor_bounds(self, geometry):
+        return None
+
+    def allowed(self, unit, view):
+        return 'one of ' + ', '.join(repr(choice) for choice in self.choices)
+
+    def problem(self, value, unit, view):
+        if value in self.choices:
+            return None
+        return f'must be {self.allowed(unit, view)}'
+
+
 class ParameterSpec(NamedTuple):
     """One parameter: default, unit, meaning, rule, extra checks and what setting it does."""
 
@@ -189,6 +207,34 @@ def _max_input_speed_checks():
 
 _STRUCTURAL = 'Structural: set at start-up only.'
 
+
+def _target_reachable(value, view):
+    """A cutting speed target must be reachable at the speed command, within the safe offsets."""
+    target = view.values['cutting_speed_target']
+    if target == 0.0:
+        return None
+    speed = view.speed_command
+    definition = view.values['cutting_speed_definition']
+    if speed == 0.0:
+        return (f'cutting_speed_target {shown(target)} m/s cannot be held: the input speed '
+                'command is 0 rad/s')
+    low, high = reachable_cutting_speeds(view.geometry, speed, definition)
+    if low <= target <= high:
+        return None
+    return (f'{definition} cutting speed {shown(target)} m/s is out of reach at the input speed '
+            f'command {shown(speed)} rad/s: offsets within the safety limit (|offset| <= '
+            f'{shown(float(view.geometry.max_safe_offset))} m) give {shown(low)} to '
+            f'{shown(high)} m/s')
+
+
+def _offset_by_hand(value, view):
+    target = view.values['cutting_speed_target']
+    if target == 0.0:
+        return None
+    return (f'the offset is commanded by cutting_speed_target = {shown(target)} m/s; set '
+            'cutting_speed_target to 0 to command coupling_offset by hand (or set both in '
+            'one atomic call)')
+
 PARAMETERS = {
     'coupling_radius': ParameterSpec(
         _PAPER.coupling_radius, 'm', 'Coupling crank radius r1: radius of the input pin in '
@@ -214,7 +260,20 @@ PARAMETERS = {
             lambda view: view.geometry.max_safe_offset,
             lambda view: ('|offset| <= max_safe_offset = 0.9 x coupling_radius '
                           f'{shown(view.geometry.coupling_radius)} m'), True),
-        apply=lambda node, value: node.stepper.set_offset_command(value)),
+        (_offset_by_hand,), apply=lambda node, value: node.command_offset()),
+    'cutting_speed_target': ParameterSpec(
+        0.0, 'm/s', 'Cutting speed to hold (0: off, the offset follows coupling_offset). While '
+        'it is set the node commands the offset (at offset_rate_limit) that gives this '
+        'cutting speed at the input speed command in force, recomputed when the command '
+        'changes; a target out of reach within the offset safety limit is refused, and if a '
+        'later speed change puts it out of reach the nearest reachable offset is held (WARN '
+        'on /diagnostics).', False, AtLeast(0.0), (_target_reachable,),
+        apply=lambda node, value: node.command_offset()),
+    'cutting_speed_definition': ParameterSpec(
+        CUTTING_SPEED_DEFINITIONS[0], '', "What cutting_speed_target means: 'mean', the cutting "
+        "stroke's length over its time (the figure of shop tables), or 'peak', the largest "
+        'cutting speed in the stroke.', False, OneOf(CUTTING_SPEED_DEFINITIONS),
+        (_target_reachable,), apply=lambda node, value: node.command_offset()),
     'offset_rate_limit': ParameterSpec(
         0.005, 'm/s', 'Speed at which the offset actuator moves the offset toward its '
         'command.', False, DoubleRange(1e-6, 1.0),
@@ -228,7 +287,7 @@ PARAMETERS = {
         '|input_speed| <= max_input_speed.', False,
         SymmetricRange(lambda view: view.values['max_input_speed'],
                        lambda view: '|input_speed| <= max_input_speed', False),
-        apply=lambda node, value: node.stepper.set_speed_command(value)),
+        apply=lambda node, value: node.command_speed(value)),
     'input_acceleration_limit': ParameterSpec(
         20.0, 'rad/s^2', 'Acceleration at which the input shaft speed ramps toward its '
         'command.', False, DoubleRange(1e-3, 1e5),
@@ -258,6 +317,17 @@ _MASS_MEANINGS = {
     'ram_mass': 'Mass m4 of the ram with its tool head',
     'gravity': 'Gravitational acceleration g, along -y',
 }
+_MOTOR_MEANINGS = {
+    'speed_stiffness': 'Motor torque per rad/s of input speed below its reference, referred to '
+                       'the input shaft (drive: motor): the slope of an induction motor\'s '
+                       'torque-speed curve near its operating point',
+    'max_torque': 'Largest motor torque at the input shaft (drive: motor), the pull-out '
+                  'torque there; a load that needs more stalls the machine',
+}
+# MotorDrive's fields are node parameters with this prefix (motor_speed_stiffness, ...).
+MOTOR_PREFIX = 'motor_'
+# drive: how the input shaft is driven (dynamics.md).
+DRIVES = ('speed', 'motor')
 _LOAD_MEANINGS = {
     'cutting_force': 'Cutting force F_c on the ram while the tool cuts (ram moving toward -x, '
                      '|ram position| <= cutting_length / 2)',
@@ -288,12 +358,13 @@ _EXTRA_CHECKS = {'cutting_length': (_cutting_length_within_stroke,),
 def _dynamics_parameters():
     """Declare the mass properties and the loads (all live) from the dynamics' own fields."""
     specs = {}
-    for kind, defaults, meanings in (
-            (MassProperties, MassProperties.small_shaper(), _MASS_MEANINGS),
-            (Loads, Loads.none(), _LOAD_MEANINGS)):
+    for kind, defaults, meanings, prefix in (
+            (MassProperties, MassProperties.small_shaper(), _MASS_MEANINGS, ''),
+            (Loads, Loads.none(), _LOAD_MEANINGS, ''),
+            (MotorDrive, MotorDrive.small_shaper(), _MOTOR_MEANINGS, MOTOR_PREFIX)):
         units, limits = kind.units(), kind.lower_limits()
         for name in kind.field_names():
-            specs[name] = ParameterSpec(
+            specs[prefix + name] = ParameterSpec(
                 float(getattr(defaults, name)), units[name],
                 f'{meanings[name]}. Live: the efforts follow at once.', False,
                 AtLeast(*limits[name]), _EXTRA_CHECKS.get(name, ()),
@@ -302,6 +373,13 @@ def _dynamics_parameters():
 
 
 PARAMETERS.update(_dynamics_parameters())
+PARAMETERS['drive'] = ParameterSpec(
+    DRIVES[0], '', "How the input shaft is driven: 'speed', an ideal speed source that follows "
+    "the commanded speed at input_acceleration_limit whatever the load (the efforts are what "
+    "it must supply); 'motor', a motor whose torque follows its speed error "
+    "(motor_speed_stiffness, up to motor_max_torque), so the input speed follows the "
+    'equation of motion and fluctuates with the load. Live: the switch keeps the state.',
+    False, OneOf(DRIVES), apply=lambda node, value: node.set_drive(value))
 
 
 def default_values():

@@ -29,16 +29,18 @@ import sys
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import TwistStamped
-from qrm_ros.dynamics import efforts, Loads, MassProperties, ram_load_force
+from qrm_ros.cutting_speed_hold import CUTTING_SPEED_FIGURES, hold_offset
+from qrm_ros.dynamics import efforts, Loads, MassProperties, MotorDrive, ram_load_force
+from qrm_ros.motor_drive import MotorStepper
 from qrm_ros.kinematics import Geometry
 from qrm_ros.linkage_markers import delete_all_marker_array, linkage_marker_array
-from qrm_ros.names import (DIAGNOSTICS_TOPIC, JOINT_NAMES, JOINT_STATES_TOPIC,
-                           LINKAGE_MARKERS_TOPIC, RAM_TWIST_TOPIC, SIM_NODE_NAME,
+from qrm_ros.names import (CUTTING_SPEED_STATUS, DIAGNOSTICS_TOPIC, DRIVE_STATUS,
+                           JOINT_NAMES, JOINT_STATES_TOPIC, LINKAGE_MARKERS_TOPIC, RAM_TWIST_TOPIC, SIM_NODE_NAME,
                            SPEED_COMMAND_TOPIC, STROKE_PAIR_STATUS)
 from qrm_ros.ros_process import (init_rclpy, RCLError, rcl_error_text, spin_until_stopped,
                                  StopRequest)
 from qrm_ros.shaper_parameters import (allowed_text, default_values, GEOMETRY_NAMES,
-                                       PARAMETERS, refusal_reason, shown, View)
+                                       MOTOR_PREFIX, PARAMETERS, refusal_reason, shown, View)
 from qrm_ros.stepping import ShaperStepper, wrap_angle
 from qrm_ros.stroke_monitor import StrokeMonitor
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
@@ -57,6 +59,7 @@ from visualization_msgs.msg import MarkerArray
 __all__ = ['JOINT_NAMES', 'PARAMETERS', 'ShaperSimNode', 'main', 'refusal_reason']
 
 _WARNING_PERIOD = 1.0  # s, throttle for repeated warnings
+_STALL_REPEAT_NS = 1_000_000_000  # a stall's ERROR status is repeated this often
 # Publisher history, in seconds of messages at the publish rate: a reliable subscriber that
 # keeps up on average (the recorder) but stalls for a moment (a loaded machine) is resent
 # what it missed instead of losing it, as KEEP_LAST 10 (0.01 s at 1 kHz) did.
@@ -109,12 +112,13 @@ class ShaperSimNode(Node):
             if reason:
                 raise ValueError(f'start-up value refused: {reason}')
         self._report_unknown_overrides()
-        self._stepper = ShaperStepper(
-            self._geometry, self._values['input_speed'], self._values['coupling_offset'],
-            self._values['input_acceleration_limit'], self._values['offset_rate_limit'])
+        self.update_dynamics()
+        self._stepper = self._new_stepper(self._values['drive'])
+        self._stall_reason = None
+        self._stall_reported_ns = 0
+        self._hold = None
         self._paused = False
         self._monitor = StrokeMonitor(self._geometry)
-        self.update_dynamics()
 
         depth = max(MIN_PUBLISHER_DEPTH,
                     math.ceil(PUBLISHER_HISTORY_SECONDS * self._values['publish_rate']))
@@ -138,6 +142,8 @@ class ShaperSimNode(Node):
         self.add_on_set_parameters_callback(self._check_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
         self._timer = self.create_timer(1.0 / self._values['publish_rate'], self._on_timer)
+        if self._values['cutting_speed_target']:
+            self.command_offset()
         self.get_logger().info(
             f'running: offset {self._values["coupling_offset"]} m, input speed '
             f'{self._values["input_speed"]} rad/s, {self._values["publish_rate"]} Hz')
@@ -287,12 +293,40 @@ class ShaperSimNode(Node):
                 f'[{shown(-limit)}, {shown(limit)}] rad/s (max_input_speed)',
                 throttle_duration_sec=_WARNING_PERIOD)
             return
-        self._stepper.set_speed_command(value)
+        self.command_speed(value)
+
+    def command_speed(self, input_speed):
+        """Command the input speed; a held cutting speed follows it through the offset."""
+        self._stepper.set_speed_command(input_speed)
+        if self._values['cutting_speed_target']:
+            self.command_offset()
+
+    def command_offset(self):
+        """
+        Command the offset: coupling_offset by hand, or while cutting_speed_target is set,
+        the offset that gives it at the speed command in force (the nearest reachable one,
+        with a WARN, when a speed change has put the target out of reach).
+        """
+        values = self._values
+        target = values['cutting_speed_target']
+        if not target:
+            self._hold = None
+            self._stepper.set_offset_command(values['coupling_offset'])
+            return
+        answer = hold_offset(self._geometry, self._stepper.speed_command, target,
+                             values['cutting_speed_definition'])
+        self._stepper.set_offset_command(answer.offset)
+        if answer.problem and (self._hold is None or self._hold.problem != answer.problem):
+            self.get_logger().warning(answer.problem)
+        self._hold = answer
+        self._publish_hold_status()
 
     def _on_reset(self, request, response):
         del request
         speed, offset = self._values['input_speed'], self._values['coupling_offset']
         self._stepper.reset(speed, offset)
+        if self._values['cutting_speed_target']:
+            self.command_offset()  # from the reset state, toward the held cutting speed
         self._monitor.clear()
         self._clear_markers = True  # DELETEALL before the next markers
         response.success = True
@@ -356,14 +390,19 @@ class ShaperSimNode(Node):
                                 sample.lever_angle, sample.ram_position, stepper.offset))
         velocities = array('d', (stepper.input_speed, sample.flywheel_speed,
                                  sample.lever_speed, sample.ram_velocity, stepper.offset_rate))
-        # What drives each joint (N m, N), exact at the stamp: the speed drive supplies the
-        # input torque the prescribed motion needs against inertia, gravity and the loads.
-        ram_force = ram_load_force(self._loads, sample.ram_position, sample.ram_velocity,
-                                   self._geometry.ram_stroke)
-        joint_efforts = array('d', efforts(
-            self._geometry, self._mass, stepper.offset, stepper.input_angle,
-            stepper.input_speed, stepper.input_acceleration, stepper.offset_rate, 0.0,
-            ram_force))
+        # What drives each joint (N m, N), exact at the stamp. The speed drive supplies the
+        # input torque the prescribed motion needs against inertia, gravity and the loads;
+        # the motor stepper integrates the motion from the motor's torque and knows them.
+        if isinstance(stepper, MotorStepper):
+            joint_efforts = array('d', stepper.efforts())
+            self._report_stall(stepper, stamp_ns)
+        else:
+            ram_force = ram_load_force(self._loads, sample.ram_position, sample.ram_velocity,
+                                       self._geometry.ram_stroke)
+            joint_efforts = array('d', efforts(
+                self._geometry, self._mass, stepper.offset, stepper.input_angle,
+                stepper.input_speed, stepper.input_acceleration, stepper.offset_rate, 0.0,
+                ram_force))
         if not all(map(math.isfinite, positions + velocities + joint_efforts)):
             self.get_logger().error(
                 f'non-finite state at {stamp_ns} ns not published: positions {positions}, '
@@ -395,10 +434,34 @@ class ShaperSimNode(Node):
         return True
 
     def update_dynamics(self):
-        """Take the mass and load parameters in force (checked by their rules already)."""
+        """Take the mass, load and motor parameters in force (checked by their rules)."""
         values = self._values
         self._mass = MassProperties(**{n: values[n] for n in MassProperties.field_names()})
         self._loads = Loads(**{n: values[n] for n in Loads.field_names()})
+        self._motor = MotorDrive(**{n: values[MOTOR_PREFIX + n]
+                                    for n in MotorDrive.field_names()})
+        stepper = getattr(self, '_stepper', None)
+        if isinstance(stepper, MotorStepper):
+            stepper.set_dynamics(self._mass, self._loads, self._motor)
+
+    def _new_stepper(self, drive):
+        values = self._values
+        arguments = (values['input_speed'], values['coupling_offset'],
+                     values['input_acceleration_limit'], values['offset_rate_limit'])
+        if drive == 'motor':
+            return MotorStepper(self._geometry, self._mass, self._loads, self._motor, *arguments)
+        return ShaperStepper(self._geometry, *arguments)
+
+    def set_drive(self, drive):
+        """Switch between the ideal speed source and the motor, keeping the state."""
+        old = self._stepper
+        new = self._new_stepper(drive)
+        if old.stamp_ns is not None:
+            new.restore(old.stamp_ns, old.input_angle, old.input_speed, old.offset)
+        new.set_speed_command(old.speed_command)
+        new.set_offset_command(old.offset_command)
+        self._stepper = new
+        self._monitor.clear()  # a pair spanning the switch would mix two drives
 
     # Markers -------------------------------------------------------------------------------
 
@@ -429,12 +492,67 @@ class ShaperSimNode(Node):
             input_speed=stepper.input_speed))
         return True
 
+    def _report_stall(self, stepper, stamp_ns):
+        """
+        Say on /diagnostics (ERROR) and in the log when the motor stalls; repeat the ERROR
+        every second while it lasts (so monitors do not take it as stale) and say when it ends.
+        """
+        reason = stepper.stall_reason if stepper.stalled else None
+        changed = reason != self._stall_reason
+        due = reason is not None and stamp_ns - self._stall_reported_ns >= _STALL_REPEAT_NS
+        if not (changed or due):
+            return
+        self._stall_reason, self._stall_reported_ns = reason, stamp_ns
+        if reason is None:
+            level, text = DiagnosticStatus.OK, 'motor running: the stall is over'
+            self.get_logger().info(text)
+        else:
+            level, text = DiagnosticStatus.ERROR, f'motor stalled: {reason}'
+            if changed:
+                self.get_logger().error(text)
+        values = [KeyValue(key='stalled', value=str(reason is not None).lower()),
+                  KeyValue(key='motor_torque', value=repr(stepper.motor_torque))]
+        status = DiagnosticStatus(level=level, name=DRIVE_STATUS, hardware_id=SIM_NODE_NAME,
+                                  message=text, values=values)
+        message = DiagnosticArray(status=[status])
+        message.header.stamp = _stamp(stamp_ns)
+        self._diagnostics_publisher.publish(message)
+
+    def _publish_hold_status(self):
+        """The cutting-speed hold's state on /diagnostics: OK when exact, WARN when not."""
+        values = self._values
+        answer = self._hold
+        level = DiagnosticStatus.WARN if answer.problem else DiagnosticStatus.OK
+        text = answer.problem or (
+            f'holding {values["cutting_speed_definition"]} cutting speed '
+            f'{values["cutting_speed_target"]:.6g} m/s with offset {answer.offset:.6g} m')
+        key_values = [
+            KeyValue(key='cutting_speed_target', value=repr(values['cutting_speed_target'])),
+            KeyValue(key='cutting_speed_definition', value=values['cutting_speed_definition']),
+            KeyValue(key='offset_command', value=repr(answer.offset)),
+            KeyValue(key='reachable_min', value=repr(answer.reachable[0])),
+            KeyValue(key='reachable_max', value=repr(answer.reachable[1]))]
+        status = DiagnosticStatus(level=level, name=CUTTING_SPEED_STATUS,
+                                  hardware_id=SIM_NODE_NAME, message=text, values=key_values)
+        message = DiagnosticArray(status=[status])
+        message.header.stamp = self.get_clock().now().to_msg()
+        self._diagnostics_publisher.publish(message)
+
     def _publish_pair(self, report):
         key_values = [KeyValue(key=key, value=repr(value))
                       for key, value in report.values().items() if math.isfinite(value)]
         key_values.append(KeyValue(key='offset_steady', value=str(report.offset_steady).lower()))
         key_values.append(KeyValue(key='input_speed_steady',
                                    value=str(report.input_speed_steady).lower()))
+        target = self._values['cutting_speed_target']
+        if target:
+            definition = self._values['cutting_speed_definition']
+            measured_speed = report.measured[CUTTING_SPEED_FIGURES[definition]]
+            key_values += [
+                KeyValue(key='cutting_speed_target', value=repr(target)),
+                KeyValue(key='cutting_speed_definition', value=definition),
+                KeyValue(key='cutting_speed_measured', value=repr(measured_speed)),
+                KeyValue(key='cutting_speed_error', value=repr(measured_speed / target - 1.0))]
         measured = report.measured
         steady = 'steady' if report.steady else 'NOT steady (ratios mixed)'
         status = DiagnosticStatus(

@@ -35,7 +35,8 @@ BUFFER_LIMIT = 2 ** 18
 # StrokePairs fields reported per pair, in the order they are published.
 MEASURED_FIGURES = ('cutting_time', 'return_time', 'time_ratio', 'peak_cutting_speed',
                     'peak_return_speed', 'mid_cutting_speed', 'mid_return_speed',
-                    'speed_ratio', 'peak_speed_ratio') + PairEffortsMeasured._fields
+                    'speed_ratio', 'peak_speed_ratio', 'mean_cutting_speed'
+                    ) + PairEffortsMeasured._fields
 _SAMPLE_FIELDS = ('ram_position', 'ram_velocity', 'offset', 'offset_rate', 'input_speed',
                   'input_torque', 'offset_force')
 _THEORY_CACHE_LIMIT = 64

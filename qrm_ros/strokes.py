@@ -49,6 +49,8 @@ class StrokePairs(NamedTuple):
     mid_return_speed: np.ndarray
     speed_ratio: np.ndarray
     peak_speed_ratio: np.ndarray
+    # Cutting stroke length over cutting time (m/s): the cutting speed of shop tables.
+    mean_cutting_speed: np.ndarray
     first_sample: np.ndarray
     last_sample: np.ndarray
 
@@ -138,7 +140,7 @@ def find_stroke_pairs(time: ArrayLike, ram_position: ArrayLike,
     v = np.asarray(ram_velocity, dtype=float)
     empty = np.empty(0)
     if t.size < 3:
-        return StrokePairs._make([empty] * 12 + [np.empty(0, int), np.empty(0, int)])
+        return StrokePairs._make([empty] * 13 + [np.empty(0, int), np.empty(0, int)])
     when, cut_begins, interval = find_reversals(t, x, v)
     starts = np.nonzero(cut_begins[:-2] & ~cut_begins[1:-1] & cut_begins[2:])[0]
     cut_start, cut_end, ret_end = when[starts], when[starts + 1], when[starts + 2]
@@ -152,6 +154,11 @@ def find_stroke_pairs(time: ArrayLike, ram_position: ArrayLike,
     mid_cut = _first_between(cross_time, cross_speed, cut_start, cut_end)
     mid_ret = _first_between(cross_time, cross_speed, cut_end, ret_end)
     cutting_time, return_time = cut_end - cut_start, ret_end - cut_end
+    # Ram positions at the reversals, on the same Hermite interpolant that located them.
+    step = t[interval + 1] - t[interval]
+    turn_position = _hermite_position((when - t[interval]) / step, step, x[interval],
+                                      x[interval + 1], v[interval], v[interval + 1])
+    cutting_length = turn_position[starts] - turn_position[starts + 1]
     with np.errstate(divide='ignore', invalid='ignore'):
         return StrokePairs(
             cutting_start=cut_start, cutting_end=cut_end, return_end=ret_end,
@@ -160,6 +167,7 @@ def find_stroke_pairs(time: ArrayLike, ram_position: ArrayLike,
             peak_cutting_speed=peak_cut, peak_return_speed=peak_ret,
             mid_cutting_speed=mid_cut, mid_return_speed=mid_ret,
             speed_ratio=mid_ret / mid_cut, peak_speed_ratio=peak_ret / peak_cut,
+            mean_cutting_speed=cutting_length / cutting_time,
             first_sample=interval[starts], last_sample=interval[starts + 2] + 1)
 
 

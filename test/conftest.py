@@ -22,6 +22,8 @@ cross. Subprocesses inherit the environment.
 import os
 
 import pytest
+import rclpy
+from rclpy.context import Context
 
 from qrm_ros.ros_isolation import isolate_ros_traffic
 
@@ -35,3 +37,25 @@ def pytest_configure(config):
 @pytest.fixture(scope='session')
 def ros_domain_id():
     return int(os.environ['ROS_DOMAIN_ID'])
+
+
+@pytest.fixture(scope='module')
+def context():
+    """An rclpy context of the test module's own."""
+    context = Context()
+    rclpy.init(context=context)
+    yield context
+    rclpy.shutdown(context=context)
+
+
+@pytest.fixture
+def harness(context):
+    made = []
+
+    def make(**kwargs):
+        from shaper_harness import Harness
+        made.append(Harness(context, **kwargs))
+        return made[-1]
+    yield make
+    for item in made:
+        item.close()

@@ -38,60 +38,9 @@ from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, Trigger
 from visualization_msgs.msg import Marker, MarkerArray
 
-from ros_probe import BackgroundSpinner, call, wait_for
+from shaper_harness import NS, pair_values, run_ticks
 
-NS = 1_000_000_000
 R1, R, H_PIVOT = 0.025, 0.0505, 0.113
-
-
-@pytest.fixture(scope='module')
-def context():
-    context = Context()
-    rclpy.init(context=context)
-    yield context
-    rclpy.shutdown(context=context)
-
-
-class Harness:
-    """A shaper_sim node and a probe node (subscribers, clients) on a background executor."""
-
-    def __init__(self, context, spin_shaper=True, **overrides):
-        self.shaper = ShaperSimNode(context=context, parameter_overrides=[
-            Parameter(name, value=value) for name, value in overrides.items()])
-        self.probe = Node('probe', context=context)
-        self.joint_states, self.diagnostics = [], []
-        self.probe.create_subscription(JointState, 'joint_states', self.joint_states.append,
-                                       1000)
-        self.probe.create_subscription(DiagnosticArray, '/diagnostics',
-                                       self.diagnostics.append, 1000)
-        self.spinner = BackgroundSpinner(context, self.probe,
-                                         *([self.shaper] if spin_shaper else []))
-
-    def wait_for(self, predicate, timeout=10.0, what='condition'):
-        wait_for(predicate, timeout, what)
-
-    def call(self, service_type, name, request):
-        client = self.probe.create_client(service_type, name)
-        response = call(client, request)
-        self.probe.destroy_client(client)
-        return response
-
-    def close(self):
-        self.spinner.stop()
-        self.shaper.destroy_node()
-        self.probe.destroy_node()
-
-
-@pytest.fixture
-def harness(context):
-    made = []
-
-    def make(**kwargs):
-        made.append(Harness(context, **kwargs))
-        return made[-1]
-    yield make
-    for item in made:
-        item.close()
 
 
 def all_finite(message):
@@ -249,25 +198,6 @@ def test_bad_start_up_values_are_refused_with_a_reason(context):
 
 
 # Publishing and diagnostics ---------------------------------------------------------------
-
-def run_ticks(node, start_ns, seconds, rate=100.0, jitter_ns=1_000_000, seed=7):
-    """Publish at about `rate` with deterministic jitter (as a loaded timer would)."""
-    stamps, now, period = [], start_ns, int(NS / rate)
-    for i in range(int(seconds * rate)):
-        now += period + (i * 7919 + seed) % (2 * jitter_ns + 1) - jitter_ns
-        assert node.publish_at(now)
-        stamps.append(now)
-    return stamps
-
-
-def pair_values(message):
-    status, = message.status
-    values = {}
-    for item in status.values:
-        values[item.key] = item.value if item.key.endswith('steady') else float(item.value)
-        assert item.key.endswith('steady') or math.isfinite(values[item.key])
-    return values
-
 
 # TR and SR from 100 Hz samples (100 per turn, stamps jittered by +-1 ms): reversals, mid
 # strokes and peaks are located between samples, and measured 2e-5 from the exact values;

@@ -68,6 +68,10 @@ def test_sampled_mechanism_at_100_hz_matches_closed_form(offset, input_speed):
     np.testing.assert_allclose(pairs.peak_return_speed, returning, rtol=tolerance)
     np.testing.assert_allclose(pairs.peak_speed_ratio,
                                kin.peak_speed_ratio(PAPER, offset, input_speed), rtol=tolerance)
+    # Mean cutting speed: the stroke (the ram's end positions are fixed by the lever's
+    # tangent positions, whatever the offset) over the exact cutting time.
+    np.testing.assert_allclose(pairs.mean_cutting_speed, PAPER.ram_stroke / cutting_time,
+                               rtol=tolerance)
 
 
 def test_error_shrinks_as_sampling_gets_denser():
