@@ -231,12 +231,18 @@ def plan_gearbox(geometry: kin.Geometry, min_cutting_speed: float, max_cutting_s
     offsets = offset_range(geometry, definition, max_offset, min_time_ratio)
     band_ratio = offsets.fastest_per_input_speed / offsets.slowest_per_input_speed
     range_ratio = v2 / v1
-    if band_ratio <= 1.0 + 1e-9 or math.log(range_ratio) / math.log(band_ratio) > MAX_STEPS:
+    allowed = f'the offsets allowed (|offset| <= {max_offset:g} m, TR >= {min_time_ratio:g})'
+    remedy = 'allow a larger max_offset or a lower min_time_ratio'
+    if band_ratio <= 1.0 + 1e-9:
         raise kin.KinematicsError(
-            f'the offsets allowed (|offset| <= {max_offset:g} m, TR >= {min_time_ratio:g}) '
-            f'change the {definition} cutting speed by a factor of only {band_ratio:.9g}: '
-            f'more than {MAX_STEPS} steps would be needed to reach every speed from {v1:g} '
-            f'to {v2:g} m/s; allow a larger max_offset or a lower min_time_ratio')
+            f'{allowed} leave one {definition} cutting speed per step (band ratio '
+            f'{band_ratio:.9g}), so no gearbox reaches every speed from {v1:g} to {v2:g} m/s '
+            f'exactly; {remedy}')
+    if math.log(range_ratio) / math.log(band_ratio) > MAX_STEPS:
+        raise kin.KinematicsError(
+            f'{allowed} change the {definition} cutting speed by a factor of only '
+            f'{band_ratio:.9g}: more than {MAX_STEPS} steps would be needed to reach every '
+            f'speed from {v1:g} to {v2:g} m/s; {remedy}')
     count = fewest_steps(range_ratio, band_ratio)
     progression = min(range_ratio ** (1.0 / count), band_ratio)
     edges = v1 * progression ** np.arange(count + 1)
