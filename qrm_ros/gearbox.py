@@ -50,6 +50,8 @@ DEFAULT_MIN_TIME_RATIO = 1.0
 MAX_STEPS = 100
 # Offsets sampled over the usable interval to bracket the band's ends before refining.
 _BAND_SAMPLES = 401
+# Relative rounding error tolerated where a band end meets the edge of the offsets' reach.
+_ROUNDING = 1e-12
 
 
 class OffsetRange(NamedTuple):
@@ -167,7 +169,8 @@ def offsets_for_unit_speeds(geometry: kin.Geometry, definition: str, offsets: Of
     low, high = offsets.slowest_per_input_speed, offsets.fastest_per_input_speed
     targets = np.asarray(unit_speeds, dtype=float)
     # Band ends computed from phi = q may stray past the range by a rounding error.
-    assert np.all(targets >= low * (1 - 1e-12)) and np.all(targets <= high * (1 + 1e-12))
+    assert np.all(targets >= low * (1 - 2 * _ROUNDING))
+    assert np.all(targets <= high * (1 + 2 * _ROUNDING))
     targets = np.clip(targets, low, high)
     bracket = sorted((offsets.offset_at_slowest, offsets.offset_at_fastest))
     result = elementwise.find_root(
@@ -178,11 +181,17 @@ def offsets_for_unit_speeds(geometry: kin.Geometry, definition: str, offsets: Of
 
 
 def fewest_steps(range_ratio: float, step_ratio: float) -> int:
-    """Smallest N with step_ratio^N >= range_ratio (both > 1): N bands cover the range."""
-    count = max(1, math.ceil(math.log(range_ratio) / math.log(step_ratio)))
-    while count > 1 and step_ratio ** (count - 1) >= range_ratio:
+    """
+    Smallest N with step_ratio^N >= range_ratio (both > 1): N bands cover the range.
+
+    A range that is an exact power of the step ratio may come out a rounding error above
+    it; it still counts as covered (_ROUNDING).
+    """
+    needed = range_ratio * (1.0 - _ROUNDING)
+    count = max(1, math.ceil(math.log(needed) / math.log(step_ratio)))
+    while count > 1 and step_ratio ** (count - 1) >= needed:
         count -= 1
-    while step_ratio ** count < range_ratio:
+    while step_ratio ** count < needed:
         count += 1
     return count
 
