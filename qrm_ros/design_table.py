@@ -94,7 +94,7 @@ def geometry_from_arguments(args):
 
 
 def format_gearbox_plan(plan):
-    """The plan as text: steps with the offset, then the conventional gearboxes."""
+    """Format the plan: steps with the offset, then the conventional gearboxes."""
     offsets = plan.offsets
     lines = [
         f'Gearbox for {plan.definition} cutting speeds {plan.min_cutting_speed:g} to '

@@ -120,7 +120,7 @@ def _positive(name, value, unit):
 
 def usable_offsets(geometry: kin.Geometry, max_offset: float,
                    min_time_ratio: float) -> Tuple[float, float]:
-    """The interval of offsets with |offset| <= max_offset and TR >= min_time_ratio."""
+    """Return the interval of offsets with |offset| <= max_offset and TR >= min_time_ratio."""
     ends = (-max_offset, max_offset)
     ratios = [kin.time_ratio(geometry, end) for end in ends]
     quick = [ratio >= min_time_ratio for ratio in ratios]
@@ -199,7 +199,7 @@ def fewest_steps(range_ratio: float, step_ratio: float) -> int:
 def conventional_gearbox(geometry: kin.Geometry, definition: str, min_cutting_speed: float,
                          max_cutting_speed: float,
                          progression_ratio: float) -> ConventionalGearbox:
-    """Steps V1 phi^k without offset: each wanted speed cut at most 1 - 1/phi slower."""
+    """Plan steps V1 phi^k without offset: each wanted speed cut at most 1 - 1/phi slower."""
     progression_ratio = _positive('progression_ratio', progression_ratio, '')
     if progression_ratio <= 1.0:
         raise kin.KinematicsError(
@@ -270,7 +270,7 @@ def plan_gearbox(geometry: kin.Geometry, min_cutting_speed: float, max_cutting_s
 
 
 def plan_as_dict(plan: GearboxPlan, geometry: kin.Geometry) -> dict:
-    """The plan as plain JSON types, SI units; keys documented in the README."""
+    """Return the plan as plain JSON types, SI units; keys documented in the README."""
     result = plan._asdict()
     result['geometry'] = {name: float(value) for name, value in geometry.as_dict().items()}
     result['offsets'] = plan.offsets._asdict()

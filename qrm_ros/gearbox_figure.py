@@ -36,7 +36,7 @@ SAWTOOTH_POINTS = 2000
 
 
 def conventional_for(plan, progression_ratio):
-    """The plan's conventional gearbox with this progression ratio."""
+    """Return the plan's conventional gearbox with this progression ratio."""
     for box in plan.conventional:
         if box.progression_ratio == progression_ratio:
             return box
@@ -90,7 +90,8 @@ def speed_ladder_figure(plan, progression_ratio=1.41):
              label=f'without offset, phi = {box.progression_ratio:g}')
     saw.axhline(1.0 - box.max_shortfall, color='C1', linewidth=0.8, linestyle=':')
     saw.set(xscale='log', xlabel=f'wanted {plan.definition} cutting speed [m/s]',
-            ylabel='obtained / wanted cutting speed [-]', ylim=(max(0.0, 0.9 - box.max_shortfall), 1.06),
+            ylabel='obtained / wanted cutting speed [-]',
+            ylim=(max(0.0, 0.9 - box.max_shortfall), 1.06),
             title='Sawtooth chart (bands shaded per step)')
     saw.legend(fontsize='small', loc='lower left')
     return figure
