@@ -131,7 +131,7 @@ def usable_offsets(geometry: kin.Geometry, max_offset: float,
     if all(quick):
         return ends
     # TR is monotone in the offset, so one end qualifies and the limit lies between.
-    limit = kin.offset_for_time_ratio(geometry, min_time_ratio)
+    limit = float(kin.offset_for_time_ratio(geometry, min_time_ratio))
     return (limit, max_offset) if quick[1] else (-max_offset, limit)
 
 
