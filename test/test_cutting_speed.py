@@ -161,3 +161,9 @@ def test_bad_input_speed_and_offset_are_refused():
         kin.mean_cutting_speed(PAPER, 0.0, 0.0)
     with pytest.raises(kin.KinematicsError, match='offset 0.03 m is out of range'):
         kin.mean_cutting_speed(PAPER, 0.03, 1.0)
+
+
+def test_the_readme_examples():
+    assert kin.mean_cutting_speed(PAPER, 0.0, 2 * math.pi) == pytest.approx(0.308625, abs=5e-7)
+    assert kin.offset_for_mean_cutting_speed(PAPER, 2 * math.pi, 0.3) == pytest.approx(
+        0.0016333, abs=5e-8)

@@ -197,11 +197,38 @@ def test_fewest_steps_matches_counting():
     assert gearbox.fewest_steps(2.0 ** 3, 2.0) == 3
 
 
-def test_paper_geometry_needs_fewer_steps_with_the_offset():
-    plan = gearbox.plan_gearbox(PAPER, 0.1, 0.5)
+@pytest.mark.parametrize('definition, max_offset, min_time_ratio, band_ratio, count', [
+    ('mean', None, 1.0, 1.8907, 3),
+    ('mean', None, 1.5, 1.5756, 4),
+    ('mean', None, 1.8367, 1.4601, 5),
+    ('mean', 0.01, 1.0, 1.4387, 5),
+    ('peak', None, 1.0, 3.0903, 2),
+])
+def test_the_readme_worked_case(definition, max_offset, min_time_ratio, band_ratio, count):
+    plan = gearbox.plan_gearbox(PAPER, 0.1, 0.5, definition, max_offset, min_time_ratio)
+    assert plan.band_ratio == pytest.approx(band_ratio, abs=5e-5)
+    assert len(plan.steps) == count
     by_ratio = {box.progression_ratio: box.step_count for box in plan.conventional}
-    assert len(plan.steps) == 3
     assert by_ratio == {1.12: 15, 1.26: 7, 1.41: 5, 1.58: 4, 2.0: 3}
+    shortfalls = [round(box.max_shortfall * 100, 1) for box in plan.conventional]
+    assert shortfalls == [10.7, 20.6, 29.1, 36.7, 50.0]
+
+
+def test_the_readme_costs_of_the_three_step_plan():
+    plan = gearbox.plan_gearbox(PAPER, 0.1, 0.5)
+    fast_end, slow_end = plan.steps[0].offset_at_max, plan.steps[0].offset_at_min
+    assert fast_end * 1e3 == pytest.approx(-10.43, abs=5e-3)
+    assert slow_end * 1e3 == pytest.approx(19.86, abs=5e-3)
+    assert kin.time_ratio(PAPER, fast_end) == pytest.approx(1.11, abs=5e-3)
+    assert plan.offsets.offset_min * 1e3 == pytest.approx(-12.49, abs=5e-3)
+    # Peak flywheel speed over input speed is r1 / (r1 - offset), at input angle -90 degrees.
+    ratio = PAPER.coupling_radius / (PAPER.coupling_radius - slow_end)
+    assert ratio == pytest.approx(4.86, abs=5e-3)
+    theta = np.linspace(-math.pi, math.pi, 20001)
+    assert np.max(kin.state(PAPER, slow_end, theta, 1.0).flywheel_speed) == pytest.approx(
+        ratio, rel=1e-6)
+    assert kin.mean_cutting_speed(PAPER, 0.0, 1.0) == pytest.approx(0.049119, abs=5e-7)
+    assert PAPER.ram_stroke * 1e3 == pytest.approx(199.83, abs=5e-3)
 
 
 @pytest.mark.parametrize('kwargs, words', [
