@@ -21,9 +21,11 @@ closed form.
 
 from contextlib import redirect_stdout
 import io
+import json
 import math
 import re
 
+import numpy as np
 import pytest
 
 from qrm_ros import design_table
@@ -97,3 +99,145 @@ def test_usage_errors_exit_2_naming_the_argument(capsys):
         design_table.main(['--input-speed', 'fast'])
     assert stopped.value.code == 2
     assert '--input-speed' in capsys.readouterr().err
+
+
+def run_design(argv, capsys):
+    code = design_table.main(argv)
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+GEARBOX_ARGS = ['gearbox', '--min-cutting-speed', '0.1', '--max-cutting-speed', '0.5']
+
+
+def test_gearbox_json_holds_the_plan_in_si_units(capsys):
+    code, out, _ = run_design(GEARBOX_ARGS + ['--json'], capsys)
+    assert code == 0
+    data = json.loads(out)
+    geometry = kin.Geometry(**data['geometry'])
+    assert data['min_cutting_speed'] == 0.1 and data['max_cutting_speed'] == 0.5
+    assert data['definition'] == 'mean' and data['min_time_ratio'] == 1.0
+    assert data['max_offset'] == geometry.max_safe_offset
+    steps = data['steps']
+    assert [step['input_speed'] for step in steps] == sorted(s['input_speed'] for s in steps)
+    assert steps[0]['cutting_speed_min'] == 0.1 and steps[-1]['cutting_speed_max'] == 0.5
+    for lower, upper in zip(steps, steps[1:]):
+        assert lower['cutting_speed_max'] == upper['cutting_speed_min']
+    for step in steps:
+        at_ends = kin.mean_cutting_speed(geometry, [step['offset_at_min'], step['offset_at_max']],
+                                         step['input_speed'])
+        assert list(at_ends) == pytest.approx(
+            [step['cutting_speed_min'], step['cutting_speed_max']], rel=1e-11)
+    assert data['band_ratio'] == pytest.approx(
+        data['offsets']['fastest_per_input_speed'] / data['offsets']['slowest_per_input_speed'])
+    conventional = {box['progression_ratio']: box for box in data['conventional']}
+    assert sorted(conventional) == [1.12, 1.26, 1.41, 1.58, 2.0]
+    for ratio, box in conventional.items():
+        assert box['step_count'] == len(box['input_speeds']) == len(box['cutting_speeds'])
+        assert ratio ** box['step_count'] >= 5.0 > ratio ** (box['step_count'] - 1)
+        assert box['max_shortfall'] == pytest.approx(1 - 1 / ratio)
+        assert list(kin.mean_cutting_speed(geometry, 0.0, np.array(box['input_speeds']))) == \
+            pytest.approx(box['cutting_speeds'], rel=1e-12)
+
+
+def test_gearbox_table_prints_the_json_numbers(capsys):
+    _, out, _ = run_design(GEARBOX_ARGS + ['--definition', 'peak', '--json'], capsys)
+    data = json.loads(out)
+    code, text, _ = run_design(GEARBOX_ARGS + ['--definition', 'peak'], capsys)
+    assert code == 0
+    rows = [line.split() for line in text.splitlines()
+            if re.fullmatch(r'\s+\d+ +\d+\.\d{5} .*', line)]
+    assert len(rows) == len(data['steps'])
+    for row, step in zip(rows, data['steps']):
+        number, speed, rpm, v_min, v_max, d_min, d_max = (float(f) for f in row)
+        assert speed == pytest.approx(step['input_speed'], abs=6e-6)
+        assert rpm == pytest.approx(step['input_speed'] * 30 / math.pi, abs=6e-4)
+        assert v_min == pytest.approx(step['cutting_speed_min'], abs=6e-7)
+        assert v_max == pytest.approx(step['cutting_speed_max'], abs=6e-7)
+        assert d_min == pytest.approx(step['offset_at_min'] * 1e3, abs=6e-7)
+        assert d_max == pytest.approx(step['offset_at_max'] * 1e3, abs=6e-7)
+    counts = dict(re.findall(r'^\s+(\d+(?:\.\d+)?)\s+\d+\.\d %\s+(\d+)$', text, re.M))
+    assert {float(k): int(v) for k, v in counts.items()} == {
+        box['progression_ratio']: box['step_count'] for box in data['conventional']}
+    assert f'with the offset: {len(data["steps"])} steps' in text
+
+
+def test_gearbox_takes_geometry_and_limits(capsys):
+    code, out, _ = run_design(GEARBOX_ARGS + ['--json', '--crank-radius', '0.04',
+                                              '--max-offset', '0.01', '--min-time-ratio', '1.3'],
+                              capsys)
+    assert code == 0
+    data = json.loads(out)
+    assert data['geometry']['crank_radius'] == 0.04
+    assert data['max_offset'] == 0.01 and data['min_time_ratio'] == 1.3
+    geometry = kin.Geometry(**data['geometry'])
+    for step in data['steps']:
+        offsets = np.array([step['offset_at_min'], step['offset_at_max']])
+        assert np.all(np.abs(offsets) <= 0.01)
+        assert np.all(kin.time_ratio(geometry, offsets) >= 1.3 * (1 - 1e-12))
+
+
+@pytest.mark.parametrize('extra, words', [
+    (['--min-cutting-speed', '0.6'], 'min_cutting_speed (0.6 m/s) must be below'),
+    (['--min-cutting-speed', '-1'], 'min_cutting_speed must be one number > 0 m/s'),
+    (['--max-offset', '0'], 'leave one mean cutting speed per step'),
+    (['--min-time-ratio', '30'], 'min_time_ratio 30 is out of reach'),
+    (['--crank-radius', '0.2'], 'crank_radius'),
+    (['--figure', '/nonexistent-folder/ladder.png'], '/nonexistent-folder/ladder.png'),
+])
+def test_gearbox_bad_requests_exit_2_with_reasons(capsys, extra, words):
+    code, out, err = run_design(GEARBOX_ARGS + extra, capsys)
+    assert code == 2 and out == ''
+    assert err.startswith('qrm_design gearbox: ') and words in err
+
+
+def test_gearbox_usage_errors_exit_2(capsys):
+    for argv in (['gearbox'], GEARBOX_ARGS + ['--definition', 'median'],
+                 GEARBOX_ARGS + ['--progression-ratio', '1.3']):
+        with pytest.raises(SystemExit) as stopped:
+            design_table.main(argv)
+        assert stopped.value.code == 2
+    assert '--progression-ratio' in capsys.readouterr().err
+
+
+def test_subcommands_are_listed_in_the_table_help(capsys):
+    with pytest.raises(SystemExit):
+        design_table.main(['--help'])
+    assert 'qrm_design gearbox --help' in capsys.readouterr().out
+    assert set(design_table.SUBCOMMANDS) >= {'gearbox'}
+
+
+def test_gearbox_figure_draws_the_plan(tmp_path, capsys):
+    path = tmp_path / 'ladder.png'
+    code, out, _ = run_design(GEARBOX_ARGS + ['--json', '--figure', str(path)], capsys)
+    assert code == 0
+    assert path.stat().st_size > 20000
+    assert [p.name for p in tmp_path.iterdir()] == ['ladder.png']  # no temporary left
+    from qrm_ros import gearbox, gearbox_figure
+    from qrm_ros.figures import plt
+    data = json.loads(out)
+    plan = gearbox.plan_gearbox(kin.Geometry.paper(), 0.1, 0.5)
+    figure = gearbox_figure.speed_ladder_figure(plan, 1.41)
+    try:
+        rays, saw = figure.axes
+        bands = [line for line in rays.lines if line.get_gid() == gearbox_figure.BAND]
+        assert [(line.get_xdata()[0], *line.get_ydata()) for line in bands] == [
+            (s['input_speed'], s['cutting_speed_min'], s['cutting_speed_max'])
+            for s in data['steps']]
+        shaded = [patch for patch in saw.patches if patch.get_gid() == gearbox_figure.BAND]
+        spans = [(p.get_x(), p.get_x() + p.get_width()) for p in shaded]
+        np.testing.assert_allclose(spans, [(s['cutting_speed_min'], s['cutting_speed_max'])
+                                           for s in data['steps']], rtol=1e-12)
+        box = next(b for b in data['conventional'] if b['progression_ratio'] == 1.41)
+        points = next(line for line in rays.lines
+                      if line.get_gid() == gearbox_figure.CONVENTIONAL)
+        assert list(points.get_xdata()) == box['input_speeds']
+        assert list(points.get_ydata()) == box['cutting_speeds']
+        sawtooth = next(line for line in saw.lines if line.get_gid() == gearbox_figure.SAWTOOTH)
+        wanted, obtained = sawtooth.get_xdata(), sawtooth.get_ydata() * sawtooth.get_xdata()
+        # Each wanted speed is cut at the fastest conventional step not above it.
+        for v, got in zip(wanted[::97], obtained[::97]):
+            assert got == max(c for c in box['cutting_speeds'] if c <= v * (1 + 1e-12))
+        assert np.min(sawtooth.get_ydata()) >= 1 - box['max_shortfall'] - 1e-12
+    finally:
+        plt.close(figure)

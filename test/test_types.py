@@ -20,7 +20,7 @@ import sys
 import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-TYPED_MODULES = ['kinematics', 'stepping', 'strokes', 'stroke_monitor', 'analysis']
+TYPED_MODULES = ['kinematics', 'stepping', 'strokes', 'stroke_monitor', 'analysis', 'gearbox']
 
 
 def test_mypy_finds_no_type_errors_in_the_public_api():
