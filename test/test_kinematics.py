@@ -24,6 +24,7 @@ import math
 import numpy as np
 import pytest
 from scipy import optimize
+from scipy.optimize import elementwise
 
 from qrm_ros import kinematics as kin
 
@@ -250,6 +251,113 @@ def test_peak_speeds_are_found_exactly_not_on_a_grid():
     best = optimize.minimize_scalar(negative_speed, bounds=(0.5, 3.5), method='bounded',
                                     options={'xatol': 1e-12})
     assert cutting == pytest.approx(-best.fun, rel=1e-13)
+
+
+def _peak_ram_speeds_bracketing(geometry, offset, input_speed=1.0, samples=48):
+    """
+    The previous peak-speed method, kept as a reference (scalars only).
+
+    Extrema bracketed on a grid of flywheel angles, then located where the ram acceleration
+    crosses zero with scipy's vectorised Chandrupatla root finder, all through kin.state.
+    """
+    start, end = kin.reversal_flywheel_angles(geometry)
+    fraction = np.linspace(0.0, 1.0, samples + 1)[1:-1]
+
+    def growth(flywheel_angle):
+        theta = kin.input_angle_for_flywheel_angle(geometry, offset, flywheel_angle)
+        sampled = kin.state(geometry, offset, theta, 1.0)
+        return sampled.ram_velocity * sampled.ram_acceleration, np.abs(sampled.ram_velocity)
+
+    peaks = []
+    for arc_start, arc_end in ((start, end), (end, start + 2 * math.pi)):
+        grid = arc_start + (arc_end - arc_start) * fraction
+        rising, speed = growth(grid)
+        best = speed.max()
+        cols = np.nonzero((rising[:-1] > 0.0) & (rising[1:] <= 0.0))[0]
+        if cols.size:
+            found = elementwise.find_root(
+                lambda angle: growth(angle)[0], (grid[cols], grid[cols + 1]),
+                tolerances={'xatol': 1e-15, 'xrtol': 4 * np.finfo(float).eps})
+            best = max(best, growth(found.x)[1].max())
+        peaks.append(best * abs(input_speed))
+    return tuple(peaks) if input_speed > 0 else tuple(reversed(peaks))
+
+
+def refined_dense_peak_speeds(geometry, offset, input_speed=1.0, samples=200_001):
+    """
+    Peaks of |ram velocity| from dense input-angle samples, each near-best one refined.
+
+    Every sample interval near the best where the ram acceleration changes sign the way a
+    speed maximum does is solved with Brent's method on kin.state's acceleration.
+    """
+    theta = np.linspace(0.0, 2 * math.pi, samples)
+    sampled = kin.state(geometry, offset, theta, 1.0)
+    peaks = []
+    for sign in (-1.0, 1.0):  # forward running: the cut moves toward -x
+        speed, rising = sign * sampled.ram_velocity, sign * sampled.ram_acceleration
+        best = speed.max()
+        near = speed > best * (1.0 - 1e-2)
+        cols = np.nonzero((near[:-1] | near[1:]) & (rising[:-1] > 0.0) & (rising[1:] <= 0.0))[0]
+
+        def acceleration(angle):
+            return sign * kin.state(geometry, offset, angle, 1.0).ram_acceleration
+
+        for col in cols:
+            angle = theta[col + 1]
+            if acceleration(angle) != 0.0:
+                angle = optimize.brentq(acceleration, theta[col], angle, xtol=1e-16,
+                                        rtol=4 * np.finfo(float).eps)
+            best = max(best, sign * kin.state(geometry, offset, angle, 1.0).ram_velocity)
+        peaks.append(best * abs(input_speed))
+    return tuple(peaks) if input_speed > 0 else tuple(reversed(peaks))
+
+
+def random_designs(count, seed):
+    """Geometries and offsets over the design space, with the edge cases mixed in."""
+    rng = np.random.default_rng(seed)
+    coupling_radius = rng.uniform(0.01, 0.05, count)
+    pivot_distance = rng.uniform(0.05, 0.3, count)
+    crank_radius = rng.uniform(0.03, 0.97, count) * pivot_distance
+    ram_height = rng.uniform(0.05, 0.5, count)
+    phase = np.where(np.arange(count) % 4 == 0, 0.0, rng.uniform(-math.pi, math.pi, count))
+    edges = np.array([0.0, 0.9, -0.9, 0.99, -0.99, 0.999, -0.999])
+    fraction = np.where(np.arange(count) % 3 == 0, edges[np.arange(count) % len(edges)],
+                        rng.uniform(-0.9, 0.9, count))
+    geometry = kin.Geometry(coupling_radius, crank_radius, pivot_distance, ram_height, phase)
+    return geometry, fraction * coupling_radius
+
+
+def one_design(geometry, offset, index):
+    fields = {name: float(np.asarray(value)[index]) for name, value in geometry.as_dict().items()}
+    return kin.Geometry(**fields), float(offset[index])
+
+
+@pytest.mark.parametrize('seed', [1, 2])
+def test_peak_speeds_match_refined_dense_sampling_over_random_designs(seed):
+    """Vectorised peaks against the old bracketing method and dense sampling, each design."""
+    geometry, offsets = random_designs(40, seed)
+    input_speed = np.where(np.arange(40) % 2 == 0, 3.0, -3.0)
+    cutting, returning = kin.peak_ram_speeds(geometry, offsets, input_speed)
+    assert cutting.shape == returning.shape == (40,)
+    for index in range(40):
+        single, offset = one_design(geometry, offsets, index)
+        expected = refined_dense_peak_speeds(single, offset, input_speed[index])
+        np.testing.assert_allclose((cutting[index], returning[index]), expected, rtol=1e-12,
+                                   err_msg=f'design {index}: {single}, offset {offset}')
+        np.testing.assert_allclose(kin.peak_ram_speeds(single, offset, input_speed[index]),
+                                   (cutting[index], returning[index]), rtol=1e-14)
+
+
+@pytest.mark.parametrize('seed', [3])
+def test_peak_speeds_match_the_bracketing_method_within_the_safe_offset(seed):
+    geometry, offsets = random_designs(60, seed)
+    offsets = np.clip(offsets, -geometry.max_safe_offset, geometry.max_safe_offset)
+    cutting, returning = kin.peak_ram_speeds(geometry, offsets, 2.0)
+    for index in range(60):
+        single, offset = one_design(geometry, offsets, index)
+        expected = _peak_ram_speeds_bracketing(single, offset, 2.0)
+        np.testing.assert_allclose((cutting[index], returning[index]), expected, rtol=1e-12,
+                                   err_msg=f'design {index}: {single}, offset {offset}')
 
 
 @pytest.mark.parametrize('target', [0.26, 0.3, 0.388, 0.6, 1.5])
