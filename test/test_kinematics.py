@@ -332,6 +332,60 @@ def one_design(geometry, offset, index):
     return kin.Geometry(**fields), float(offset[index])
 
 
+def lever_only_peak_cutting_speed(geometry):
+    """
+    Without offset the flywheel turns at the input speed and v = dx/dphi_c.
+
+    For r/h > 1/2 the cut's speed peaks twice, where sin(phi_c) = (h^2 - 2 r^2) / (h r)
+    (dv/dphi_c = 0 off mid-stroke), with a minimum, H r / (h + r), at mid-stroke between.
+    """
+    r, h, height = geometry.crank_radius, geometry.pivot_distance, geometry.ram_height
+    sin_peak = (h * h - 2 * r * r) / (h * r)
+    return height * r * (h * sin_peak + r) / (h + r * sin_peak) ** 2, height * r / (h + r)
+
+
+TWO_PEAKED = kin.Geometry(0.025, 0.07, 0.113)
+
+
+@pytest.mark.parametrize('start', [0.5 * math.pi, 0.72, 0.9],
+                         ids=['on-the-minimum', 'step-leaves-bracket', 'convex'])
+def test_newton_safeguard_finds_the_peak_not_the_minimum_between(start):
+    """
+    A bracket holding two peaks and the minimum between, from starts where plain Newton fails.
+
+    On the mid-stroke minimum dv/dphi_c is zero, so a plain Newton step stays there; from
+    0.72 rad its step leaves the bracket; from 0.9 rad (|v| convex) it heads for the minimum.
+    The safeguard bisects instead, and every start ends on a peak.
+    """
+    peak, minimum = lever_only_peak_cutting_speed(TWO_PEAKED)
+    assert minimum < peak * (1 - 1e-2)
+    _, problem = kin._peak_problem(TWO_PEAKED, 0.0)
+    speed = kin._newton_peaks(problem, -1.0, np.array([start]), np.array([0.2]),
+                              np.array([math.pi - 0.2]))
+    assert abs(speed[0]) == pytest.approx(peak, rel=1e-14)
+    cutting, _ = kin.peak_ram_speeds(TWO_PEAKED, 0.0)
+    assert cutting == pytest.approx(peak, rel=1e-14)
+
+
+@pytest.mark.parametrize('crank_ratio, offset_ratio, phase', [
+    (0.14206573443226594, 0.8242592522333362, 2.358138615954723),
+    (0.10835303135629527, 0.7495935937551267, 0.5028187362287926),
+    (0.5088495575221239, 0.0, 2.56),  # r/h just above 1/2: twin peaks around a minimum
+])
+def test_peaks_that_fewer_samples_missed(crank_ratio, offset_ratio, phase):
+    """
+    Designs where a peak was once missed.
+
+    The first two with 16 and 8 samples per stroke (two close peaks in one sample interval),
+    the last before Newton's steps were limited to where |v| is concave (it settled on the
+    minimum between the twin peaks, 1e-5 low).
+    """
+    geometry = kin.Geometry(0.025, crank_ratio * 0.113, 0.113, 0.2, phase)
+    np.testing.assert_allclose(kin.peak_ram_speeds(geometry, offset_ratio * 0.025),
+                               refined_dense_peak_speeds(geometry, offset_ratio * 0.025),
+                               rtol=1e-12)
+
+
 @pytest.mark.parametrize('seed', [1, 2])
 def test_peak_speeds_match_refined_dense_sampling_over_random_designs(seed):
     """Vectorised peaks against the old bracketing method and dense sampling, each design."""
