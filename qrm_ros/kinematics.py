@@ -30,6 +30,7 @@ from typing import Any, NamedTuple, Optional, Tuple, Union
 
 import numpy as np
 from scipy import optimize
+from scipy.optimize import elementwise
 
 __all__ = [
     'Geometry', 'KinematicsError', 'MechanismState', 'SAFE_OFFSET_FRACTION',
@@ -515,6 +516,52 @@ def _newton_peaks(problem, stroke_sign, angle, low, high):
     else:
         result[active] = angle
     return _ram_speed_terms(result, everything, 0)
+
+
+def _peak_speeds_bracketing(geometry, offset, samples=48):
+    """
+    The previous method, kept as the reference for tests and the benchmark's baseline.
+
+    Forward (cutting, return) peaks per unit input speed: extrema bracketed on a grid of
+    flywheel angles, each solved where the ram acceleration crosses zero by scipy's
+    vectorised Chandrupatla root finder, every evaluation through state().
+    """
+    offset = np.asarray(check_offset(geometry, offset), dtype=float)
+    shape = np.broadcast_shapes(offset.shape, *(np.shape(v) for v in geometry.as_dict().values()))
+    fields = [np.broadcast_to(np.asarray(v, dtype=float), shape).reshape(-1)
+              for v in [offset] + list(geometry.as_dict().values())]
+    start, end = reversal_flywheel_angles(Geometry(*fields[1:]))
+    fraction = np.linspace(0.0, 1.0, samples + 1)[1:-1]
+    peaks = []
+    for arc_start, arc_end in ((start, end), (end, start + TWO_PI)):
+        grid = arc_start[:, None] + (arc_end - arc_start)[:, None] * fraction[None, :]
+        args = [f[:, None] for f in fields]
+        sampled = _state_on_arc(grid, *args)
+        best = np.abs(sampled.ram_velocity).max(axis=1)
+        # d|v|/dt changes sign from + to - at a speed maximum: v * a goes + -> -.
+        growth = sampled.ram_velocity * sampled.ram_acceleration
+        rows, cols = np.nonzero((growth[:, :-1] > 0.0) & (growth[:, 1:] <= 0.0))
+        if rows.size:
+            row_args = [f[rows] for f in fields]
+            result = elementwise.find_root(
+                _bracketing_growth, (grid[rows, cols], grid[rows, cols + 1]),
+                args=tuple(row_args),
+                tolerances={'xatol': 1e-15, 'xrtol': 4 * np.finfo(float).eps})
+            at_root = np.abs(_state_on_arc(result.x, *row_args).ram_velocity)
+            np.maximum.at(best, rows, at_root)
+        peaks.append(best.reshape(shape))
+    return peaks[0], peaks[1]
+
+
+def _state_on_arc(flywheel_angle, offset, r1, r, h, height, phase):
+    geometry = Geometry(r1, r, h, height, phase)
+    theta = input_angle_for_flywheel_angle(geometry, offset, flywheel_angle)
+    return state(geometry, offset, theta, 1.0)
+
+
+def _bracketing_growth(flywheel_angle, *args):
+    sampled = _state_on_arc(flywheel_angle, *args)
+    return sampled.ram_velocity * sampled.ram_acceleration
 
 
 def peak_ram_speeds(geometry: 'Geometry', offset: ArrayLike,
