@@ -520,7 +520,7 @@ def _newton_peaks(problem, stroke_sign, angle, low, high):
 
 def _peak_speeds_bracketing(geometry, offset, samples=48):
     """
-    The previous method, kept as the reference for tests and the benchmark's baseline.
+    Run the previous method, kept as the reference of tests and the benchmark's baseline.
 
     Forward (cutting, return) peaks per unit input speed: extrema bracketed on a grid of
     flywheel angles, each solved where the ram acceleration crosses zero by scipy's
