@@ -414,6 +414,24 @@ def _ram_speed_terms(crank_angle, problem, order):
     return velocity, growth, slope3 * ratio + 2.0 * slope2 * ratio1 + slope1 * ratio2
 
 
+def _speed_rise(crank_angle, problem):
+    """
+    A multiple of d|v|/dphi_c, by a factor of the sign of h sin(phi_c) + r: cheap to sample.
+
+    log|v| = log|x'(phi_c)| + log w, and the sum of their slopes, brought over the common
+    denominator (h sin + r)(h + r sin) S^2 (S^2 = r1^2 - d^2 cos^2 phi > 0), leaves a
+    numerator with one square root and no division. w'/w = -d cos(phi) (S - d sin(phi)) / S^2.
+    """
+    r1, r, h, _, _, cos0, sin0, offset, _ = problem
+    sin_c, cos_c = np.sin(crank_angle), np.cos(crank_angle)
+    offset_cos = offset * (cos_c * cos0 + sin_c * sin0)
+    offset_sin = offset * (sin_c * cos0 - cos_c * sin0)
+    root2 = r1 * r1 - offset_cos * offset_cos
+    lever = (h * sin_c + r) * (h + r * sin_c)
+    return (cos_c * ((h * h - 2.0 * r * r) - h * r * sin_c) * root2
+            - offset_cos * (np.sqrt(root2) - offset_sin) * lever)
+
+
 def _peak_problem(geometry, offset):
     offset = np.asarray(check_offset(geometry, offset), dtype=float)
     values = [np.asarray(v, dtype=float) for v in geometry.as_dict().values()]
@@ -468,11 +486,11 @@ def _peak_speeds_block(problem):
         crossings = [np.clip(arc_start + np.mod(problem.phase + turn - arc_start, TWO_PI),
                              arc_start, arc_end) for turn in (0.0, math.pi)]
         angles = np.sort(np.column_stack([even] + crossings), axis=1)
-        velocity, growth = _ram_speed_terms(angles, problem.column(), 1)
-        growth *= stroke_sign
+        growth = _speed_rise(angles, problem.column())
+        growth *= -stroke_sign  # h sin(phi_c) + r is > 0 on the cut, < 0 on the return
         growth[:, 0] = np.maximum(growth[:, 0], 0.0)
         growth[:, -1] = np.minimum(growth[:, -1], 0.0)
-        best = np.max(np.abs(velocity), axis=1)
+        best = np.zeros(angles.shape[0])
         rows, cols = np.nonzero((growth[:, :-1] >= 0.0) & (growth[:, 1:] <= 0.0)
                                 & (growth[:, :-1] != growth[:, 1:]))
         low, high = angles[rows, cols], angles[rows, cols + 1]

@@ -355,6 +355,30 @@ def test_peaks_that_fewer_samples_missed(crank_ratio, offset_ratio, phase):
                                rtol=1e-12)
 
 
+def test_speed_rise_has_the_sign_of_the_speed_slope():
+    """The peak search's cheap sample test against central differences of |v| from state()."""
+    geometry, offsets = random_designs(200, 5)
+    rng = np.random.default_rng(6)
+    start, end = kin.reversal_flywheel_angles(geometry)
+    fraction = rng.uniform(0.01, 0.99, 200)
+    on_return = np.arange(200) % 2 == 1
+    flywheel_angle = np.where(on_return, end + fraction * (start + 2 * math.pi - end),
+                              start + fraction * (end - start))
+    step = 1e-6
+
+    def speed(angle):
+        theta = kin.input_angle_for_flywheel_angle(geometry, offsets, angle)
+        return np.abs(kin.state(geometry, offsets, theta, 1.0).ram_velocity)
+
+    slope = (speed(flywheel_angle + step) - speed(flywheel_angle - step)) / (2 * step)
+    _, problem = kin._peak_problem(geometry, offsets)
+    rise = kin._speed_rise(flywheel_angle + geometry.crank_phase, problem)
+    clear = np.abs(slope) > 1e-6 * speed(flywheel_angle)
+    assert np.count_nonzero(clear) > 150
+    np.testing.assert_array_equal(np.sign(rise[clear]) * np.where(on_return, -1, 1),
+                                  np.sign(slope[clear]))
+
+
 @pytest.mark.parametrize('seed', [1, 2])
 def test_peak_speeds_match_refined_dense_sampling_over_random_designs(seed):
     """Vectorised peaks against refined dense sampling, design by design, both directions."""
