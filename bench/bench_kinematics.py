@@ -28,13 +28,14 @@ disagreement of the TRs (closed form vs RK4) and of the peaks (new vs previous m
 Where the time goes (cProfile). Before, 10^4 configurations: 83 % in state() and
 input_angle_for_flywheel_angle() on the 2 x 47 samples per configuration (general code:
 arctan2, both stages, accelerations), 14 % in Chandrupatla's iterations (each another round
-of both). After, 9 x 10^4 configurations: 62 % evaluating the closed-form velocity and its
-crank-angle slope at the 24 + 12 samples (and two crossings) per stroke pair, 21 % bracket
-bookkeeping (column_stack, sort, nonzero, copies), 11 % the safeguarded Newton iterations
-(run only on bracketed peaks, about 1.5 per stroke), the rest set-up. The samples are the
-floor: fewer lose close peaks (see kinematics._PEAK_SAMPLES), and even a division-free sign
-test at each sample (measured at about 2x cheaper per sample) would leave the peaks below
-10^6 configurations/s in numpy.
+of both). After, 9 x 10^4 configurations: 51 % in the sign test at the 24 + 12 samples
+(and two crossings) per stroke pair (sin, cos, one square root, no division: a first
+version sampling the velocity and its slope spent 62 % there and ran at 0.6x of today),
+24 % bracket bookkeeping (column_stack, sort, nonzero, copies), 16 % the safeguarded
+Newton iterations (run only on bracketed peaks, about 1.5 per stroke), the rest set-up.
+The samples are the floor: fewer lose close peaks (see kinematics._PEAK_SAMPLES), and
+even at no cost for the rest 40 samples of sin, cos and a square root per configuration
+keep numpy below 10^6 configurations/s on this machine.
 """
 
 import argparse

@@ -48,7 +48,7 @@ SAFE_OFFSET_FRACTION = 0.9
 _SEARCH_FRACTION = 1.0 - 1e-9
 # Crank-angle samples inside the cutting and the return stroke that bracket their speed
 # peaks before Newton's method. The cut can hold up to four peaks and the return two, some
-# closer than 0.3 rad: against 48 and 32 samples, over 3 x 10^5 random designs (offsets up
+# closer than 0.3 rad: against 48 and 32 samples, over 4 x 10^5 random designs (offsets up
 # to 0.999 r1), 8 per stroke lost a peak in 3 of 10^5 (by up to 4.5e-4), 16 and 8 in 4 of
 # 2 x 10^5 (up to 1.5e-3, two of them with r/h = 0.97), 24 and 12 in none.
 _PEAK_SAMPLES = (24, 12)
