@@ -416,7 +416,7 @@ def _ram_speed_terms(crank_angle, problem, order):
 
 def _speed_rise(crank_angle, problem):
     """
-    A multiple of d|v|/dphi_c, by a factor of the sign of h sin(phi_c) + r: cheap to sample.
+    Return d|v|/dphi_c times a factor of the sign of h sin(phi_c) + r: cheap to sample.
 
     log|v| = log|x'(phi_c)| + log w, and the sum of their slopes, brought over the common
     denominator (h sin + r)(h + r sin) S^2 (S^2 = r1^2 - d^2 cos^2 phi > 0), leaves a
