@@ -252,6 +252,160 @@ def test_peak_speeds_are_found_exactly_not_on_a_grid():
     assert cutting == pytest.approx(-best.fun, rel=1e-13)
 
 
+def refined_dense_peak_speeds(geometry, offset, input_speed=1.0, samples=200_001):
+    """
+    Peaks of |ram velocity| from dense input-angle samples, each near-best one refined.
+
+    Every sample interval near the best where the ram acceleration changes sign the way a
+    speed maximum does is solved with Brent's method on kin.state's acceleration.
+    """
+    theta = np.linspace(0.0, 2 * math.pi, samples)
+    sampled = kin.state(geometry, offset, theta, 1.0)
+    peaks = []
+    for sign in (-1.0, 1.0):  # forward running: the cut moves toward -x
+        speed, rising = sign * sampled.ram_velocity, sign * sampled.ram_acceleration
+        best = speed.max()
+        near = speed > best * (1.0 - 1e-2)
+        cols = np.nonzero((near[:-1] | near[1:]) & (rising[:-1] > 0.0) & (rising[1:] <= 0.0))[0]
+
+        def acceleration(angle):
+            return sign * kin.state(geometry, offset, angle, 1.0).ram_acceleration
+
+        for col in cols:
+            angle = theta[col + 1]
+            if acceleration(angle) != 0.0:
+                angle = optimize.brentq(acceleration, theta[col], angle, xtol=1e-16,
+                                        rtol=4 * np.finfo(float).eps)
+            best = max(best, sign * kin.state(geometry, offset, angle, 1.0).ram_velocity)
+        peaks.append(best * abs(input_speed))
+    return tuple(peaks) if input_speed > 0 else tuple(reversed(peaks))
+
+
+def random_designs(count, seed):
+    """Geometries and offsets over the design space, with the edge cases mixed in."""
+    rng = np.random.default_rng(seed)
+    coupling_radius = rng.uniform(0.01, 0.05, count)
+    pivot_distance = rng.uniform(0.05, 0.3, count)
+    crank_radius = rng.uniform(0.03, 0.97, count) * pivot_distance
+    ram_height = rng.uniform(0.05, 0.5, count)
+    phase = np.where(np.arange(count) % 4 == 0, 0.0, rng.uniform(-math.pi, math.pi, count))
+    edges = np.array([0.0, 0.9, -0.9, 0.99, -0.99, 0.999, -0.999])
+    fraction = np.where(np.arange(count) % 3 == 0, edges[np.arange(count) % len(edges)],
+                        rng.uniform(-0.9, 0.9, count))
+    geometry = kin.Geometry(coupling_radius, crank_radius, pivot_distance, ram_height, phase)
+    return geometry, fraction * coupling_radius
+
+
+def one_design(geometry, offset, index):
+    fields = {name: float(np.asarray(value)[index]) for name, value in geometry.as_dict().items()}
+    return kin.Geometry(**fields), float(offset[index])
+
+
+def lever_only_peak_cutting_speed(geometry):
+    """
+    Without offset the flywheel turns at the input speed and v = dx/dphi_c.
+
+    For r/h > 1/2 the cut's speed peaks twice, where sin(phi_c) = (h^2 - 2 r^2) / (h r)
+    (dv/dphi_c = 0 off mid-stroke), with a minimum, H r / (h + r), at mid-stroke between.
+    """
+    r, h, height = geometry.crank_radius, geometry.pivot_distance, geometry.ram_height
+    sin_peak = (h * h - 2 * r * r) / (h * r)
+    return height * r * (h * sin_peak + r) / (h + r * sin_peak) ** 2, height * r / (h + r)
+
+
+TWO_PEAKED = kin.Geometry(0.025, 0.07, 0.113)
+
+
+@pytest.mark.parametrize('start', [0.5 * math.pi, 0.72, 0.9],
+                         ids=['on-the-minimum', 'step-leaves-bracket', 'convex'])
+def test_newton_safeguard_finds_the_peak_not_the_minimum_between(start):
+    """
+    A bracket holding two peaks and the minimum between, from starts where plain Newton fails.
+
+    On the mid-stroke minimum dv/dphi_c is zero, so a plain Newton step stays there; from
+    0.72 rad its step leaves the bracket; from 0.9 rad (|v| convex) it heads for the minimum.
+    The safeguard bisects instead, and every start ends on a peak.
+    """
+    peak, minimum = lever_only_peak_cutting_speed(TWO_PEAKED)
+    assert minimum < peak * (1 - 1e-2)
+    _, problem = kin._peak_problem(TWO_PEAKED, 0.0)
+    speed = kin._newton_peaks(problem, -1.0, np.array([start]), np.array([0.2]),
+                              np.array([math.pi - 0.2]))
+    assert abs(speed[0]) == pytest.approx(peak, rel=1e-14)
+    cutting, _ = kin.peak_ram_speeds(TWO_PEAKED, 0.0)
+    assert cutting == pytest.approx(peak, rel=1e-14)
+
+
+@pytest.mark.parametrize('crank_ratio, offset_ratio, phase', [
+    (0.14206573443226594, 0.8242592522333362, 2.358138615954723),
+    (0.10835303135629527, 0.7495935937551267, 0.5028187362287926),
+    (0.5088495575221239, 0.0, 2.56),  # r/h just above 1/2: twin peaks around a minimum
+])
+def test_peaks_that_fewer_samples_missed(crank_ratio, offset_ratio, phase):
+    """
+    Designs where a peak was once missed.
+
+    The first two with 16 and 8 samples per stroke (two close peaks in one sample interval),
+    the last before Newton's steps were limited to where |v| is concave (it settled on the
+    minimum between the twin peaks, 1e-5 low).
+    """
+    geometry = kin.Geometry(0.025, crank_ratio * 0.113, 0.113, 0.2, phase)
+    np.testing.assert_allclose(kin.peak_ram_speeds(geometry, offset_ratio * 0.025),
+                               refined_dense_peak_speeds(geometry, offset_ratio * 0.025),
+                               rtol=1e-12)
+
+
+def test_speed_rise_has_the_sign_of_the_speed_slope():
+    """The peak search's cheap sample test against central differences of |v| from state()."""
+    geometry, offsets = random_designs(200, 5)
+    rng = np.random.default_rng(6)
+    start, end = kin.reversal_flywheel_angles(geometry)
+    fraction = rng.uniform(0.01, 0.99, 200)
+    on_return = np.arange(200) % 2 == 1
+    flywheel_angle = np.where(on_return, end + fraction * (start + 2 * math.pi - end),
+                              start + fraction * (end - start))
+    step = 1e-6
+
+    def speed(angle):
+        theta = kin.input_angle_for_flywheel_angle(geometry, offsets, angle)
+        return np.abs(kin.state(geometry, offsets, theta, 1.0).ram_velocity)
+
+    slope = (speed(flywheel_angle + step) - speed(flywheel_angle - step)) / (2 * step)
+    _, problem = kin._peak_problem(geometry, offsets)
+    rise = kin._speed_rise(flywheel_angle + geometry.crank_phase, problem)
+    clear = np.abs(slope) > 1e-6 * speed(flywheel_angle)
+    assert np.count_nonzero(clear) > 150
+    np.testing.assert_array_equal(np.sign(rise[clear]) * np.where(on_return, -1, 1),
+                                  np.sign(slope[clear]))
+
+
+@pytest.mark.parametrize('seed', [1, 2])
+def test_peak_speeds_match_refined_dense_sampling_over_random_designs(seed):
+    """Vectorised peaks against refined dense sampling, design by design, both directions."""
+    geometry, offsets = random_designs(40, seed)
+    input_speed = np.where(np.arange(40) % 2 == 0, 3.0, -3.0)
+    cutting, returning = kin.peak_ram_speeds(geometry, offsets, input_speed)
+    assert cutting.shape == returning.shape == (40,)
+    for index in range(40):
+        single, offset = one_design(geometry, offsets, index)
+        expected = refined_dense_peak_speeds(single, offset, input_speed[index])
+        np.testing.assert_allclose((cutting[index], returning[index]), expected, rtol=1e-12,
+                                   err_msg=f'design {index}: {single}, offset {offset}')
+        np.testing.assert_allclose(kin.peak_ram_speeds(single, offset, input_speed[index]),
+                                   (cutting[index], returning[index]), rtol=1e-14)
+
+
+@pytest.mark.parametrize('seed', [3, 4])
+def test_peak_speeds_match_the_bracketing_method_within_the_safe_offset(seed):
+    """The previous method (48 samples per stroke, Chandrupatla) as the reference."""
+    geometry, offsets = random_designs(400, seed)
+    offsets = np.clip(offsets, -geometry.max_safe_offset, geometry.max_safe_offset)
+    for input_speed, forward in ((2.0, slice(None)), (-2.0, slice(None, None, -1))):
+        expected = np.multiply(kin._peak_speeds_bracketing(geometry, offsets), 2.0)[forward]
+        np.testing.assert_allclose(kin.peak_ram_speeds(geometry, offsets, input_speed),
+                                   expected, rtol=1e-12)
+
+
 @pytest.mark.parametrize('target', [0.26, 0.3, 0.388, 0.6, 1.5])
 def test_offset_for_cutting_speed_round_trips(target):
     input_speed = 2 * math.pi
