@@ -1,0 +1,82 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+Drive-side figures and the motor drive against independent derivations.
+
+pair_efforts: the work per revolution against the loads' path work in closed form (the cut
+once over the workpiece, friction over twice the stroke; gravity and inertia give back what
+they take), the RMS and peaks against dense sampling with no splitting at the switches.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from qrm_ros import dynamics as dyn
+from qrm_ros import motor_drive as md
+from qrm_ros.kinematics import Geometry, KinematicsError, state
+
+GEOMETRY = Geometry.paper()
+MASS = dyn.MassProperties.small_shaper()
+LOADS = dyn.Loads.small_shaper()
+
+
+def _dense_torques(offset, input_speed, samples=400001):
+    """Input torque and offset force sampled over one revolution, loads from each sample."""
+    period = 2 * math.pi / abs(input_speed)
+    times = np.linspace(0.0, period, samples)
+    motion = state(GEOMETRY, offset, input_speed * times, input_speed)
+    load = dyn.ram_load_force(LOADS, motion.ram_position, motion.ram_velocity,
+                              GEOMETRY.ram_stroke)
+    result = dyn.efforts(GEOMETRY, MASS, offset, input_speed * times, input_speed,
+                         external_ram_force=load)
+    return times, result.input_torque, result.offset_force
+
+
+@pytest.mark.parametrize('offset, input_speed', [(0.0, 2 * math.pi), (0.015, 2 * math.pi),
+                                                 (-0.01, 3.0), (0.012, -4.0)])
+def test_pair_efforts_against_path_work_and_dense_sampling(offset, input_speed):
+    figures = md.pair_efforts(GEOMETRY, MASS, LOADS, offset, input_speed)
+    # Cutting only happens on the stroke toward -x, which is the cut for a positive speed and
+    # the return for a negative one: either way it crosses the workpiece once per pair.
+    path_work = (LOADS.cutting_force * LOADS.cutting_length
+                 + LOADS.ram_friction * 2 * GEOMETRY.ram_stroke)
+    assert figures.energy_per_pair == pytest.approx(path_work, rel=1e-10)
+    period = 2 * math.pi / abs(input_speed)
+    assert figures.mean_input_power == pytest.approx(path_work / period, rel=1e-10)
+    times, torque, force = _dense_torques(offset, input_speed)
+    dense_rms = math.sqrt(np.trapezoid(torque ** 2, times) / period)
+    # The trapezoid straddles each load jump: an error of about half the jump in torque^2
+    # times one sample spacing per jump, ~1e-5 of the mean square here.
+    assert figures.rms_input_torque == pytest.approx(dense_rms, rel=2e-5)
+    assert figures.peak_input_torque >= np.max(np.abs(torque)) * (1 - 1e-12)
+    assert figures.peak_input_torque == pytest.approx(np.max(np.abs(torque)), rel=1e-6)
+    assert figures.peak_offset_force >= np.max(np.abs(force)) * (1 - 1e-12)
+    assert figures.peak_offset_force == pytest.approx(np.max(np.abs(force)), rel=1e-6)
+
+
+def test_pair_efforts_free_running_costs_nothing():
+    figures = md.pair_efforts(GEOMETRY, MASS, dyn.Loads.none(), 0.01, 5.0)
+    assert abs(figures.energy_per_pair) < 1e-9
+    assert figures.peak_input_torque > 0.0
+
+
+def test_pair_efforts_refuses_bad_input():
+    with pytest.raises(KinematicsError, match='input_speed'):
+        md.pair_efforts(GEOMETRY, MASS, LOADS, 0.0, 0.0)
+    with pytest.raises(KinematicsError, match='offset'):
+        md.pair_efforts(GEOMETRY, MASS, LOADS, 0.03, 1.0)
+    with pytest.raises(dyn.DynamicsError, match='cutting_length'):
+        md.pair_efforts(GEOMETRY, MASS, dyn.Loads(1.0, 1.0, 1.0), 0.0, 1.0)
