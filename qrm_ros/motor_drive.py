@@ -28,8 +28,9 @@ from scipy import integrate, optimize
 
 from qrm_ros import dynamics as dyn
 from qrm_ros.kinematics import check_offset, KinematicsError, state
+from qrm_ros.stepping import _finite, _positive, _ramp, wrap_angle
 
-__all__ = ['PairEfforts', 'pair_efforts']
+__all__ = ['MotorStepper', 'PairEfforts', 'Simulation', 'pair_efforts', 'simulate']
 
 # Samples per revolution when looking for switches and peaks (then refined exactly).
 _SEARCH_SAMPLES = 2048
@@ -126,3 +127,509 @@ def pair_efforts(geometry, mass, loads, offset, input_speed):
                        rms_input_torque=math.sqrt(square / period),
                        mean_input_power=energy / period, energy_per_pair=energy,
                        peak_offset_force=peak_force)
+
+
+# The integrator's tolerances (DOP853, 8th order): the state is (rad, rad/s).
+_RTOL = 1e-12
+_ATOL = 1e-12
+# Dense-output samples per step when looking for a switch inside it (a function that goes
+# out and back within one fifth of a step would be missed; steps are far shorter than the
+# load pieces).
+_ROOT_SAMPLES = 5
+_NANOSECONDS = 1e9
+# Why a segment of the integration ended (what changed at the restart).
+_DIRECTION, _WORK, _SATURATION, _SPIN = range(4)
+
+
+def _sign(value):
+    return int(value > 0.0) - int(value < 0.0)
+
+
+class MotorStepper:
+    """
+    The mechanism under a motor drive: the input speed is a state of the equation of motion.
+
+    Same interface and stamp rules as ``stepping.ShaperStepper`` (integer-ns stamps, commands
+    from the present stamp, time resets, wrapped angle). The speed command ramps at
+    input_acceleration_limit into the motor's speed reference; the offset moves toward its
+    command at offset_rate_limit as ShaperStepper moves it. A jump in the offset rate (a ramp
+    starting or ending) is an impulse on the offset only, so the input's generalised momentum
+    is kept across it and the input speed jumps.
+
+    Integration: scipy's DOP853, restarted at every switch of the right-hand side: stroke
+    reversal, tool entering or leaving the workpiece, motor reaching or leaving its torque
+    limit, input speed through zero, a ramp ending, any command. A switch inside a step is
+    found on the step's dense output with brentq, and the step is cut there. Outputs at
+    stamps come from dense output, so the trajectory does not depend on the stamps asked for.
+
+    Stall rule: when the input speed reaches zero, the load seen by each direction of motion
+    is the one that motion would meet (friction against it; the cutting force if the ram
+    would move toward -x inside the workpiece). The shaft moves forward if the motor's
+    torque at zero speed beats the forward load's torque, backward likewise, else it is held
+    at rest (angle and offset still). Held with a non-zero speed reference is a stall:
+    ``stalled`` is True and ``stall_reason`` says why. The rule is re-checked at every step
+    (loads, motor and commands may change), and the shaft resumes as soon as it allows.
+
+    motor=None runs the shaft free (no motor torque).
+    """
+
+    def __init__(self, geometry, mass, loads, motor, input_speed, offset,
+                 input_acceleration_limit, offset_rate_limit):
+        self._geometry = geometry
+        self._geometry_fields = dyn._geometry_fields(geometry)
+        self._acceleration_limit = _positive('input_acceleration_limit',
+                                             input_acceleration_limit, 'rad/s^2')
+        self._offset_rate_limit = _positive('offset_rate_limit', offset_rate_limit, 'm/s')
+        self._set_dynamics(mass, loads, motor)
+        self.time_resets = 0
+        self.reset(input_speed, offset)
+
+    # Commands -----------------------------------------------------------------------------
+
+    def _set_dynamics(self, mass, loads, motor):
+        self._mass = mass
+        self._mass_values = mass.scalars()
+        self._loads = loads.check_against(self._geometry.ram_stroke)
+        loads.scalars()
+        self._motor = motor
+        if motor is not None:
+            motor.scalars()
+
+    def _changed(self, change):
+        """Apply change at the present stamp: the state there starts a new segment."""
+        if self._stamp_ns is None:
+            change()
+            return
+        angle, speed = self._angle, self._speed
+        reference, offset = self._reference_at(self._time), self._offset_at(self._time)
+        change()
+        self._start(self._time, angle, speed, reference, offset, None)
+
+    def set_dynamics(self, mass=None, loads=None, motor=None):
+        """Change masses, loads or motor (None keeps each) from the present stamp."""
+        mass = self._mass if mass is None else mass
+        loads = self._loads if loads is None else loads
+        motor = self._motor if motor is None else motor
+        self._changed(lambda: self._set_dynamics(mass, loads, motor))
+
+    def set_speed_command(self, input_speed):
+        """Command the input speed (rad/s): the motor's reference ramps to it."""
+        command = _finite('input_speed', input_speed, 'rad/s')
+        self._changed(lambda: setattr(self, '_speed_command', command))
+
+    def set_offset_command(self, offset):
+        """Command the coupling offset (m, |offset| < coupling_radius); moved at the limit."""
+        command = float(check_offset(self._geometry, offset))
+        self._changed(lambda: setattr(self, '_offset_command', command))
+
+    def set_limits(self, input_acceleration_limit=None, offset_rate_limit=None):
+        """Change either limit (rad/s^2, m/s; > 0); None keeps the present value."""
+        acceleration = self._acceleration_limit
+        rate = self._offset_rate_limit
+        if input_acceleration_limit is not None:
+            acceleration = _positive('input_acceleration_limit', input_acceleration_limit,
+                                     'rad/s^2')
+        if offset_rate_limit is not None:
+            rate = _positive('offset_rate_limit', offset_rate_limit, 'm/s')
+
+        def change():
+            self._acceleration_limit, self._offset_rate_limit = acceleration, rate
+        self._changed(change)
+
+    def reset(self, input_speed, offset):
+        """Input angle to zero; speed, reference and offset set at once; new time base next."""
+        input_speed = _finite('input_speed', input_speed, 'rad/s')
+        offset = float(check_offset(self._geometry, offset))
+        self._speed_command = input_speed
+        self._offset_command = offset
+        self._angle, self._speed = 0.0, input_speed
+        self._segment_reference, self._segment_offset = input_speed, offset
+        self._offset_rate = 0.0
+        self._stamp_ns = None
+        self._time = 0.0
+        self._solver = None
+        self._spin = 0
+        self._stall_reason = None
+        self._load = 0.0
+        self._saturation = 0
+
+    def restore(self, stamp_ns, input_angle, input_speed, offset):
+        """Take a recorded state as the present one, at its stamp (to replay a logged run)."""
+        input_angle = _finite('input_angle', input_angle, 'rad')
+        self.reset(input_speed, offset)
+        self._angle = wrap_angle(input_angle)
+        self._new_base(int(stamp_ns))
+
+    def resync(self):
+        """Hold the state: the next step starts a new time base (used after a pause)."""
+        self._stamp_ns = None
+
+    # Segments -----------------------------------------------------------------------------
+
+    def _new_base(self, stamp_ns):
+        self._stamp_ns = self._base_ns = stamp_ns
+        self._time = 0.0
+        self._start(0.0, self._angle, self._speed, self._reference_at(None),
+                    self._offset_at(None), None)
+
+    def _reference_at(self, time):
+        """The motor's speed reference (rad/s) at time (s; None: the segment's start)."""
+        if time is None:
+            return self._segment_reference
+        return _ramp(self._segment_reference, self._speed_command, self._acceleration_limit,
+                     time - self._segment_start)[0]
+
+    def _offset_at(self, time):
+        if time is None or self._spin == 0:
+            return self._segment_offset  # held at rest
+        return _ramp(self._segment_offset, self._offset_command, self._offset_rate_limit,
+                     time - self._segment_start)[0]
+
+    def _chain(self, offset, angle, speed, offset_rate):
+        return dyn._chain(dyn._SCALAR_OPS, *self._geometry_fields, self._mass_values, offset,
+                          angle, speed, 0.0, offset_rate, 0.0, 0.0)
+
+    def _motor_torque(self, reference, speed, saturation):
+        if self._motor is None:
+            return 0.0
+        if saturation:
+            return saturation * self._motor.max_torque
+        return self._motor.speed_stiffness * (reference - speed)
+
+    def _loaded(self, direction, in_work):
+        loads = self._loads
+        cutting = loads.cutting_force if direction < 0 and in_work else 0.0
+        return cutting - loads.ram_friction * direction
+
+    def _acceleration(self, chain, torque, load):
+        bias = chain.efforts.input_torque - load * chain.ram_lever_arm
+        return (torque - bias) / chain.generalized_inertia
+
+    def _rhs(self, time, y):
+        reference = self._reference_at(time)
+        offset = _ramp(self._segment_offset, self._offset_command, self._offset_rate_limit,
+                       time - self._segment_start)[0]
+        chain = self._chain(offset, y[0], y[1], self._offset_rate)
+        torque = self._motor_torque(reference, y[1], self._saturation)
+        return [y[1], self._acceleration(chain, torque, self._load)]
+
+    def _switching(self, time, angle, speed):
+        """Values that stay > 0 while the segment's mode holds (one per switch kind)."""
+        chain = self._chain(self._offset_at(time), angle, speed, self._offset_rate)
+        values = [self._direction * chain.ram_velocity,
+                  (self._half_work - abs(chain.ram_position)) * (1 if self._in_work else -1)
+                  if self._loads.cutting_force > 0.0 else 1.0]
+        if self._motor is None:
+            values.append(1.0)
+        else:
+            demand = self._motor.speed_stiffness * (self._reference_at(time) - speed)
+            limit = self._motor.max_torque
+            values.append(limit - abs(demand) if self._saturation == 0
+                          else self._saturation * demand - limit)
+        values.append(self._spin * speed)
+        return values
+
+    def _breakpoint(self, time):
+        """Next time (s) a ramp ends after time, where the right-hand side has a kink."""
+        ends = [math.inf]
+        gap = self._speed_command - self._reference_at(time)
+        if gap:
+            ends.append(time + abs(gap) / self._acceleration_limit)
+        gap = self._offset_command - self._segment_offset
+        if gap:
+            ends.append(time + abs(gap) / self._offset_rate_limit)
+        return min(ends)
+
+    def _start(self, time, angle, speed, reference, offset, trigger):
+        """Start a segment at time with this state; choose its mode from the state."""
+        old_rate = self._offset_rate
+        gap = self._offset_command - offset
+        rate = math.copysign(self._offset_rate_limit, gap) if gap else 0.0
+        self._segment_start, self._segment_reference, self._segment_offset = (
+            time, reference, offset)
+        angle = wrap_angle(angle)
+        if rate != old_rate:
+            # An impulse on the offset alone keeps the input's generalised momentum.
+            chain = self._chain(offset, angle, speed, old_rate)
+            speed -= chain.offset_coupling_inertia * (rate - old_rate) / (
+                chain.generalized_inertia)
+        self._offset_rate = rate
+        chain = self._chain(offset, angle, speed, rate)
+        self._half_work = 0.5 * self._loads.cutting_length
+        if trigger == _SPIN:
+            speed = 0.0
+            chain = self._chain(offset, angle, speed, rate)
+        old_direction = getattr(self, '_direction', 1)
+        velocity = chain.ram_velocity
+        if trigger == _DIRECTION:
+            self._direction = -old_direction
+        else:
+            self._direction = _sign(velocity) or _sign(chain.ram_lever_arm * speed) or 1
+        if trigger == _WORK:
+            self._in_work = not self._in_work
+        else:
+            self._in_work = abs(chain.ram_position) <= self._half_work
+        self._stall_reason = None
+        self._spin = _sign(speed)
+        if self._spin == 0:
+            self._at_rest(chain, angle, reference, velocity)
+        if trigger == _SATURATION:
+            demand = self._motor.speed_stiffness * (reference - speed)
+            self._saturation = 0 if self._saturation else _sign(demand)
+        else:
+            self._saturation = self._saturation_of(reference, speed)
+        self._load = self._loaded(self._direction, self._in_work)
+        self._angle, self._speed = angle, speed
+        if self._spin == 0:
+            self._solver = None
+            self._piece = (time, math.inf, None)
+            return
+        self._solver = integrate.DOP853(self._rhs, time, [angle, speed],
+                                        self._breakpoint(time), rtol=_RTOL, atol=_ATOL)
+        self._piece = (time, time, None)
+
+    def _saturation_of(self, reference, speed):
+        if self._motor is None:
+            return 0
+        demand = self._motor.speed_stiffness * (reference - speed)
+        return _sign(demand) if abs(demand) >= self._motor.max_torque else 0
+
+    def _at_rest(self, chain, angle, reference, velocity):
+        """Input speed zero: pick the direction the torques allow, or hold (the stall rule)."""
+        torque = self._motor_torque(reference, 0.0, self._saturation_of(reference, 0.0))
+        accelerations = {}
+        for spin in (1, -1):
+            direction = _sign(velocity) or _sign(chain.ram_lever_arm * spin) or spin
+            load = self._loaded(direction, self._in_work)
+            accelerations[spin] = (self._acceleration(chain, torque, load), direction)
+        for spin in (1, -1):
+            acceleration, direction = accelerations[spin]
+            if acceleration * spin > 0.0:
+                self._spin, self._direction = spin, direction
+                return
+        self._spin = 0
+        if reference != 0.0 or self._speed_command != 0.0:
+            needed = chain.generalized_inertia * -accelerations[_sign(reference) or 1][0] + torque
+            self._stall_reason = (
+                f'stalled at input angle {angle:.6g} rad: the motor gives {torque:.6g} N*m at zero speed (max_torque '
+                f'{self._motor.max_torque if self._motor else 0.0:.6g} N*m), the load needs '
+                f'{needed:.6g} N*m to turn the input (cutting_force '
+                f'{self._loads.cutting_force:.6g} N, ram_friction '
+                f'{self._loads.ram_friction:.6g} N)')
+
+    def _extend(self):
+        """Cover the next stretch of time: one solver step, cut at a switch, or a restart."""
+        solver = self._solver
+        if solver.status == 'finished':
+            reference = self._reference_at(solver.t)
+            offset = self._offset_at(solver.t)
+            self._start(solver.t, float(solver.y[0]), float(solver.y[1]), reference, offset, None)
+            return
+        message = solver.step()
+        if solver.status == 'failed':
+            raise dyn.DynamicsError(f'the motor-drive integration failed: {message}')
+        start, end = solver.t_old, solver.t
+        dense = solver.dense_output()
+        switch = self._first_switch(dense, start, end)
+        if switch is None:
+            self._piece = (start, end, dense)
+            return
+        time, kind = switch
+        self._piece = (start, time, dense)
+        angle, speed = dense(time)
+        self._start(time, float(angle), float(speed), self._reference_at(time),
+                    self._offset_at(time), kind)
+
+    def _first_switch(self, dense, start, end):
+        times = np.linspace(start, end, _ROOT_SAMPLES + 1)
+        states = dense(times)
+        previous = self._switching(times[0], states[0, 0], states[1, 0])
+        for index in range(1, times.size):
+            values = self._switching(times[index], states[0, index], states[1, index])
+            found = []
+            for kind, (before, after) in enumerate(zip(previous, values)):
+                if before > 0.0 and after <= 0.0:
+                    if after == 0.0:
+                        found.append((float(times[index]), kind))
+                        continue
+
+                    def switching(time, kind=kind):
+                        angle, speed = dense(time)
+                        return self._switching(time, float(angle), float(speed))[kind]
+                    root = optimize.brentq(switching, times[index - 1], times[index],
+                                           xtol=1e-15, rtol=4 * np.finfo(float).eps)
+                    found.append((root, kind))
+            if found:
+                return min(found)
+            previous = values
+        return None
+
+    # Stepping -----------------------------------------------------------------------------
+
+    def integrate_to(self, stamp_ns):
+        """Advance the state to stamp_ns (int nanoseconds)."""
+        stamp_ns = int(stamp_ns)
+        previous = self._stamp_ns
+        if previous is None:
+            self._new_base(stamp_ns)
+            return
+        if stamp_ns == previous:
+            return
+        if stamp_ns < previous:
+            self.time_resets += 1
+            self._new_base(stamp_ns)
+            return
+        self._stamp_ns = stamp_ns
+        time = (stamp_ns - self._base_ns) / _NANOSECONDS
+        self._time = time
+        if self._spin == 0:
+            # At rest: the reference may have ramped; re-check the stall rule now.
+            self._start(time, self._angle, 0.0, self._reference_at(time),
+                        self._segment_offset, None)
+            return
+        while self._piece[1] < time:
+            self._extend()
+            if self._spin == 0 and self._piece[1] == math.inf:
+                break
+        start, end, dense = self._piece
+        if dense is None:
+            return  # resting, or the segment starts exactly here
+        angle, speed = dense(time)
+        self._angle, self._speed = wrap_angle(float(angle)), float(speed)
+
+    def mechanism_state(self):
+        """Return the kinematics core's exact state (MechanismState) at the present stamp."""
+        return state(self._geometry, self.offset, self._angle, self._speed,
+                     self.input_acceleration, self.offset_rate)
+
+    def advance_to(self, stamp_ns):
+        """Step to stamp_ns (int nanoseconds) and return the mechanism's state there."""
+        self.integrate_to(stamp_ns)
+        return self.mechanism_state()
+
+    def efforts(self):
+        """``dynamics.Efforts`` at the present stamp (the motor's torque drives the input)."""
+        return dyn.efforts(self._geometry, self._mass, self.offset, self._angle, self._speed,
+                           self.input_acceleration, self.offset_rate, 0.0, self._load)
+
+    # State --------------------------------------------------------------------------------
+
+    @property
+    def geometry(self):
+        return self._geometry
+
+    @property
+    def stamp_ns(self):
+        """Stamp of the last step (int ns), or None when the next step starts a time base."""
+        return self._stamp_ns
+
+    @property
+    def input_angle(self):
+        """Input shaft angle, rad, in [-pi, pi)."""
+        return self._angle
+
+    @property
+    def input_speed(self):
+        """Input shaft speed, rad/s."""
+        return self._speed
+
+    @property
+    def input_acceleration(self):
+        """Input shaft acceleration at the present stamp from the equation of motion, rad/s^2."""
+        if self._spin == 0:
+            return 0.0
+        return self._rhs(self._time, (self._angle, self._speed))[1]
+
+    @property
+    def motor_torque(self):
+        """Torque the motor applies to the input shaft now, N m."""
+        reference = self._reference_at(self._time)
+        return self._motor_torque(reference, self._speed,
+                                  self._saturation_of(reference, self._speed))
+
+    @property
+    def ram_load(self):
+        """F_ext on the ram in the present segment, N along +x."""
+        return self._load
+
+    @property
+    def stalled(self):
+        return self._stall_reason is not None
+
+    @property
+    def stall_reason(self):
+        """Why the shaft is held (str) while stalled, else None."""
+        return self._stall_reason
+
+    @property
+    def offset(self):
+        """Coupling offset in force, m."""
+        return self._offset_at(self._time)
+
+    @property
+    def offset_rate(self):
+        """Rate of the coupling offset from the present stamp on, m/s."""
+        return self._offset_rate if self._spin else 0.0
+
+    @property
+    def speed_reference(self):
+        """The motor's speed reference now (the speed command after its ramp), rad/s."""
+        return self._reference_at(self._time)
+
+    @property
+    def speed_command(self):
+        return self._speed_command
+
+    @property
+    def offset_command(self):
+        return self._offset_command
+
+    @property
+    def input_acceleration_limit(self):
+        return self._acceleration_limit
+
+    @property
+    def offset_rate_limit(self):
+        return self._offset_rate_limit
+
+
+class Simulation(NamedTuple):
+    """Sampled trajectory of ``simulate`` (s, rad unwrapped, rad/s, rad/s^2, N m, ...)."""
+
+    time: np.ndarray
+    input_angle: np.ndarray
+    input_speed: np.ndarray
+    input_acceleration: np.ndarray
+    motor_torque: np.ndarray
+    efforts: dyn.Efforts
+    stalled: np.ndarray
+
+
+def simulate(geometry, mass, loads, motor, offset, input_speed, duration, sample_rate,
+             initial_speed=None, input_acceleration_limit=1e6, offset_rate_limit=1.0):
+    """
+    Run a MotorStepper from rest angle 0 at initial_speed (default input_speed, rad/s) with
+    the motor's reference at input_speed, and sample it at sample_rate (Hz) for duration (s).
+
+    input_angle is unwrapped (it counts whole turns), for energy and work integrals.
+    """
+    duration = _positive('duration', duration, 's')
+    sample_rate = _positive('sample_rate', sample_rate, 'Hz')
+    input_speed = _finite('input_speed', input_speed, 'rad/s')
+    start_speed = input_speed if initial_speed is None else initial_speed
+    stepper = MotorStepper(geometry, mass, loads, motor, start_speed, offset,
+                           input_acceleration_limit, offset_rate_limit)
+    stepper.integrate_to(0)
+    stepper.set_speed_command(input_speed)
+    count = int(math.floor(duration * sample_rate + 1e-9)) + 1
+    stamps = np.round(np.arange(count) * (_NANOSECONDS / sample_rate)).astype(np.int64)
+    rows = []
+    for stamp in stamps:
+        stepper.integrate_to(int(stamp))
+        rows.append((stepper.input_angle, stepper.input_speed, stepper.input_acceleration,
+                     stepper.motor_torque, *stepper.efforts(), stepper.stalled))
+    table = np.array(rows, dtype=float)
+    return Simulation(time=stamps / _NANOSECONDS, input_angle=np.unwrap(table[:, 0]),
+                      input_speed=table[:, 1], input_acceleration=table[:, 2],
+                      motor_torque=table[:, 3], efforts=dyn.Efforts(*table[:, 4:9].T),
+                      stalled=table[:, 9].astype(bool))

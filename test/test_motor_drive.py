@@ -26,7 +26,8 @@ import pytest
 
 from qrm_ros import dynamics as dyn
 from qrm_ros import motor_drive as md
-from qrm_ros.kinematics import Geometry, KinematicsError, state
+from qrm_ros.kinematics import (Geometry, input_angle_for_flywheel_angle, KinematicsError,
+                                reversal_flywheel_angles, state)
 
 GEOMETRY = Geometry.paper()
 MASS = dyn.MassProperties.small_shaper()
@@ -80,3 +81,64 @@ def test_pair_efforts_refuses_bad_input():
         md.pair_efforts(GEOMETRY, MASS, LOADS, 0.03, 1.0)
     with pytest.raises(dyn.DynamicsError, match='cutting_length'):
         md.pair_efforts(GEOMETRY, MASS, dyn.Loads(1.0, 1.0, 1.0), 0.0, 1.0)
+
+
+# Motor drive -------------------------------------------------------------------------------
+
+def _energy(mass, offset, angle, speed):
+    """T + V from the kinematics core's velocities (dynamics.md's energies)."""
+    motion = state(GEOMETRY, offset, angle, speed)
+    return (0.5 * mass.input_inertia * speed ** 2
+            + 0.5 * mass.flywheel_inertia * motion.flywheel_speed ** 2
+            + 0.5 * mass.lever_inertia * motion.lever_speed ** 2
+            + 0.5 * mass.ram_mass * motion.ram_velocity ** 2
+            + mass.lever_mass * mass.gravity * mass.lever_com_distance
+            * np.cos(motion.lever_angle))
+
+
+def test_free_running_conserves_energy_over_100_revolutions():
+    offset = 0.015
+    run = md.simulate(GEOMETRY, MASS, dyn.Loads.none(), None, offset, 2 * math.pi, 110.0,
+                      20.0)
+    assert run.input_angle[-1] > 100 * 2 * math.pi
+    energy = _energy(MASS, offset, run.input_angle, run.input_speed)
+    assert np.max(np.abs(energy / energy[0] - 1.0)) <= 1e-9
+    assert np.all(np.isfinite(run.input_acceleration))
+
+
+def _path_dissipation(offset, start_angle, end_angle):
+    """Work of the loads against the ram's path from start_angle to end_angle (forward)."""
+    reversals = [float(input_angle_for_flywheel_angle(GEOMETRY, offset, angle))
+                 for angle in reversal_flywheel_angles(GEOMETRY)]
+    breaks = [start_angle, end_angle]
+    for reversal in reversals:
+        turn = math.ceil((start_angle - reversal) / (2 * math.pi))
+        angle = reversal + turn * 2 * math.pi
+        while angle < end_angle:
+            breaks.append(angle)
+            angle += 2 * math.pi
+    positions = state(GEOMETRY, offset, np.sort(breaks), 1.0).ram_position
+    half = 0.5 * LOADS.cutting_length
+    work = 0.0
+    for before, after in zip(positions[:-1], positions[1:]):
+        work += LOADS.ram_friction * abs(after - before)
+        if after < before:  # toward -x: cutting inside the workpiece
+            work += LOADS.cutting_force * max(0.0, min(before, half) - max(after, -half))
+    return work
+
+
+def test_work_in_equals_energy_change_plus_dissipation():
+    # A saturated motor gives a constant torque: its work is that torque times the angle.
+    offset, torque = -0.01, 60.0
+    motor = dyn.MotorDrive(speed_stiffness=100.0, max_torque=torque)
+    run = md.simulate(GEOMETRY, MASS, LOADS, motor, offset, 1e4, 3.0, 1000.0,
+                      initial_speed=2 * math.pi)
+    # The reference ramps from the initial speed for 10 ms: from the second sample on, the
+    # motor is at its limit.
+    assert np.all(run.motor_torque[1:] == torque)
+    run = run._replace(input_angle=run.input_angle[1:], input_speed=run.input_speed[1:])
+    energy = _energy(MASS, offset, run.input_angle, run.input_speed)
+    work_in = torque * (run.input_angle[-1] - run.input_angle[0])
+    dissipated = _path_dissipation(offset, run.input_angle[0], run.input_angle[-1])
+    assert work_in > 2 * dissipated > 0
+    assert energy[-1] - energy[0] + dissipated == pytest.approx(work_in, rel=1e-9)
