@@ -252,6 +252,7 @@ class MotorStepper:
         self._stall_reason = None
         self._load = 0.0
         self._saturation = 0
+        self._piece = (0.0, 0.0, None)
 
     def restore(self, stamp_ns, input_angle, input_speed, offset):
         """Take a recorded state as the present one, at its stamp (to replay a logged run)."""
@@ -269,6 +270,7 @@ class MotorStepper:
     def _new_base(self, stamp_ns):
         self._stamp_ns = self._base_ns = stamp_ns
         self._time = 0.0
+        self._piece = (0.0, 0.0, None)
         self._start(0.0, self._angle, self._speed, self._reference_at(None),
                     self._offset_at(None), None)
 
@@ -386,7 +388,9 @@ class MotorStepper:
             return
         self._solver = integrate.DOP853(self._rhs, time, [angle, speed],
                                         self._breakpoint(time), rtol=_RTOL, atol=_ATOL)
-        self._piece = (time, time, None)
+        # The last piece stays valid up to here (a stamp just before the switch), no further.
+        piece_start, _, dense = self._piece
+        self._piece = (piece_start, time, dense) if dense is not None else (time, time, None)
 
     def _saturation_of(self, reference, speed):
         if self._motor is None:

@@ -23,6 +23,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy import integrate
 
 from qrm_ros import dynamics as dyn
 from qrm_ros import motor_drive as md
@@ -142,3 +143,79 @@ def test_work_in_equals_energy_change_plus_dissipation():
     dissipated = _path_dissipation(offset, run.input_angle[0], run.input_angle[-1])
     assert work_in > 2 * dissipated > 0
     assert energy[-1] - energy[0] + dissipated == pytest.approx(work_in, rel=1e-9)
+
+
+def _reference_run(mass, loads, motor, offset, reference_speed, initial_speed, duration):
+    """solve_ivp (DOP853, events at the load and motor-limit switches) on dynamics' API."""
+    stroke = GEOMETRY.ram_stroke
+
+    def mode_at(angle, speed):
+        # The load and motor limit just after this state (positions nudged forward).
+        ahead = angle + 1e-7 * math.copysign(1.0, speed)
+        motion = state(GEOMETRY, offset, ahead, speed)
+        load = dyn.ram_load_force(loads, motion.ram_position, motion.ram_velocity, stroke)
+        demand = motor.speed_stiffness * (reference_speed - speed)
+        return load, float(np.clip(demand, -motor.max_torque, motor.max_torque))
+
+    def right_hand_side(load, saturated):
+        def rhs(time, y):
+            y = [float(value) for value in y]
+            bias = dyn.efforts(GEOMETRY, mass, offset, y[0], y[1],
+                               external_ram_force=load).input_torque
+            torque = saturated if saturated is not None else (
+                motor.speed_stiffness * (reference_speed - y[1]))
+            return [y[1], (torque - bias) / dyn.generalized_inertia(GEOMETRY, mass, offset,
+                                                                    y[0])]
+        return rhs
+
+    def velocity(time, y):
+        y = [float(value) for value in y]
+        return state(GEOMETRY, offset, y[0], y[1]).ram_velocity
+
+    def edge_high(time, y):
+        return state(GEOMETRY, offset, y[0], y[1]).ram_position - 0.5 * loads.cutting_length
+
+    def edge_low(time, y):
+        return state(GEOMETRY, offset, y[0], y[1]).ram_position + 0.5 * loads.cutting_length
+
+    def limit(time, y):
+        return abs(motor.speed_stiffness * (reference_speed - y[1])) - motor.max_torque
+
+    def event(function, sign):
+        def crossing(time, y):
+            return function(time, y)
+        crossing.terminal = True
+        crossing.direction = -sign  # only leaving the present side ends the piece
+        return crossing
+
+    functions = [velocity, edge_high, edge_low, limit]
+    time, y = 0.0, [0.0, initial_speed]
+    times = []
+    while time < duration:
+        load, torque = mode_at(*y)
+        saturated = torque if abs(torque) >= motor.max_torque else None
+        ahead = [y[0] + 1e-7 * math.copysign(1.0, y[1]), y[1]]
+        events = [event(function, math.copysign(1.0, function(time, ahead)))
+                  for function in functions]
+        solution = integrate.solve_ivp(right_hand_side(load, saturated), (time, duration), y,
+                                       method='DOP853', rtol=1e-13, atol=1e-13, events=events,
+                                       dense_output=True)
+        times.append((time, solution.t[-1], solution.sol))
+        time, y = solution.t[-1], list(solution.y[:, -1])
+    return times
+
+
+def test_forward_dynamics_against_solve_ivp_over_10_revolutions():
+    offset = 0.012
+    motor = dyn.MotorDrive.small_shaper()
+    duration = 10 * 2 * math.pi / (2 * math.pi)
+    pieces = _reference_run(MASS, LOADS, motor, offset, 2 * math.pi, 2 * math.pi, duration)
+    run = md.simulate(GEOMETRY, MASS, LOADS, motor, offset, 2 * math.pi, duration, 100.0)
+    assert run.input_angle[-1] > 9.5 * 2 * math.pi
+    reference = np.empty_like(run.time)
+    for index, time in enumerate(run.time):
+        for start, end, dense in pieces:
+            if start <= time <= end:
+                reference[index] = dense(time)[1]
+                break
+    assert np.max(np.abs(run.input_speed / reference - 1.0)) <= 1e-8
