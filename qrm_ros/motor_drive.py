@@ -137,6 +137,8 @@ _ATOL = 1e-12
 # load pieces).
 _ROOT_SAMPLES = 5
 _NANOSECONDS = 1e9
+# A ram reversal landed on with the input slower than this (rad/s) is the shaft stopping.
+_STOP_SPEED = 1e-9
 # Why a segment of the integration ended (what changed at the restart).
 _DIRECTION, _WORK, _SATURATION, _SPIN = range(4)
 
@@ -244,6 +246,8 @@ class MotorStepper:
         self._offset_command = offset
         self._angle, self._speed = 0.0, input_speed
         self._segment_reference, self._segment_offset = input_speed, offset
+        self._segment_start = 0.0
+        self._reference_end = self._offset_end = -math.inf
         self._offset_rate = 0.0
         self._stamp_ns = None
         self._time = 0.0
@@ -254,10 +258,18 @@ class MotorStepper:
         self._saturation = 0
         self._piece = (0.0, 0.0, None)
 
-    def restore(self, stamp_ns, input_angle, input_speed, offset):
-        """Take a recorded state as the present one, at its stamp (to replay a logged run)."""
+    def restore(self, stamp_ns, input_angle, input_speed, offset, speed_reference=None):
+        """
+        Take a recorded state as the present one, at its stamp (to replay a logged run).
+
+        The motor's speed reference (rad/s) is part of the state here; it and the speed
+        command default to input_speed, as ShaperStepper's commands equal its state.
+        """
         input_angle = _finite('input_angle', input_angle, 'rad')
+        reference = input_speed if speed_reference is None else speed_reference
+        reference = _finite('speed_reference', reference, 'rad/s')
         self.reset(input_speed, offset)
+        self._segment_reference = self._speed_command = reference
         self._angle = wrap_angle(input_angle)
         self._new_base(int(stamp_ns))
 
@@ -278,12 +290,16 @@ class MotorStepper:
         """The motor's speed reference (rad/s) at time (s; None: the segment's start)."""
         if time is None:
             return self._segment_reference
+        if time >= self._reference_end:
+            return self._speed_command
         return _ramp(self._segment_reference, self._speed_command, self._acceleration_limit,
                      time - self._segment_start)[0]
 
     def _offset_at(self, time):
         if time is None or self._spin == 0:
             return self._segment_offset  # held at rest
+        if time >= self._offset_end:
+            return self._offset_command
         return _ramp(self._segment_offset, self._offset_command, self._offset_rate_limit,
                      time - self._segment_start)[0]
 
@@ -309,8 +325,9 @@ class MotorStepper:
 
     def _rhs(self, time, y):
         reference = self._reference_at(time)
-        offset = _ramp(self._segment_offset, self._offset_command, self._offset_rate_limit,
-                       time - self._segment_start)[0]
+        offset = (self._offset_command if time >= self._offset_end else
+                  _ramp(self._segment_offset, self._offset_command, self._offset_rate_limit,
+                        time - self._segment_start)[0])
         chain = self._chain(offset, y[0], y[1], self._offset_rate)
         torque = self._motor_torque(reference, y[1], self._saturation)
         return [y[1], self._acceleration(chain, torque, self._load)]
@@ -331,16 +348,17 @@ class MotorStepper:
         values.append(self._spin * speed)
         return values
 
+    def _set_ramp_ends(self, time, reference, offset):
+        """When (s) the reference and the offset reach their commands: kinks to stop at."""
+        gap = self._speed_command - reference
+        self._reference_end = time + abs(gap) / self._acceleration_limit if gap else -math.inf
+        gap = self._offset_command - offset
+        self._offset_end = time + abs(gap) / self._offset_rate_limit if gap else -math.inf
+
     def _breakpoint(self, time):
         """Next time (s) a ramp ends after time, where the right-hand side has a kink."""
-        ends = [math.inf]
-        gap = self._speed_command - self._reference_at(time)
-        if gap:
-            ends.append(time + abs(gap) / self._acceleration_limit)
-        gap = self._offset_command - self._segment_offset
-        if gap:
-            ends.append(time + abs(gap) / self._offset_rate_limit)
-        return min(ends)
+        ends = [end for end in (self._reference_end, self._offset_end) if end > time]
+        return min(ends, default=math.inf)
 
     def _start(self, time, angle, speed, reference, offset, trigger):
         """Start a segment at time with this state; choose its mode from the state."""
@@ -349,6 +367,7 @@ class MotorStepper:
         rate = math.copysign(self._offset_rate_limit, gap) if gap else 0.0
         self._segment_start, self._segment_reference, self._segment_offset = (
             time, reference, offset)
+        self._set_ramp_ends(time, reference, offset)
         angle = wrap_angle(angle)
         if rate != old_rate:
             # An impulse on the offset alone keeps the input's generalised momentum.
@@ -358,6 +377,12 @@ class MotorStepper:
         self._offset_rate = rate
         chain = self._chain(offset, angle, speed, rate)
         self._half_work = 0.5 * self._loads.cutting_length
+        if trigger is not None and self._spin and (
+                _sign(speed) != self._spin
+                or (trigger == _DIRECTION and abs(speed) <= _STOP_SPEED)):
+            # Another switch landed where the speed is through zero (the load's reversal
+            # and the shaft's coincide when the shaft stops): that is a stop first.
+            trigger = _SPIN
         if trigger == _SPIN:
             speed = 0.0
             chain = self._chain(offset, angle, speed, rate)

@@ -219,3 +219,81 @@ def test_forward_dynamics_against_solve_ivp_over_10_revolutions():
                 reference[index] = dense(time)[1]
                 break
     assert np.max(np.abs(run.input_speed / reference - 1.0)) <= 1e-8
+
+
+def _stepper(loads=LOADS, motor=None, speed=2 * math.pi):
+    motor = dyn.MotorDrive.small_shaper() if motor is None else motor
+    return md.MotorStepper(GEOMETRY, MASS, loads, motor, speed, 0.01, 50.0, 0.01)
+
+
+def _run(stepper, start_ns, end_ns, step_ns=1_000_000):
+    rows = []
+    for stamp in range(start_ns, end_ns + 1, step_ns):
+        motion = stepper.advance_to(stamp)
+        values = (stepper.input_angle, stepper.input_speed, stepper.input_acceleration,
+                  stepper.motor_torque, *motion, *stepper.efforts())
+        assert all(math.isfinite(value) for value in values)
+        rows.append(values)
+    return rows
+
+
+def test_a_cut_the_motor_cannot_carry_stalls_and_resumes():
+    heavy = dyn.Loads(cutting_force=20000.0, ram_friction=20.0, cutting_length=0.15)
+    stepper = _stepper(heavy)
+    _run(stepper, 0, 3_000_000_000)
+    assert stepper.stalled
+    assert stepper.input_speed == 0.0 and stepper.input_acceleration == 0.0
+    assert 'stalled' in stepper.stall_reason and 'cutting_force 20000' in stepper.stall_reason
+    held = stepper.input_angle
+    _run(stepper, 3_000_000_000, 3_500_000_000)
+    assert stepper.stalled and stepper.input_angle == held
+    # The motor's torque at zero speed is the same while held; the ram is in the work.
+    assert stepper.motor_torque == pytest.approx(250.0)
+    stepper.set_dynamics(loads=LOADS)
+    _run(stepper, 3_500_000_000, 4_500_000_000)
+    assert not stepper.stalled and stepper.stall_reason is None
+    assert stepper.input_speed > 1.0
+    # Again, and this time a stronger motor frees it.
+    stepper.set_dynamics(loads=heavy)
+    _run(stepper, 4_500_000_000, 7_500_000_000)
+    assert stepper.stalled
+    stepper.set_dynamics(motor=dyn.MotorDrive(speed_stiffness=360.0, max_torque=5000.0))
+    _run(stepper, 7_500_000_000, 8_500_000_000)
+    assert not stepper.stalled and stepper.input_speed > 1.0
+
+
+def test_stopped_by_command_is_not_a_stall():
+    stepper = _stepper()
+    stepper.advance_to(0)
+    stepper.set_speed_command(0.0)
+    _run(stepper, 0, 4_000_000_000)
+    assert abs(stepper.input_speed) < 1e-6 or stepper.input_speed == 0.0
+    assert not stepper.stalled
+
+
+def test_same_commands_same_stamps_bit_identical_and_independent_of_the_stamps_asked():
+    def commanded(step_ns):
+        stepper = _stepper()
+        rows = _run(stepper, 0, 500_000_000, step_ns)
+        stepper.set_offset_command(-0.012)
+        stepper.set_speed_command(9.0)
+        rows += _run(stepper, 500_000_000, 2_000_000_000, step_ns)
+        return rows
+
+    fine = commanded(1_000_000)
+    assert fine == commanded(1_000_000)
+    coarse = commanded(100_000_000)
+    # Stamps every 100 ms are every 100th of the 1 ms run: the same numbers, bit for bit.
+    assert coarse == fine[:501:100] + fine[501::100]
+
+
+def test_time_reset_and_restore():
+    stepper = _stepper()
+    _run(stepper, 10_000_000, 200_000_000)
+    angle, speed = stepper.input_angle, stepper.input_speed
+    stepper.advance_to(5_000_000)
+    assert stepper.time_resets == 1
+    assert (stepper.input_angle, stepper.input_speed) == (angle, speed)
+    twin = _stepper()
+    twin.restore(5_000_000, angle, speed, stepper.offset, stepper.speed_reference)
+    assert _run(twin, 5_000_000, 300_000_000) == _run(stepper, 5_000_000, 300_000_000)
