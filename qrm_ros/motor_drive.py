@@ -30,7 +30,9 @@ from qrm_ros import dynamics as dyn
 from qrm_ros.kinematics import check_offset, KinematicsError, state
 from qrm_ros.stepping import _finite, _positive, _ramp, wrap_angle
 
-__all__ = ['MotorStepper', 'PairEfforts', 'Simulation', 'pair_efforts', 'simulate']
+__all__ = ['MotorStepper', 'PairEfforts', 'Simulation', 'SpeedFluctuation',
+           'input_inertia_for_speed_fluctuation', 'pair_efforts', 'simulate',
+           'speed_fluctuation']
 
 # Samples per revolution when looking for switches and peaks (then refined exactly).
 _SEARCH_SAMPLES = 2048
@@ -662,3 +664,130 @@ def simulate(geometry, mass, loads, motor, offset, input_speed, duration, sample
                       input_speed=table[:, 1], input_acceleration=table[:, 2],
                       motor_torque=table[:, 3], efforts=dyn.Efforts(*table[:, 4:9].T),
                       stalled=table[:, 9].astype(bool))
+
+
+# Steady state of speed_fluctuation: samples per revolution, and when a revolution's Cs is
+# taken as periodic (relative change from the previous one).
+_FLUCTUATION_SAMPLES = 400
+_PERIODIC_TOLERANCE = 1e-4
+_MAX_REVOLUTIONS = 400
+
+
+class SpeedFluctuation(NamedTuple):
+    """Steady motor-drive running: Cs (1), the revolution's time (s), its PairEfforts."""
+
+    fluctuation: float
+    revolution_time: float
+    pair_efforts: PairEfforts
+
+
+def _revolution(stepper, start_ns, step_ns, geometry):
+    """Sample one input revolution from start_ns; return its figures and the end stamp."""
+    start_angle, turned = stepper.input_angle, 0.0
+    previous = start_angle
+    stamp = start_ns
+    rows = []
+    while True:
+        stamp += step_ns
+        stepper.integrate_to(stamp)
+        if stepper.stalled:
+            raise dyn.DynamicsError(f'the machine stalls: {stepper.stall_reason}')
+        angle = stepper.input_angle
+        turned += wrap_angle(angle - previous)
+        previous = angle
+        rows.append((stamp, turned, stepper.input_speed, stepper.motor_torque,
+                     stepper.efforts().offset_force))
+        if abs(turned) >= 2.0 * math.pi:
+            break
+    table = np.array(rows)
+    times = (table[:, 0] - start_ns) / _NANOSECONDS
+    # The revolution ends between the last two samples: interpolate its time linearly.
+    over = (abs(table[-1, 1]) - 2.0 * math.pi) / abs(table[-1, 1] - table[-2, 1])
+    period = times[-1] - over * (times[-1] - times[-2])
+    speed, torque = table[:, 2], table[:, 3]
+    energy = float(integrate.trapezoid(torque * speed, times))
+    figures = PairEfforts(
+        peak_input_torque=float(np.max(np.abs(torque))),
+        rms_input_torque=math.sqrt(integrate.trapezoid(torque ** 2, times) / times[-1]),
+        mean_input_power=energy / times[-1], energy_per_pair=energy * period / times[-1],
+        peak_offset_force=float(np.max(np.abs(table[:, 4]))))
+    mean_speed = 2.0 * math.pi / period
+    fluctuation = (np.max(speed) - np.min(speed)) / mean_speed
+    return SpeedFluctuation(float(fluctuation), float(period), figures), int(table[-1, 0])
+
+
+def speed_fluctuation(geometry, mass, loads, motor, offset, input_speed):
+    """
+    Steady-state Cs = (max - min) / mean input speed per revolution under a motor drive.
+
+    The motor's reference is input_speed (rad/s, > 0); the run starts at that speed and goes
+    on until one revolution's Cs differs from the previous one's by less than 1e-4 relative.
+    Speeds are sampled 400 times a revolution (the extremes to about 1e-5 relative); the
+    PairEfforts are of that last revolution, by the trapezoid rule on the samples.
+    """
+    input_speed = _positive('input_speed', input_speed, 'rad/s')
+    stepper = MotorStepper(geometry, mass, loads, motor, input_speed, offset, 1.0, 1.0)
+    step_ns = max(1, int(round(2.0 * math.pi / input_speed / _FLUCTUATION_SAMPLES
+                               * _NANOSECONDS)))
+    stepper.integrate_to(0)
+    stamp, last = 0, None
+    for _ in range(_MAX_REVOLUTIONS):
+        result, stamp = _revolution(stepper, stamp, step_ns, geometry)
+        if last is not None and abs(result.fluctuation - last.fluctuation) <= (
+                _PERIODIC_TOLERANCE * result.fluctuation):
+            return result
+        last = result
+    raise dyn.DynamicsError(f'no steady state within {_MAX_REVOLUTIONS} revolutions (Cs '
+                            f'still changing: {last.fluctuation:.6g})')
+
+
+def _with_input_inertia(mass, input_inertia):
+    values = mass.as_dict()
+    values['input_inertia'] = input_inertia
+    return type(mass)(**values)
+
+
+def _energy_method_inertia(geometry, mass, loads, offset, input_speed, fluctuation):
+    """dynamics.md's energy method: total inertia about Delta E / (Cs w^2)."""
+    angles = np.linspace(0.0, 2.0 * math.pi, 4097)
+    motion = state(geometry, offset, angles, input_speed)
+    load = dyn.ram_load_force(loads, motion.ram_position, motion.ram_velocity,
+                              geometry.ram_stroke)
+    torque = dyn.efforts(geometry, mass, offset, angles, input_speed,
+                         external_ram_force=load).input_torque
+    excess = integrate.cumulative_trapezoid(torque - np.mean(torque), angles, initial=0.0)
+    return float(np.ptp(excess)) / (fluctuation * input_speed ** 2)
+
+
+def input_inertia_for_speed_fluctuation(geometry, mass, loads, motor, offset, input_speed,
+                                        fluctuation):
+    """
+    The input_inertia (kg m^2, the input side's total: rotor, gearbox, added flywheel) that
+    gives the steady Cs fluctuation under the motor drive, with mass's other fields.
+
+    Starts from the energy method and solves Cs(input_inertia) = fluctuation by simulation
+    (brentq, to 1e-4 relative in Cs). A target above what the smallest inertia gives, or not
+    > 0, is refused with the reachable range.
+    """
+    fluctuation = _positive('fluctuation', fluctuation, '(1)')
+    input_speed = _positive('input_speed', input_speed, 'rad/s')
+
+    def fluctuation_at(input_inertia):
+        return speed_fluctuation(geometry, _with_input_inertia(mass, input_inertia), loads,
+                                 motor, offset, input_speed).fluctuation
+
+    smallest = 0.0 if mass.flywheel_inertia > 0.0 else 1e-6
+    largest_reachable = fluctuation_at(smallest)
+    if fluctuation >= largest_reachable:
+        raise dyn.DynamicsError(
+            f'fluctuation = {fluctuation:.6g} is out of range: with input_inertia >= '
+            f'{smallest:g} kg*m^2 this drive reaches 0 < Cs < {largest_reachable:.6g}')
+    guess = max(_energy_method_inertia(geometry, mass, loads, offset, input_speed,
+                                       fluctuation), 1e-3)
+    high = guess
+    while fluctuation_at(high) > fluctuation:
+        high *= 2.0
+    result = optimize.root_scalar(lambda inertia: fluctuation_at(inertia) / fluctuation - 1.0,
+                                  bracket=(smallest, high), method='brentq', rtol=1e-6,
+                                  xtol=1e-9)
+    return float(result.root)

@@ -297,3 +297,28 @@ def test_time_reset_and_restore():
     twin = _stepper()
     twin.restore(5_000_000, angle, speed, stepper.offset, stepper.speed_reference)
     assert _run(twin, 5_000_000, 300_000_000) == _run(stepper, 5_000_000, 300_000_000)
+
+
+SOFT_MOTOR = dyn.MotorDrive(speed_stiffness=20.0, max_torque=250.0)
+
+
+def test_flywheel_sizing_gives_the_asked_fluctuation_when_simulated():
+    inertia = md.input_inertia_for_speed_fluctuation(GEOMETRY, MASS, LOADS, SOFT_MOTOR, 0.01,
+                                                     2 * math.pi, 0.05)
+    sized = dyn.MassProperties(**{**MASS.as_dict(), 'input_inertia': inertia})
+    # Checked on an independent sampling: simulate at 5 kHz, last whole revolution.
+    run = md.simulate(GEOMETRY, sized, LOADS, SOFT_MOTOR, 0.01, 2 * math.pi, 30.0, 5000.0)
+    turns = np.floor(run.input_angle / (2 * math.pi))
+    last = (turns == turns[-1] - 1)
+    times = run.time[last]
+    fluctuation = np.ptp(run.input_speed[last]) / (2 * math.pi / (times[-1] - times[0]))
+    assert fluctuation == pytest.approx(0.05, rel=0.01)
+
+
+def test_unreachable_fluctuation_names_the_reachable_range():
+    with pytest.raises(dyn.DynamicsError, match='fluctuation = 10 is out of range: .* reaches'):
+        md.input_inertia_for_speed_fluctuation(GEOMETRY, MASS, LOADS, SOFT_MOTOR, 0.01,
+                                               2 * math.pi, 10.0)
+    with pytest.raises(KinematicsError, match='fluctuation'):
+        md.input_inertia_for_speed_fluctuation(GEOMETRY, MASS, LOADS, SOFT_MOTOR, 0.01,
+                                               2 * math.pi, -0.1)
