@@ -12,8 +12,10 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 """
-Benchmark: vectorised efforts (samples/s, target >= 1e6) and the per-tick cost of
-MotorStepper.advance_to at 1 kHz against ShaperStepper's, both measured in this run.
+Benchmark: vectorised efforts (samples/s) and the per-tick cost of the motor stepper.
+
+efforts' target is >= 1e6 samples/s; MotorStepper.advance_to at 1 kHz is compared with
+ShaperStepper's, both measured in this run.
 
     python3 dev.py run python bench/bench_dynamics.py [--samples 1000000] [--ticks 5000]
 """

@@ -58,7 +58,7 @@ def _speed(input_speed):
 
 
 def _load_switch_times(geometry, loads, offset, input_speed, period):
-    """Times in (0, period) where the ram load can switch: reversals and workpiece edges."""
+    """Return the times in (0, period) where the ram load can switch (reversals, edges)."""
     def switching(time):
         motion = state(geometry, offset, input_speed * time, input_speed)
         half = 0.5 * loads.cutting_length
@@ -77,7 +77,7 @@ def _load_switch_times(geometry, loads, offset, input_speed, period):
 
 
 def _peak(function, start, end):
-    """max |function| over [start, end]: dense samples, then a bounded refinement."""
+    """Return max |function| over [start, end]: dense samples, then a bounded refinement."""
     times = np.linspace(start, end, _PEAK_SAMPLES)
     values = np.abs(function(times))
     best = int(np.argmax(values))
@@ -289,7 +289,7 @@ class MotorStepper:
                     self._offset_at(None), None)
 
     def _reference_at(self, time):
-        """The motor's speed reference (rad/s) at time (s; None: the segment's start)."""
+        """Return the motor's speed reference (rad/s) at time (s; None: the segment's start)."""
         if time is None:
             return self._segment_reference
         if time >= self._reference_end:
@@ -442,7 +442,8 @@ class MotorStepper:
         if reference != 0.0 or self._speed_command != 0.0:
             needed = chain.generalized_inertia * -accelerations[_sign(reference) or 1][0] + torque
             self._stall_reason = (
-                f'stalled at input angle {angle:.6g} rad: the motor gives {torque:.6g} N*m at zero speed (max_torque '
+                f'stalled at input angle {angle:.6g} rad: the motor gives {torque:.6g} N*m at '
+                f'zero speed (max_torque '
                 f'{self._motor.max_torque if self._motor else 0.0:.6g} N*m), the load needs '
                 f'{needed:.6g} N*m to turn the input (cutting_force '
                 f'{self._loads.cutting_force:.6g} N, ram_friction '
@@ -639,8 +640,10 @@ class Simulation(NamedTuple):
 def simulate(geometry, mass, loads, motor, offset, input_speed, duration, sample_rate,
              initial_speed=None, input_acceleration_limit=1e6, offset_rate_limit=1.0):
     """
-    Run a MotorStepper from rest angle 0 at initial_speed (default input_speed, rad/s) with
-    the motor's reference at input_speed, and sample it at sample_rate (Hz) for duration (s).
+    Run a MotorStepper from angle 0 and sample it at sample_rate (Hz) for duration (s).
+
+    It starts at initial_speed (default input_speed, rad/s); the motor's reference ramps to
+    input_speed.
 
     input_angle is unwrapped (it counts whole turns), for energy and work integrals.
     """
@@ -762,8 +765,10 @@ def _energy_method_inertia(geometry, mass, loads, offset, input_speed, fluctuati
 def input_inertia_for_speed_fluctuation(geometry, mass, loads, motor, offset, input_speed,
                                         fluctuation):
     """
-    The input_inertia (kg m^2, the input side's total: rotor, gearbox, added flywheel) that
-    gives the steady Cs fluctuation under the motor drive, with mass's other fields.
+    Return the input_inertia (kg m^2) that gives the steady Cs fluctuation under the motor.
+
+    input_inertia is the input side's total (rotor, gearbox, an added flywheel); mass's
+    other fields are kept.
 
     Starts from the energy method and solves Cs(input_inertia) = fluctuation by simulation
     (brentq, to 1e-4 relative in Cs). A target above what the smallest inertia gives, or not
