@@ -671,7 +671,8 @@ def _drive(stored: Optional[Dict[str, str]],
     except ValueError:
         return None, f'the {PARAMETERS_METADATA} metadata is not JSON'
     drive = values.get('drive', SPEED_DRIVE)
-    prefixes = {dyn.MassProperties: '', dyn.Loads: '', dyn.MotorDrive: MOTOR_PARAMETER_PREFIX}
+    prefixes: Dict[Any, str] = {dyn.MassProperties: '', dyn.Loads: '',
+                                dyn.MotorDrive: MOTOR_PARAMETER_PREFIX}
     wanted = {kind: {name: prefix + name for name in kind.field_names()}
               for kind, prefix in prefixes.items()}
     if drive not in (SPEED_DRIVE, MOTOR_DRIVE):
