@@ -40,18 +40,23 @@ import math
 import multiprocessing
 import os
 import sys
+import warnings
 from typing import (Any, Callable, Dict, List, NamedTuple, Optional, Sequence, TextIO,
                     Tuple)
 
 import numpy as np
+from scipy import integrate, interpolate
 
+from qrm_ros import dynamics as dyn
 from qrm_ros import kinematics as kin
+from qrm_ros import motor_drive
 from qrm_ros import names
 from qrm_ros.atomic_files import staged_outputs
 from qrm_ros.bag_reader import Loss, open_run, Run, RunFileError
 from qrm_ros.design_table import add_geometry_arguments
-from qrm_ros.names import absolute_topic, GEOMETRY_METADATA, JOINT_NAMES, JOINT_STATE_TYPE
-from qrm_ros.strokes import find_stroke_pairs
+from qrm_ros.names import (absolute_topic, GEOMETRY_METADATA, JOINT_NAMES, JOINT_STATE_TYPE,
+                           PARAMETERS_METADATA)
+from qrm_ros.strokes import find_stroke_pairs, measure_pair_efforts
 
 JOINT_STATES_TOPIC = absolute_topic(names.JOINT_STATES_TOPIC)
 GEOMETRY_FIELDS = kin.Geometry.field_names()
@@ -87,7 +92,12 @@ class AnalysisError(Exception):
 
 
 class Samples(NamedTuple):
-    """The recorded joint states as arrays (s, rad, rad/s, m, m/s), in recording order."""
+    """
+    The recorded joint states as arrays (s, rad, rad/s, m, m/s, N m, N), in recording order.
+
+    input_torque and offset_force are the first and last joint efforts; NaN where a message
+    had no efforts, None when none had (recordings made before the node published them).
+    """
 
     time: np.ndarray
     input_angle: np.ndarray
@@ -98,6 +108,8 @@ class Samples(NamedTuple):
     ram_velocity: np.ndarray
     offset: np.ndarray
     offset_rate: np.ndarray
+    input_torque: Optional[np.ndarray] = None
+    offset_force: Optional[np.ndarray] = None
 
 
 class Lost(NamedTuple):
@@ -110,6 +122,14 @@ class Lost(NamedTuple):
     end_time: Optional[float]
 
 
+class Drive(NamedTuple):
+    """The node's mass properties, loads and drive as recorded: the theory of the efforts."""
+
+    mass: dyn.MassProperties
+    loads: dyn.Loads
+    motor: Optional[dyn.MotorDrive]  # None: the ideal speed drive
+
+
 class Recording(NamedTuple):
     path: str
     geometry: kin.Geometry
@@ -119,6 +139,8 @@ class Recording(NamedTuple):
     messages_in_file: Optional[int] = None  # the file's own count; None: unknown
     messages_read: Optional[int] = None
     repeated_stamps: int = 0  # exact repeats of the previous message, counted once
+    drive: Optional[Drive] = None  # None: no theory of the efforts (drive_problem says why)
+    drive_problem: Optional[str] = None
 
     @property
     def complete(self) -> bool:
@@ -132,6 +154,7 @@ class _Part(NamedTuple):
     log_times: np.ndarray  # ns
     positions: np.ndarray  # (n, joints) in JOINT_NAMES order
     velocities: np.ndarray
+    efforts: np.ndarray  # NaN rows: the message had no efforts
     read: int
     rejected: Dict[str, List[int]]  # reason -> [count, first log time, last log time]
     losses: List[Loss]
@@ -170,6 +193,7 @@ def read_recording(path: str, geometry_overrides: Optional[Dict[str, Optional[fl
         _check_joint_states(run, path)
         geometry = _geometry(run.metadata.get(GEOMETRY_METADATA, {}),
                              geometry_overrides or {}, path)
+        drive, drive_problem = _drive(run.metadata.get(PARAMETERS_METADATA), geometry)
     except AnalysisError as error:
         if run.truncated:  # say why the topic or the metadata may be missing
             raise AnalysisError(f'{error}; note: {run.problem}') from None
@@ -184,7 +208,8 @@ def read_recording(path: str, geometry_overrides: Optional[Dict[str, Optional[fl
         parts = [_decode_part(path, file_parts[0], _Counter(), progress, run)]
     else:
         parts = _decode_in_parallel(path, file_parts, progress)
-    return _combine(path, run, geometry, parts)
+    return _combine(path, run, geometry, parts)._replace(drive=drive,
+                                                         drive_problem=drive_problem)
 
 
 def _usable_cores() -> int:
@@ -273,6 +298,7 @@ class _Layout(NamedTuple):
     nanosec: slice
     position: slice
     velocity: slice
+    effort: Optional[slice]  # None: the payloads have no efforts
     order: Any  # joint columns (None: in JOINT_NAMES order)
 
 
@@ -289,12 +315,13 @@ _PROBES = {
         m.header.stamp, nanosec=m.header.stamp.nanosec ^ 0xFFFFFFFF))),
     'position': lambda m: replace(m, position=_flipped(m.position)),
     'velocity': lambda m: replace(m, velocity=_flipped(m.velocity)),
+    'effort': lambda m: replace(m, effort=_flipped(m.effort)),
 }
 
 
 def _learn_layout(data: bytes, decoded: Any, order: Any) -> Optional[_Layout]:
     """
-    Find the stamp's, positions' and velocities' bytes in a payload, by rosbags alone.
+    Find the stamp's, positions', velocities' and efforts' bytes in a payload, by rosbags.
 
     Each value field is changed in every byte and the message serialized again by rosbags:
     the bytes that differ are that field. Every other byte is structure (lengths, names,
@@ -308,6 +335,8 @@ def _learn_layout(data: bytes, decoded: Any, order: Any) -> Optional[_Layout]:
         original = np.frombuffer(data, dtype=np.uint8)
         regions = {}
         for field, probe in _PROBES.items():
+            if field == 'effort' and not len(decoded.effort):
+                continue  # no efforts recorded: nothing to find
             changed = np.frombuffer(bytes(store.serialize_cdr(probe(decoded), JOINT_STATE_TYPE)),
                                     dtype=np.uint8)
             if changed.size != original.size:
@@ -322,13 +351,15 @@ def _learn_layout(data: bytes, decoded: Any, order: Any) -> Optional[_Layout]:
     if (data[regions['sec']] != np.array([stamp.sec], '<i4').tobytes()
             or data[regions['nanosec']] != np.array([stamp.nanosec], '<u4').tobytes()
             or data[regions['position']] != np.asarray(decoded.position, '<f8').tobytes()
-            or data[regions['velocity']] != np.asarray(decoded.velocity, '<f8').tobytes()):
+            or data[regions['velocity']] != np.asarray(decoded.velocity, '<f8').tobytes()
+            or ('effort' in regions and data[regions['effort']]
+                != np.asarray(decoded.effort, '<f8').tobytes())):
         return None
     fixed = np.ones(original.size, dtype=bool)
     for region in regions.values():
         fixed[region] = False
     return _Layout(original, np.flatnonzero(fixed), regions['sec'], regions['nanosec'],
-                   regions['position'], regions['velocity'], order)
+                   regions['position'], regions['velocity'], regions.get('effort'), order)
 
 
 class _Decoder:
@@ -349,6 +380,7 @@ class _Decoder:
         self.log_times: List[np.ndarray] = []
         self.positions: List[np.ndarray] = []
         self.velocities: List[np.ndarray] = []
+        self.efforts: List[np.ndarray] = []
 
     def one(self, data: bytes, log_time: int):
         """Decode one payload with rosbags: (decoded, joint order), or None if rejected."""
@@ -369,6 +401,9 @@ class _Decoder:
             _reject(self.rejected, 'fewer or more positions or velocities than joint names',
                     log_time)
             return None
+        if len(decoded.effort) not in (0, len(joint_names)):
+            _reject(self.rejected, 'efforts neither absent nor one per joint name', log_time)
+            return None
         if decoded.header.stamp.nanosec >= _NS:
             _reject(self.rejected, _BAD_NANOSEC, log_time)
             return None
@@ -381,6 +416,7 @@ class _Decoder:
         stamps = np.zeros(count, dtype=np.int64)
         positions = np.zeros((count, width))
         velocities = np.zeros((count, width))
+        efforts = np.full((count, width), np.nan)
         usable = np.zeros(count, dtype=bool)
         sizes = np.fromiter(map(len, payloads), dtype=np.int64, count=count)
         times = np.array(log_times, dtype=np.int64)
@@ -402,6 +438,8 @@ class _Decoder:
                 columns = slice(None) if layout.order is None else layout.order
                 positions[rows] = block[:, layout.position].copy().view('<f8')[:, columns]
                 velocities[rows] = block[:, layout.velocity].copy().view('<f8')[:, columns]
+                if layout.effort is not None:
+                    efforts[rows] = block[:, layout.effort].copy().view('<f8')[:, columns]
                 stamps[rows] = sec * _NS + nanosec
                 valid = nanosec < _NS
                 usable[rows[valid]] = True
@@ -417,11 +455,14 @@ class _Decoder:
             stamps[row] = stamp.sec * _NS + stamp.nanosec
             positions[row] = np.asarray(decoded.position, dtype=float)[columns]
             velocities[row] = np.asarray(decoded.velocity, dtype=float)[columns]
+            if len(decoded.effort):
+                efforts[row] = np.asarray(decoded.effort, dtype=float)[columns]
             usable[row] = True
         self.stamps.append(stamps[usable])
         self.log_times.append(times[usable])
         self.positions.append(positions[usable])
         self.velocities.append(velocities[usable])
+        self.efforts.append(efforts[usable])
 
     def _layout(self, size: int, candidates: List[bytes]) -> Optional[_Layout]:
         if size not in self.layouts:
@@ -438,6 +479,7 @@ class _Decoder:
         order = _joint_columns(joint_names)
         if (isinstance(order, str) or len(decoded.position) != len(joint_names)
                 or len(decoded.velocity) != len(joint_names)
+                or len(decoded.effort) not in (0, len(joint_names))
                 or decoded.header.stamp.nanosec >= _NS):
             return None
         return _learn_layout(data, decoded, order)
@@ -474,7 +516,8 @@ def _decode_part(path: str, part: Optional[slice], counter=None, progress=None,
         return np.concatenate(arrays).astype(dtype) if arrays else np.zeros(shape, dtype)
     return _Part(joined(decoder.stamps, np.int64, 0), joined(decoder.log_times, np.int64, 0),
                  joined(decoder.positions, float, (0, width)),
-                 joined(decoder.velocities, float, (0, width)), count, decoder.rejected, losses)
+                 joined(decoder.velocities, float, (0, width)),
+                 joined(decoder.efforts, float, (0, width)), count, decoder.rejected, losses)
 
 
 def _decode_in_parallel(path: str, parts: List[Optional[slice]], progress) -> List[_Part]:
@@ -530,20 +573,32 @@ def _combine(path: str, run: Run, geometry: kin.Geometry, parts: List[_Part]) ->
     log_times = np.concatenate([part.log_times for part in parts])
     position = np.concatenate([part.positions for part in parts])
     velocity = np.concatenate([part.velocities for part in parts])
+    effort = np.concatenate([part.efforts for part in parts])
     finite = np.isfinite(position).all(axis=1) & np.isfinite(velocity).all(axis=1)
     if not finite.all():
         bad = log_times[~finite]
         rejected['non-finite positions or velocities'] = [int(bad.size), int(bad.min()),
                                                           int(bad.max())]
     stamps, log_times = stamps[finite], log_times[finite]
-    position, velocity = position[finite], velocity[finite]
+    position, velocity, effort = position[finite], velocity[finite], effort[finite]
+    # A recorded effort that is not finite is not a measurement: the sample keeps its motion,
+    # its efforts count as not recorded (NaN), and how many is listed.
+    recorded = ~np.isnan(effort).all(axis=1)
+    unusable = recorded & ~np.isfinite(effort).all(axis=1)
+    if unusable.any():
+        effort[unusable] = np.nan
+        bad = log_times[unusable]
+        rejected['non-finite efforts (the motion kept)'] = [
+            int(bad.size), int(bad.min()), int(bad.max())]
     # The same stamp as the previous message: an exact repeat counts once; a conflicting
     # one is excluded (which of the two is right cannot be told).
     repeat = np.zeros(stamps.size, dtype=bool)
     repeat[1:] = np.diff(stamps) == 0
     same = np.zeros_like(repeat)
-    same[1:] = (position[1:] == position[:-1]).all(axis=1) & (
-        velocity[1:] == velocity[:-1]).all(axis=1)
+    same[1:] = ((position[1:] == position[:-1]).all(axis=1)
+                & (velocity[1:] == velocity[:-1]).all(axis=1)
+                & ((effort[1:] == effort[:-1]) | (np.isnan(effort[1:]) & np.isnan(effort[:-1]))
+                   ).all(axis=1))
     conflicting = repeat & ~same
     if conflicting.any():
         bad = log_times[conflicting]
@@ -554,12 +609,16 @@ def _combine(path: str, run: Run, geometry: kin.Geometry, parts: List[_Part]) ->
                            _seconds(last, start)))
     keep = ~repeat
     stamps, position, velocity = stamps[keep], position[keep], velocity[keep]
+    effort = effort[keep]
     if stamps.size < MIN_SEGMENT_SAMPLES:
         raise AnalysisError(f'{path} holds {stamps.size} usable {JOINT_STATES_TOPIC} messages: '
                             'too few to find any stroke' + _loss_clause(losses, run))
     time = (stamps - stamps[0]) / _NS
+    with_efforts = not np.isnan(effort).all()
     samples = Samples(time, position[:, 0], velocity[:, 0], position[:, 1], velocity[:, 1],
-                      position[:, 3], velocity[:, 3], position[:, 4], velocity[:, 4])
+                      position[:, 3], velocity[:, 3], position[:, 4], velocity[:, 4],
+                      effort[:, 0] if with_efforts else None,
+                      effort[:, -1] if with_efforts else None)
     return Recording(path, geometry, samples, run.problem if run.truncated else None,
                      tuple(losses), in_file, read, int((repeat & same).sum()))
 
@@ -594,6 +653,43 @@ def _geometry(stored: Dict[str, str], overrides: Dict[str, Optional[float]],
         return kin.Geometry(**values)
     except kin.KinematicsError as error:
         raise AnalysisError(f'{path}: bad geometry: {error}') from None
+
+
+# The node's drive parameter: the ideal speed drive (also before the node had the parameter)
+# or the motor drive, whose MotorDrive fields the node names with this prefix.
+SPEED_DRIVE, MOTOR_DRIVE = 'speed', 'motor'
+MOTOR_PARAMETER_PREFIX = 'motor_'
+
+
+def _drive(stored: Optional[Dict[str, str]],
+           geometry: kin.Geometry) -> Tuple[Optional[Drive], Optional[str]]:
+    """Read the recorded mass properties, loads and drive; or None and why no theory."""
+    if stored is None:
+        return None, f'the file has no {PARAMETERS_METADATA} metadata'
+    try:
+        values = {name: json.loads(text) for name, text in stored.items()}
+    except ValueError:
+        return None, f'the {PARAMETERS_METADATA} metadata is not JSON'
+    drive = values.get('drive', SPEED_DRIVE)
+    prefixes: Dict[Any, str] = {dyn.MassProperties: '', dyn.Loads: '',
+                                dyn.MotorDrive: MOTOR_PARAMETER_PREFIX}
+    wanted = {kind: {name: prefix + name for name in kind.field_names()}
+              for kind, prefix in prefixes.items()}
+    if drive not in (SPEED_DRIVE, MOTOR_DRIVE):
+        return None, f'the recorded drive {drive!r} is unknown (expected speed or motor)'
+    kinds = [dyn.MassProperties, dyn.Loads] + ([dyn.MotorDrive] if drive == MOTOR_DRIVE
+                                               else [])
+    missing = [key for kind in kinds for key in wanted[kind].values() if key not in values]
+    if missing:
+        return None, (f'the {PARAMETERS_METADATA} metadata lacks {", ".join(missing)} '
+                      '(recorded before the node had them)')
+    try:
+        made = [kind(**{name: values[key] for name, key in wanted[kind].items()})
+                for kind in kinds]
+        made[1].check_against(geometry.ram_stroke)
+    except kin.KinematicsError as error:  # DynamicsError is one
+        return None, f'the recorded mass properties or loads are refused: {error}'
+    return Drive(made[0], made[1], made[2] if drive == MOTOR_DRIVE else None), None
 
 
 class Segment(NamedTuple):
@@ -670,8 +766,123 @@ def _mean_and_spread(values) -> Tuple[Optional[float], Optional[float]]:
     return float(np.mean(values)), spread
 
 
-def measure_segment(samples: Samples, segment: Segment,
-                    geometry: kin.Geometry) -> Dict[str, Any]:
+# Per-pair effort figures (strokes.measure_pair_efforts), in the order of the table.
+EFFORT_FIGURES = ('peak_input_torque', 'rms_input_torque', 'mean_input_power',
+                  'energy_per_pair', 'peak_offset_force')
+# Figures whose theory can be exactly 0 (no loads: inertia and gravity give back over a
+# revolution what they take; the ideal speed drive: no fluctuation). Their error is also
+# given as measured - theory, the only error of a zero theory.
+ZERO_CAN_BE_EXACT = ('mean_input_power', 'energy_per_pair', 'speed_fluctuation')
+# A theoretical work per pair below this fraction of RMS torque x 2 pi is roundoff of 0.
+_ROUNDOFF = 1e-9
+
+
+def flywheel_speed_swing(geometry: kin.Geometry, offset: float) -> float:
+    """
+    Max / min flywheel speed over a revolution at a steady input speed: the offset's cost.
+
+    Eq. 4: w2 / w1 = r1 (r1 + d sin t) / (r1^2 + d^2 + 2 r1 d sin t) is monotonic in sin t
+    for |d| < r1, so its extremes are at sin t = -+1: r1 / (r1 -+ |d|).
+    """
+    radius = geometry.coupling_radius
+    return (radius + abs(offset)) / (radius - abs(offset))
+
+
+def _speed_extremes(time: np.ndarray, angle: np.ndarray, speed: np.ndarray,
+                    starts: np.ndarray, ends: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """
+    Max and min of a sampled speed over each [start, end], between samples too.
+
+    The angle is taken as scipy's cubic Hermite interpolant of the sampled angles and speeds
+    (its derivative matches every sample), so a peak between samples is found where that
+    derivative turns, to O((w dt)^3), not at the nearest sample.
+    """
+    rate = interpolate.CubicHermiteSpline(time, np.unwrap(angle), speed).derivative()
+    turning = rate.derivative().roots(extrapolate=False)
+    high, low = np.empty(starts.size), np.empty(starts.size)
+    for index, (start, end) in enumerate(zip(starts, ends)):
+        inside = np.concatenate([[start, end], turning[(turning > start) & (turning < end)]])
+        values = np.concatenate([rate(inside), speed[(time > start) & (time < end)]])
+        high[index], low[index] = np.max(values), np.min(values)
+    return high, low
+
+
+def _effort_theory(geometry: kin.Geometry, drive: Optional[Drive], offset: float,
+                   input_speed: float) -> Dict[str, Optional[float]]:
+    """Return the drive's figures of one pair at a steady setting (None: no theory)."""
+    theory: Dict[str, Optional[float]] = dict.fromkeys(EFFORT_FIGURES + ('speed_fluctuation',))
+    if drive is None or input_speed == 0.0:
+        return theory
+    with contextlib.suppress(kin.KinematicsError), warnings.catch_warnings():
+        # quad warns of roundoff when its 1e-12 goal is met to within roundoff already.
+        warnings.simplefilter('ignore', integrate.IntegrationWarning)
+        if drive.motor is None:  # the ideal speed drive holds the speed: no fluctuation
+            figures = motor_drive.pair_efforts(geometry, drive.mass, drive.loads, offset,
+                                               input_speed)
+            if (drive.loads.cutting_force == 0.0 and drive.loads.ram_friction == 0.0
+                    and abs(figures.energy_per_pair)
+                    <= _ROUNDOFF * 2 * math.pi * figures.rms_input_torque):
+                figures = figures._replace(energy_per_pair=0.0, mean_input_power=0.0)
+            theory.update(figures._asdict(), speed_fluctuation=0.0)
+        else:
+            steady = motor_drive.speed_fluctuation(geometry, drive.mass, drive.loads,
+                                                   drive.motor, offset, input_speed)
+            theory.update(steady.pair_efforts._asdict(),
+                          speed_fluctuation=steady.fluctuation)
+    return theory
+
+
+class InputTorqueParts(NamedTuple):
+    """The speed drive's input torque at a steady setting, split by cause (N m)."""
+
+    total: np.ndarray
+    inertia: np.ndarray  # the moving masses' speed changes alone: no gravity, no loads
+    cutting: np.ndarray  # the cutting force's share: F_c dx/d(theta) while the tool cuts
+    gravity_and_friction: np.ndarray  # the rest: the lever's weight and the ram's friction
+
+
+def input_torque_parts(geometry: kin.Geometry, drive: Drive, offset: float,
+                       input_angle: np.ndarray, input_speed: float) -> InputTorqueParts:
+    """
+    Split the input torque over input_angle (rad) at a steady input_speed (rad/s) by cause.
+
+    The torque is linear in the masses, in gravity and in the ram force, so the parts add up
+    to the total exactly: what the offset costs in inertia torque shows apart from the work.
+    """
+    motion = kin.state(geometry, offset, input_angle, input_speed)
+    loads = drive.loads
+    stroke = geometry.ram_stroke
+
+    def torque(mass: dyn.MassProperties, ram_force: Any = 0.0) -> np.ndarray:
+        return np.asarray(dyn.efforts(geometry, mass, offset, input_angle, input_speed,
+                                      external_ram_force=ram_force).input_torque)
+    total = torque(drive.mass, dyn.ram_load_force(loads, motion.ram_position,
+                                                  motion.ram_velocity, stroke))
+    weightless = dyn.MassProperties(**{**drive.mass.as_dict(), 'gravity': 0.0})
+    inertia = torque(weightless)
+    cutting_only = dyn.Loads(loads.cutting_force, 0.0, loads.cutting_length)
+    cutting = torque(weightless, dyn.ram_load_force(cutting_only, motion.ram_position,
+                                                    motion.ram_velocity, stroke)) - inertia
+    return InputTorqueParts(total, inertia, cutting, total - inertia - cutting)
+
+
+def _measured_and_theory(row: Dict[str, Any], name: str, values: np.ndarray,
+                         theory: Optional[float]) -> None:
+    """Put a figure's mean and spread over pairs, its theory and relative error in row."""
+    mean, spread = _mean_and_spread(values)
+    row[f'{name}_measured'] = mean
+    row[f'{name}_measured_std'] = spread
+    row[f'{name}_theory'] = _finite_or_none(theory)
+    row[f'{name}_relative_error'] = (None if mean is None or row[f'{name}_theory'] is None
+                                     else _relative_error(mean, row[f'{name}_theory']))
+
+
+def _not_recorded(samples: Samples) -> np.ndarray:
+    return np.full(samples.time.shape, np.nan)
+
+
+def measure_segment(samples: Samples, segment: Segment, geometry: kin.Geometry,
+                    drive: Optional[Drive] = None) -> Dict[str, Any]:
     """Measured and theoretical figures of one steady segment, as a JSON-ready dict."""
     span = slice(segment.start, segment.end)
     pairs = find_stroke_pairs(samples.time[span], samples.ram_position[span],
@@ -699,13 +910,42 @@ def measure_segment(samples: Samples, segment: Segment,
             theory.update(kin.steady_theory(geometry, segment.offset,
                                             segment.input_speed)._asdict())
     for name, values in measured.items():
-        mean, spread = _mean_and_spread(values)
-        row[f'{name}_measured'] = mean
-        row[f'{name}_measured_std'] = spread
-        row[f'{name}_theory'] = _finite_or_none(theory[name])
-        row[f'{name}_relative_error'] = (None if mean is None or row[f'{name}_theory'] is None
-                                         else _relative_error(mean, row[f'{name}_theory']))
+        _measured_and_theory(row, name, values, theory[name])
+    _measure_efforts(row, samples, span, pairs, geometry, drive)
     return row
+
+
+def _measure_efforts(row: Dict[str, Any], samples: Samples, span: slice, pairs: Any,
+                     geometry: kin.Geometry, drive: Optional[Drive]) -> None:
+    """Add the drive's figures per pair (efforts, speed fluctuation, flywheel swing) to row."""
+    time = samples.time[span]
+    torque = samples.input_torque if samples.input_torque is not None else _not_recorded(
+        samples)
+    force = samples.offset_force if samples.offset_force is not None else _not_recorded(
+        samples)
+    measured = measure_pair_efforts(time, samples.input_speed[span], torque[span], force[span],
+                                    pairs)
+    row['stroke_pairs_with_efforts'] = int(np.count_nonzero(
+        np.isfinite(measured.energy_per_pair)))
+    theory = _effort_theory(geometry, drive, row['offset'], row['input_speed'])
+    for name in EFFORT_FIGURES:
+        _measured_and_theory(row, name, getattr(measured, name), theory[name])
+    _measured_and_theory(row, 'speed_fluctuation', measured.speed_fluctuation,
+                         theory['speed_fluctuation'])
+    for name in ZERO_CAN_BE_EXACT:
+        mean, expected = row[f'{name}_measured'], row[f'{name}_theory']
+        row[f'{name}_absolute_error'] = (None if mean is None or expected is None
+                                         else mean - expected)
+    swing = np.empty(0)
+    if pairs.cutting_start.size:
+        high, low = _speed_extremes(time, samples.flywheel_angle[span],
+                                    samples.flywheel_speed[span], pairs.cutting_start,
+                                    pairs.return_end)
+        # The flywheel turns one way within a pair (w2 / w1 > 0), so |max| / |min| is it.
+        swing = np.maximum(np.abs(high), np.abs(low)) / np.minimum(np.abs(high), np.abs(low))
+    swing_theory = (flywheel_speed_swing(geometry, row['offset'])
+                    if abs(row['offset']) < geometry.coupling_radius else None)
+    _measured_and_theory(row, 'flywheel_speed_swing', swing, swing_theory)
 
 
 class Analysis(NamedTuple):
@@ -719,7 +959,8 @@ def analyse(recording: Recording) -> Analysis:
     """Segment the recording and measure every segment against the closed form."""
     with np.errstate(all='ignore'):  # absurd recorded values give inf/NaN, reported as null
         segments, transitions = split_segments(recording.samples)
-        rows = [measure_segment(recording.samples, s, recording.geometry) for s in segments]
+        rows = [measure_segment(recording.samples, s, recording.geometry, recording.drive)
+                for s in segments]
     return Analysis(recording, segments, rows, transitions)
 
 
@@ -756,6 +997,7 @@ def format_table(analysis: Analysis) -> str:
         lines.append(''.join(parts)[:-2])
     if not analysis.rows:
         lines.append('  (no segment of steady offset and input speed)')
+    lines += _effort_lines(analysis)
     for row in analysis.rows:
         per_turn = row['samples_per_revolution']
         if per_turn is not None and per_turn < MIN_SAMPLES_PER_REVOLUTION:
@@ -771,6 +1013,52 @@ def format_table(analysis: Analysis) -> str:
         lines.append(f'note: {recording.repeated_stamps} messages repeat the previous one '
                      '(same stamp, same values) and were counted once')
     return '\n'.join(lines)
+
+
+# Rows of the effort block: figure, what it is [unit], value format.
+_EFFORT_ROWS = (
+    ('peak_input_torque', 'peak |input torque| [N m]', '10.4f'),
+    ('rms_input_torque', 'RMS input torque [N m]', '10.4f'),
+    ('mean_input_power', 'mean input power [W]', '10.4f'),
+    ('energy_per_pair', 'energy per stroke pair [J]', '10.4f'),
+    ('peak_offset_force', 'peak |offset force| [N]', '10.3f'),
+    ('speed_fluctuation', 'input speed fluctuation Cs [-]', '10.2e'),
+    ('flywheel_speed_swing', 'flywheel speed max/min [-]', '10.6f'),
+)
+
+
+def _effort_lines(analysis: Analysis) -> List[str]:
+    """Return the drive's figures per segment: measured mean ± s.d., theory, error."""
+    recording = analysis.recording
+    if not analysis.rows:
+        return []
+    drive = recording.drive
+    lines = ['']
+    if drive is None:
+        lines.append(f'efforts: no theory ({recording.drive_problem})')
+    else:
+        kind = ('ideal speed drive' if drive.motor is None else
+                f'motor drive, {drive.motor.speed_stiffness:g} N m s/rad, '
+                f'{drive.motor.max_torque:g} N m')
+        lines.append(f'efforts: theory for the recorded masses and loads, {kind} (cutting '
+                     f'{drive.loads.cutting_force:g} N over {drive.loads.cutting_length:g} m, '
+                     f'friction {drive.loads.ram_friction:g} N)')
+    if recording.samples.input_torque is None:
+        lines.append('efforts: not recorded in this file (joint states without effort)')
+    for row in analysis.rows:
+        lines.append(f'  offset {row["offset"] * 1e3:.2f} mm at {row["input_speed"]:.4f} rad/s, '
+                     f'{row["stroke_pairs_with_efforts"]} of {row["stroke_pairs"]} stroke pairs '
+                     'with efforts:        measured       theory     error')
+        for name, title, spec in _EFFORT_ROWS:
+            mean, spread = row[f'{name}_measured'], row[f'{name}_measured_std']
+            measured = '-' if mean is None else f'{format(mean, spec)} ± {spread:.1e}'
+            if row.get(f'{name}_theory') == 0.0:
+                error = _fmt(row[f'{name}_absolute_error'], '+9.1e') + ' (abs.)'
+            else:
+                error = _fmt(row[f'{name}_relative_error'], '+9.1e')
+            lines.append(f'    {title:<32} {measured:>20} {_fmt(row[name + "_theory"], spec)} '
+                         f'{error}')
+    return lines
 
 
 def incompleteness(recording: Recording) -> List[str]:

@@ -256,6 +256,8 @@ class _Chain(NamedTuple):
     ram_acceleration: object
     efforts: Efforts
     generalized_inertia: object
+    ram_lever_arm: object  # dx/d(theta) at a fixed offset, m/rad: F_ext's torque arm
+    offset_coupling_inertia: object  # d^2 T / d(theta_dot) d(offset_rate), kg m
 
 
 def _chain(ops, coupling_radius, crank_radius, pivot_distance, ram_height, crank_phase, mass,
@@ -308,10 +310,11 @@ def _chain(ops, coupling_radius, crank_radius, pivot_distance, ram_height, crank
     downstream = mass['flywheel_inertia'] + psi_p * psi_p * (
         mass['lever_inertia'] + mass['ram_mass'] * x_p * x_p)
     inertia = mass['input_inertia'] + phi_t * phi_t * downstream
+    ram_lever_arm = x_p * psi_p * phi_t
     return _Chain(flywheel_angle, flywheel_speed, flywheel_acc, ops.atan2(r * cos_c, below),
                   lever_speed, lever_acc, ram_height * tan_l, ram_velocity, ram_acc,
                   Efforts(input_torque, flywheel_torque, lever_torque, ram_force,
-                          offset_force), inertia)
+                          offset_force), inertia, ram_lever_arm, phi_t * phi_d * downstream)
 
 
 def _array_chain(geometry, mass, offset, input_angle, input_speed=0.0, input_acceleration=0.0,

@@ -21,11 +21,13 @@ Every axis is labelled with its unit so a figure reads without the table.
 
 import math
 import os
+import warnings
 
 import matplotlib
 matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from scipy.integrate import IntegrationWarning  # noqa: E402
 
 from qrm_ros import kinematics as kin  # noqa: E402
 
@@ -191,11 +193,133 @@ def ram_motion_figure(analysis):
     return figure
 
 
+# Effort figures. Theory lines of the input torque's parts carry these gids.
+TORQUE_PARTS = {'total': ('total, theory', '-', 'C0'),
+                'inertia': ('inertia part', '--', 'C1'),
+                'cutting': ('cutting part', ':', 'C2'),
+                'gravity_and_friction': ('gravity and friction', '-.', 'C4')}
+MAX_TORQUE_PANELS = 8  # segments drawn in the input torque figure (the first ones)
+COST_CURVE_POINTS = 21  # offsets of the peak-torque theory curve (each an exact integral)
+
+
+def _no_data(axes, text):
+    axes.text(0.5, 0.5, text, transform=axes.transAxes, ha='center', va='center',
+              color='0.4', wrap=True)
+
+
+def input_torque_figure(analysis):
+    """Input torque over one revolution per segment: recorded, theory and its parts."""
+    from qrm_ros.analysis import input_torque_parts
+    recording = analysis.recording
+    geometry, samples, drive = recording.geometry, recording.samples, recording.drive
+    shown = list(zip(analysis.rows, analysis.segments))[:MAX_TORQUE_PANELS]
+    count = max(len(shown), 1)
+    figure, panels = plt.subplots(count, 1, figsize=(8, 2.6 * count + 1.0), sharex=True,
+                                  squeeze=False)
+    theta = _input_angle_grid()
+    for axes, (row, segment) in zip(panels[:, 0], shown):
+        axes.set_title(f'δ = {row["offset"] * 1e3:g} mm (δ/h = '
+                       f'{row["offset_over_pivot_distance"]:+.4f}), '
+                       f'{row["input_speed"]:g} rad/s', fontsize='medium')
+        if drive is not None and _has_theory(geometry, row) and row['input_speed'] != 0.0:
+            parts = input_torque_parts(geometry, drive, row['offset'], theta,
+                                       row['input_speed'])
+            for name, (label, style, color) in TORQUE_PARTS.items():
+                axes.plot(np.degrees(theta), getattr(parts, name), linestyle=style, color=color,
+                          linewidth=1.6 if name == 'total' else 1.0, gid=name, label=label)
+        if samples.input_torque is not None:
+            chosen, _ = _one_revolution(samples, segment)
+            angle = np.mod(samples.input_angle[chosen], 2 * math.pi)
+            axes.plot(np.degrees(angle), samples.input_torque[chosen], '.', color='C3',
+                      markersize=3, gid='recorded', label='recorded')
+        elif drive is None:
+            _no_data(axes, 'input torque not recorded; no theory ('
+                     f'{recording.drive_problem})')
+        else:
+            _no_data(axes, 'input torque not recorded (lines: theory)')
+        if drive is None and samples.input_torque is not None:
+            axes.text(0.01, 0.97, f'no theory: {recording.drive_problem}',
+                      transform=axes.transAxes, va='top', fontsize='small', color='0.4')
+        axes.axhline(0.0, color='0.6', linewidth=0.8)
+        axes.set_ylabel('input torque T1 [N m]')
+        axes.grid(True, alpha=0.3)
+    if not shown:
+        _no_data(panels[0, 0], 'no segment of steady offset and input speed')
+    handles = {label: handle for axes in panels[:, 0]
+               for handle, label in zip(*axes.get_legend_handles_labels())}
+    if handles:
+        panels[0, 0].legend(handles.values(), handles.keys(), fontsize='small', ncol=3)
+    panels[-1, 0].set_xlabel('input shaft angle θ [deg]')
+    panels[-1, 0].set_xlim(0, 360)
+    omitted = len(analysis.rows) - len(shown)
+    figure.suptitle('Input torque over one revolution (speed drive at steady speed; inertia '
+                    'part: no gravity, no loads)' + (f'; {omitted} more segments not shown'
+                                                     if omitted > 0 else ''),
+                    fontsize='medium')
+    return figure
+
+
+def _cost_speeds(analysis):
+    """Return the segments' input speeds (the peak torque grows with the speed squared)."""
+    return sorted({row['input_speed'] for row in analysis.rows
+                   if row['input_speed'] != 0.0 and math.isfinite(row['input_speed'])})
+
+
+def offset_cost_figure(analysis):
+    """Peak input torque and flywheel speed swing against δ/h: what the offset costs."""
+    from qrm_ros.analysis import flywheel_speed_swing
+    from qrm_ros.motor_drive import pair_efforts
+    recording = analysis.recording
+    geometry, drive = recording.geometry, recording.drive
+    figure, (top, bottom) = plt.subplots(2, 1, figsize=(8, 8), sharex=True)
+    h = geometry.pivot_distance
+    if drive is not None:
+        offsets = np.linspace(-geometry.max_safe_offset, geometry.max_safe_offset,
+                              COST_CURVE_POINTS)
+        for index, speed in enumerate(_cost_speeds(analysis)[:4]):
+            with warnings.catch_warnings():  # quad's roundoff notes (see analysis)
+                warnings.simplefilter('ignore', IntegrationWarning)
+                peaks = [pair_efforts(geometry, drive.mass, drive.loads, offset, speed
+                                      ).peak_input_torque for offset in offsets]
+            top.plot(offsets / h, peaks, '-', color=f'C{index}', gid=THEORY,
+                     label=f'theory (ideal speed drive), {speed:g} rad/s')
+    else:
+        _no_data(top, f'no theory: {recording.drive_problem}')
+    rows = [r for r in analysis.rows if r['peak_input_torque_measured'] is not None]
+    if rows:
+        top.errorbar([r['offset_over_pivot_distance'] for r in rows],
+                     [r['peak_input_torque_measured'] for r in rows],
+                     yerr=[r['peak_input_torque_measured_std'] for r in rows], fmt='o',
+                     color='C3', capsize=3, label='measured (mean ± s.d. over stroke pairs)')
+    elif recording.samples.input_torque is None:
+        top.text(0.01, 0.03, 'input torque not recorded', transform=top.transAxes,
+                 color='0.4')
+    top.set_yscale('log')  # it grows without bound toward the largest offsets
+    top.set_ylabel('peak |input torque| per stroke pair [N m]')
+    top.set_title('What the offset costs: peak input torque and flywheel speed swing')
+    offsets = _offset_axis(geometry)
+    bottom.plot(offsets / h, flywheel_speed_swing(geometry, offsets), color='C0', gid=THEORY,
+                label='theory, (r1 + |δ|) / (r1 - |δ|) (eq. 4)')
+    x, y, spread = _measured(analysis, 'flywheel_speed_swing')
+    bottom.errorbar(x, y, yerr=spread, fmt='o', color='C3', capsize=3,
+                    label='measured (mean ± s.d. over stroke pairs)')
+    bottom.set_yscale('log')
+    bottom.set_ylabel('flywheel speed swing max ω2 / min ω2 [-]')
+    bottom.set_xlabel('offset / pivot distance, δ/h [-]')
+    for axes in (top, bottom):
+        axes.grid(True, which='both', alpha=0.3)
+        if axes.get_legend_handles_labels()[0]:
+            axes.legend(fontsize='small')
+    return figure
+
+
 FIGURES = {
     'fig10_time_ratio.png': time_ratio_figure,
     'fig11_speed_ratio.png': speed_ratio_figure,
     'fig12_flywheel_speed.png': flywheel_speed_figure,
     'ram_motion.png': ram_motion_figure,
+    'fig_input_torque.png': input_torque_figure,
+    'fig_offset_cost.png': offset_cost_figure,
 }
 
 

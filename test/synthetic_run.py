@@ -19,10 +19,12 @@ offset actuator moves between at a constant rate, sampled at a fixed rate: what 
 publishes, but made in microseconds and independent of the node and the recorder.
 """
 
+import json
 import math
 
 import numpy as np
 
+from qrm_ros import dynamics as dyn
 from qrm_ros import kinematics as kin
 from qrm_ros import names
 
@@ -50,10 +52,26 @@ def schedule_states(geometry, offsets, hold=4.0, offset_rate=0.01, input_speed=2
     return time, wrapped, offset, offset_velocity, state
 
 
+def schedule_efforts(geometry, mass, loads, offset, input_angle, input_speed, offset_velocity,
+                     state):
+    """Return the joint efforts (n, 5) shaper_sim publishes for these states (speed drive)."""
+    load = dyn.ram_load_force(loads, state.ram_position, state.ram_velocity,
+                              geometry.ram_stroke)
+    efforts = dyn.efforts(geometry, mass, offset, input_angle, input_speed, 0.0,
+                          offset_velocity, 0.0, load)
+    return np.stack(efforts, axis=1)
+
+
 def write_run(path, geometry, offsets, with_geometry=True, joint_states_topic='/joint_states',
               start_ns=1_700_000_000_000_000_000, chunk_size=256 * 1024, data_crc=False,
-              **schedule):
-    """Write a synthetic run as a ros2-profile MCAP file; return the number of messages."""
+              mass=None, loads=None, **schedule):
+    """
+    Write a synthetic run as a ros2-profile MCAP file; return the number of messages.
+
+    With mass and loads (dynamics.MassProperties, Loads), the messages carry the efforts and
+    the file the parameters metadata, as the node and the recorder write them; the ramps'
+    offset acceleration is taken as 0 (the node's speed drive does the same).
+    """
     from mcap.writer import Writer
     from rosbags.typesys import get_typestore, Stores
 
@@ -65,6 +83,11 @@ def write_run(path, geometry, offsets, with_geometry=True, joint_states_topic='/
     time, input_angle, offset, offset_velocity, state = schedule_states(geometry, offsets,
                                                                         **schedule)
     speed = schedule.get('input_speed', 2 * math.pi)
+    if mass is not None:
+        efforts = schedule_efforts(geometry, mass, loads, offset, input_angle, speed,
+                                   offset_velocity, state)
+    else:
+        efforts = np.empty((time.size, 0))
     with open(path, 'wb') as handle:
         writer = Writer(handle, chunk_size=chunk_size, enable_data_crcs=data_crc)
         writer.start(profile='ros2', library='qrm_ros test synthetic_run')
@@ -74,6 +97,10 @@ def write_run(path, geometry, offsets, with_geometry=True, joint_states_topic='/
         if with_geometry:
             writer.add_metadata('qrm_ros.geometry', {k: repr(float(v)) for k, v in
                                                      geometry.as_dict().items()})
+        if mass is not None:
+            parameters = {**mass.as_dict(), **loads.as_dict(), **geometry.as_dict()}
+            writer.add_metadata(names.PARAMETERS_METADATA,
+                                {k: json.dumps(float(v)) for k, v in parameters.items()})
         for i, t in enumerate(time):
             stamp_ns = start_ns + int(round(t * 1e9))
             message = JointState(
@@ -84,7 +111,7 @@ def write_run(path, geometry, offsets, with_geometry=True, joint_states_topic='/
                                    state.lever_angle[i], state.ram_position[i], offset[i]]),
                 velocity=np.array([speed, state.flywheel_speed[i], state.lever_speed[i],
                                    state.ram_velocity[i], offset_velocity[i]]),
-                effort=np.array([], dtype=float))
+                effort=efforts[i])
             data = store.serialize_cdr(message, type_name)
             writer.add_message(channel, log_time=stamp_ns + 250_000, publish_time=stamp_ns,
                                data=bytes(data), sequence=i)

@@ -42,7 +42,7 @@ def test_main_job_runs_a_short_schedule_end_to_end(tmp_path, capsys):
         assert (folder / name).is_file(), name
     assert sorted(os.listdir(folder / 'figures')) == sorted(
         ['fig10_time_ratio.png', 'fig11_speed_ratio.png', 'fig12_flywheel_speed.png',
-         'ram_motion.png'])
+         'ram_motion.png', 'fig_input_torque.png', 'fig_offset_cost.png'])
     assert str(folder / 'run.mcap') in out
     document = json.loads((folder / 'results.json').read_text())
     segments = document['segments']
@@ -56,6 +56,11 @@ def test_main_job_runs_a_short_schedule_end_to_end(tmp_path, capsys):
             kin.time_ratio_rk4(geometry, segment['offset']), rel=tolerance)
         eq25 = kin.speed_ratio_eq25(geometry, segment['offset'])
         assert segment['speed_ratio_measured'] == pytest.approx(eq25, rel=tolerance)
+        # The node's default masses, no loads: inertia and gravity only, no work per pair.
+        assert segment['stroke_pairs_with_efforts'] == segment['stroke_pairs']
+        assert segment['energy_per_pair_theory'] == 0.0
+        assert segment['speed_fluctuation_absolute_error'] == 0.0
+        assert segment['peak_input_torque_relative_error'] is not None
 
 
 @pytest.mark.parametrize('arguments, words', [

@@ -1,0 +1,798 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+Drive-side answers of the dynamics (pure numpy/scipy, no ROS).
+
+The ram load is discontinuous (dynamics.md): at every stroke reversal and at the workpiece's
+edges during a cut. Between those switches every effort is a smooth function of time, so
+each revolution is split there and every smooth piece is integrated and searched for its
+peaks on its own; that is what makes the per-pair figures exact to quadrature accuracy.
+"""
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from scipy import integrate, optimize
+
+from qrm_ros import dynamics as dyn
+from qrm_ros.kinematics import check_offset, KinematicsError, state
+from qrm_ros.stepping import _finite, _positive, _ramp, wrap_angle
+
+__all__ = ['MotorStepper', 'PairEfforts', 'Simulation', 'SpeedFluctuation',
+           'input_inertia_for_speed_fluctuation', 'pair_efforts', 'simulate',
+           'speed_fluctuation']
+
+# Samples per revolution when looking for switches and peaks (then refined exactly).
+_SEARCH_SAMPLES = 2048
+_PEAK_SAMPLES = 64  # per smooth piece
+
+
+class PairEfforts(NamedTuple):
+    """Input-side figures of one stroke pair (N m, N m, W, J, N)."""
+
+    peak_input_torque: float
+    rms_input_torque: float
+    mean_input_power: float
+    energy_per_pair: float
+    peak_offset_force: float
+
+
+def _speed(input_speed):
+    input_speed = dyn._checked('input_speed', input_speed, 'rad/s')
+    if input_speed == 0.0:
+        raise KinematicsError('input_speed must be non-zero (rad/s): a stopped shaft has no '
+                              'stroke pairs')
+    return input_speed
+
+
+def _load_switch_times(geometry, loads, offset, input_speed, period):
+    """Return the times in (0, period) where the ram load can switch (reversals, edges)."""
+    def switching(time):
+        motion = state(geometry, offset, input_speed * time, input_speed)
+        half = 0.5 * loads.cutting_length
+        return (motion.ram_velocity, motion.ram_position - half, motion.ram_position + half)
+
+    times = np.linspace(0.0, period, _SEARCH_SAMPLES + 1)
+    switches = []
+    for index, values in enumerate(switching(times)):
+        changes = np.nonzero(np.sign(values[:-1]) * np.sign(values[1:]) < 0.0)[0]
+        for change in changes:
+            switches.append(optimize.brentq(lambda t: switching(t)[index], times[change],
+                                            times[change + 1], xtol=1e-15 * period,
+                                            rtol=4 * np.finfo(float).eps))
+        switches.extend(times[1:-1][values[1:-1] == 0.0])
+    return sorted(switches)
+
+
+def _peak(function, start, end):
+    """Return max |function| over [start, end]: dense samples, then a bounded refinement."""
+    times = np.linspace(start, end, _PEAK_SAMPLES)
+    values = np.abs(function(times))
+    best = int(np.argmax(values))
+    peak = float(values[best])
+    low, high = times[max(best - 1, 0)], times[min(best + 1, times.size - 1)]
+    if high > low:
+        result = optimize.minimize_scalar(lambda t: -abs(float(function(t))), bounds=(low, high),
+                                          method='bounded',
+                                          options={'xatol': 1e-14 * max(abs(end), 1.0)})
+        peak = max(peak, -float(result.fun))
+    return peak
+
+
+def pair_efforts(geometry, mass, loads, offset, input_speed):
+    """
+    Return the input-side ``PairEfforts`` of one revolution under an ideal speed drive.
+
+    The input turns at the constant input_speed (rad/s, non-zero) with the offset (m) fixed;
+    energy_per_pair is the work the drive does in the revolution (the integral of the input
+    torque over the angle turned), mean_input_power that work over the revolution's time,
+    rms_input_torque the root mean square over time.
+    """
+    offset = float(check_offset(geometry, offset))
+    input_speed = _speed(input_speed)
+    loads.check_against(geometry.ram_stroke)
+    period = 2.0 * math.pi / abs(input_speed)
+    bounds = [0.0, *_load_switch_times(geometry, loads, offset, input_speed, period), period]
+    energy = square = peak_torque = peak_force = 0.0
+    for start, end in zip(bounds[:-1], bounds[1:]):
+        if end <= start:
+            continue
+        middle = state(geometry, offset, input_speed * 0.5 * (start + end), input_speed)
+        load = dyn.ram_load_force(loads, middle.ram_position, middle.ram_velocity,
+                                  geometry.ram_stroke)
+
+        def piece(time, load=load):
+            return dyn.efforts(geometry, mass, offset, input_speed * np.asarray(time),
+                               input_speed, external_ram_force=load)
+
+        def torque(time):
+            return piece(time).input_torque
+
+        tolerance = {'epsabs': 0.0, 'epsrel': 1e-12, 'limit': 200}
+        energy += input_speed * integrate.quad(torque, start, end, **tolerance)[0]
+        square += integrate.quad(lambda t: torque(t) ** 2, start, end, **tolerance)[0]
+        peak_torque = max(peak_torque, _peak(torque, start, end))
+        peak_force = max(peak_force, _peak(lambda t: piece(t).offset_force, start, end))
+    return PairEfforts(peak_input_torque=peak_torque,
+                       rms_input_torque=math.sqrt(square / period),
+                       mean_input_power=energy / period, energy_per_pair=energy,
+                       peak_offset_force=peak_force)
+
+
+# The integrator's tolerances (DOP853, 8th order): the state is (rad, rad/s).
+_RTOL = 1e-12
+_ATOL = 1e-12
+# Dense-output samples per step when looking for a switch inside it (a function that goes
+# out and back within one fifth of a step would be missed; steps are far shorter than the
+# load pieces).
+_ROOT_SAMPLES = 5
+_NANOSECONDS = 1e9
+# A ram reversal landed on with the input slower than this (rad/s) is the shaft stopping.
+_STOP_SPEED = 1e-9
+# Why a segment of the integration ended (what changed at the restart).
+_DIRECTION, _WORK, _SATURATION, _SPIN = range(4)
+
+
+def _sign(value):
+    return int(value > 0.0) - int(value < 0.0)
+
+
+class MotorStepper:
+    """
+    The mechanism under a motor drive: the input speed is a state of the equation of motion.
+
+    Same interface and stamp rules as ``stepping.ShaperStepper`` (integer-ns stamps, commands
+    from the present stamp, time resets, wrapped angle). The speed command ramps at
+    input_acceleration_limit into the motor's speed reference; the offset moves toward its
+    command at offset_rate_limit as ShaperStepper moves it. A jump in the offset rate (a ramp
+    starting or ending) is an impulse on the offset only, so the input's generalised momentum
+    is kept across it and the input speed jumps.
+
+    Integration: scipy's DOP853, restarted at every switch of the right-hand side: stroke
+    reversal, tool entering or leaving the workpiece, motor reaching or leaving its torque
+    limit, input speed through zero, a ramp ending, any command. A switch inside a step is
+    found on the step's dense output with brentq, and the step is cut there. Outputs at
+    stamps come from dense output, so the trajectory does not depend on the stamps asked for.
+
+    Stall rule: when the input speed reaches zero, the load seen by each direction of motion
+    is the one that motion would meet (friction against it; the cutting force if the ram
+    would move toward -x inside the workpiece). The shaft moves forward if the motor's
+    torque at zero speed beats the forward load's torque, backward likewise, else it is held
+    at rest (angle and offset still). Held with a non-zero speed reference is a stall:
+    ``stalled`` is True and ``stall_reason`` says why. The rule is re-checked at every step
+    (loads, motor and commands may change), and the shaft resumes as soon as it allows.
+
+    motor=None runs the shaft free (no motor torque).
+    """
+
+    def __init__(self, geometry, mass, loads, motor, input_speed, offset,
+                 input_acceleration_limit, offset_rate_limit):
+        self._geometry = geometry
+        self._geometry_fields = dyn._geometry_fields(geometry)
+        self._acceleration_limit = _positive('input_acceleration_limit',
+                                             input_acceleration_limit, 'rad/s^2')
+        self._offset_rate_limit = _positive('offset_rate_limit', offset_rate_limit, 'm/s')
+        self._set_dynamics(mass, loads, motor)
+        self.time_resets = 0
+        self.reset(input_speed, offset)
+
+    # Commands -----------------------------------------------------------------------------
+
+    def _set_dynamics(self, mass, loads, motor):
+        self._mass = mass
+        self._mass_values = mass.scalars()
+        self._loads = loads.check_against(self._geometry.ram_stroke)
+        loads.scalars()
+        self._motor = motor
+        if motor is not None:
+            motor.scalars()
+
+    def _changed(self, change):
+        """Apply change at the present stamp: the state there starts a new segment."""
+        if self._stamp_ns is None:
+            change()
+            return
+        angle, speed = self._angle, self._speed
+        reference, offset = self._reference_at(self._time), self._offset_at(self._time)
+        change()
+        self._start(self._time, angle, speed, reference, offset, None)
+
+    def set_dynamics(self, mass=None, loads=None, motor=None):
+        """Change masses, loads or motor (None keeps each) from the present stamp."""
+        mass = self._mass if mass is None else mass
+        loads = self._loads if loads is None else loads
+        motor = self._motor if motor is None else motor
+        self._changed(lambda: self._set_dynamics(mass, loads, motor))
+
+    def set_speed_command(self, input_speed):
+        """Command the input speed (rad/s): the motor's reference ramps to it."""
+        command = _finite('input_speed', input_speed, 'rad/s')
+        self._changed(lambda: setattr(self, '_speed_command', command))
+
+    def set_offset_command(self, offset):
+        """Command the coupling offset (m, |offset| < coupling_radius); moved at the limit."""
+        command = float(check_offset(self._geometry, offset))
+        self._changed(lambda: setattr(self, '_offset_command', command))
+
+    def set_limits(self, input_acceleration_limit=None, offset_rate_limit=None):
+        """Change either limit (rad/s^2, m/s; > 0); None keeps the present value."""
+        acceleration = self._acceleration_limit
+        rate = self._offset_rate_limit
+        if input_acceleration_limit is not None:
+            acceleration = _positive('input_acceleration_limit', input_acceleration_limit,
+                                     'rad/s^2')
+        if offset_rate_limit is not None:
+            rate = _positive('offset_rate_limit', offset_rate_limit, 'm/s')
+
+        def change():
+            self._acceleration_limit, self._offset_rate_limit = acceleration, rate
+        self._changed(change)
+
+    def reset(self, input_speed, offset):
+        """Input angle to zero; speed, reference and offset set at once; new time base next."""
+        input_speed = _finite('input_speed', input_speed, 'rad/s')
+        offset = float(check_offset(self._geometry, offset))
+        self._speed_command = input_speed
+        self._offset_command = offset
+        self._angle, self._speed = 0.0, input_speed
+        self._segment_reference, self._segment_offset = input_speed, offset
+        self._segment_start = 0.0
+        self._reference_end = self._offset_end = -math.inf
+        self._offset_rate = 0.0
+        self._stamp_ns = None
+        self._time = 0.0
+        self._solver = None
+        self._spin = 0
+        self._stall_reason = None
+        self._load = 0.0
+        self._saturation = 0
+        self._piece = (0.0, 0.0, None)
+
+    def restore(self, stamp_ns, input_angle, input_speed, offset, speed_reference=None):
+        """
+        Take a recorded state as the present one, at its stamp (to replay a logged run).
+
+        The motor's speed reference (rad/s) is part of the state here; it and the speed
+        command default to input_speed, as ShaperStepper's commands equal its state.
+        """
+        input_angle = _finite('input_angle', input_angle, 'rad')
+        reference = input_speed if speed_reference is None else speed_reference
+        reference = _finite('speed_reference', reference, 'rad/s')
+        self.reset(input_speed, offset)
+        self._segment_reference = self._speed_command = reference
+        self._angle = wrap_angle(input_angle)
+        self._new_base(int(stamp_ns))
+
+    def resync(self):
+        """Hold the state: the next step starts a new time base (used after a pause)."""
+        self._stamp_ns = None
+
+    # Segments -----------------------------------------------------------------------------
+
+    def _new_base(self, stamp_ns):
+        self._stamp_ns = self._base_ns = stamp_ns
+        self._time = 0.0
+        self._piece = (0.0, 0.0, None)
+        self._start(0.0, self._angle, self._speed, self._reference_at(None),
+                    self._offset_at(None), None)
+
+    def _reference_at(self, time):
+        """Return the motor's speed reference (rad/s) at time (s; None: the segment's start)."""
+        if time is None:
+            return self._segment_reference
+        if time >= self._reference_end:
+            return self._speed_command
+        return _ramp(self._segment_reference, self._speed_command, self._acceleration_limit,
+                     time - self._segment_start)[0]
+
+    def _offset_at(self, time):
+        if time is None or self._spin == 0:
+            return self._segment_offset  # held at rest
+        if time >= self._offset_end:
+            return self._offset_command
+        return _ramp(self._segment_offset, self._offset_command, self._offset_rate_limit,
+                     time - self._segment_start)[0]
+
+    def _chain(self, offset, angle, speed, offset_rate):
+        return dyn._chain(dyn._SCALAR_OPS, *self._geometry_fields, self._mass_values, offset,
+                          angle, speed, 0.0, offset_rate, 0.0, 0.0)
+
+    def _motor_torque(self, reference, speed, saturation):
+        if self._motor is None:
+            return 0.0
+        if saturation:
+            return saturation * self._motor.max_torque
+        return self._motor.speed_stiffness * (reference - speed)
+
+    def _loaded(self, direction, in_work):
+        loads = self._loads
+        cutting = loads.cutting_force if direction < 0 and in_work else 0.0
+        return cutting - loads.ram_friction * direction
+
+    def _acceleration(self, chain, torque, load):
+        bias = chain.efforts.input_torque - load * chain.ram_lever_arm
+        return (torque - bias) / chain.generalized_inertia
+
+    def _rhs(self, time, y):
+        reference = self._reference_at(time)
+        offset = (self._offset_command if time >= self._offset_end else
+                  _ramp(self._segment_offset, self._offset_command, self._offset_rate_limit,
+                        time - self._segment_start)[0])
+        chain = self._chain(offset, y[0], y[1], self._offset_rate)
+        torque = self._motor_torque(reference, y[1], self._saturation)
+        return [y[1], self._acceleration(chain, torque, self._load)]
+
+    def _switching(self, time, angle, speed):
+        """Values that stay > 0 while the segment's mode holds (one per switch kind)."""
+        chain = self._chain(self._offset_at(time), angle, speed, self._offset_rate)
+        values = [self._direction * chain.ram_velocity,
+                  (self._half_work - abs(chain.ram_position)) * (1 if self._in_work else -1)
+                  if self._loads.cutting_force > 0.0 else 1.0]
+        if self._motor is None:
+            values.append(1.0)
+        else:
+            demand = self._motor.speed_stiffness * (self._reference_at(time) - speed)
+            limit = self._motor.max_torque
+            values.append(limit - abs(demand) if self._saturation == 0
+                          else self._saturation * demand - limit)
+        values.append(self._spin * speed)
+        return values
+
+    def _set_ramp_ends(self, time, reference, offset):
+        """When (s) the reference and the offset reach their commands: kinks to stop at."""
+        gap = self._speed_command - reference
+        self._reference_end = time + abs(gap) / self._acceleration_limit if gap else -math.inf
+        gap = self._offset_command - offset
+        self._offset_end = time + abs(gap) / self._offset_rate_limit if gap else -math.inf
+
+    def _breakpoint(self, time):
+        """Next time (s) a ramp ends after time, where the right-hand side has a kink."""
+        ends = [end for end in (self._reference_end, self._offset_end) if end > time]
+        return min(ends, default=math.inf)
+
+    def _start(self, time, angle, speed, reference, offset, trigger):
+        """Start a segment at time with this state; choose its mode from the state."""
+        old_rate = self._offset_rate
+        gap = self._offset_command - offset
+        rate = math.copysign(self._offset_rate_limit, gap) if gap else 0.0
+        self._segment_start, self._segment_reference, self._segment_offset = (
+            time, reference, offset)
+        self._set_ramp_ends(time, reference, offset)
+        angle = wrap_angle(angle)
+        if rate != old_rate:
+            # An impulse on the offset alone keeps the input's generalised momentum.
+            chain = self._chain(offset, angle, speed, old_rate)
+            speed -= chain.offset_coupling_inertia * (rate - old_rate) / (
+                chain.generalized_inertia)
+        self._offset_rate = rate
+        chain = self._chain(offset, angle, speed, rate)
+        self._half_work = 0.5 * self._loads.cutting_length
+        if trigger is not None and self._spin and (
+                _sign(speed) != self._spin
+                or (trigger == _DIRECTION and abs(speed) <= _STOP_SPEED)):
+            # Another switch landed where the speed is through zero (the load's reversal
+            # and the shaft's coincide when the shaft stops): that is a stop first.
+            trigger = _SPIN
+        if trigger == _SPIN:
+            speed = 0.0
+            chain = self._chain(offset, angle, speed, rate)
+        old_direction = getattr(self, '_direction', 1)
+        velocity = chain.ram_velocity
+        if trigger == _DIRECTION:
+            self._direction = -old_direction
+        else:
+            self._direction = _sign(velocity) or _sign(chain.ram_lever_arm * speed) or 1
+        if trigger == _WORK:
+            self._in_work = not self._in_work
+        else:
+            self._in_work = abs(chain.ram_position) <= self._half_work
+        self._stall_reason = None
+        self._spin = _sign(speed)
+        if self._spin == 0:
+            self._at_rest(chain, angle, reference, velocity)
+        if trigger == _SATURATION:
+            demand = self._motor.speed_stiffness * (reference - speed)
+            self._saturation = 0 if self._saturation else _sign(demand)
+        else:
+            self._saturation = self._saturation_of(reference, speed)
+        self._load = self._loaded(self._direction, self._in_work)
+        self._angle, self._speed = angle, speed
+        if self._spin == 0:
+            self._solver = None
+            self._piece = (time, math.inf, None)
+            return
+        self._solver = integrate.DOP853(self._rhs, time, [angle, speed],
+                                        self._breakpoint(time), rtol=_RTOL, atol=_ATOL)
+        # The last piece stays valid up to here (a stamp just before the switch), no further.
+        piece_start, _, dense = self._piece
+        self._piece = (piece_start, time, dense) if dense is not None else (time, time, None)
+
+    def _saturation_of(self, reference, speed):
+        if self._motor is None:
+            return 0
+        demand = self._motor.speed_stiffness * (reference - speed)
+        return _sign(demand) if abs(demand) >= self._motor.max_torque else 0
+
+    def _at_rest(self, chain, angle, reference, velocity):
+        """Input speed zero: pick the direction the torques allow, or hold (the stall rule)."""
+        torque = self._motor_torque(reference, 0.0, self._saturation_of(reference, 0.0))
+        accelerations = {}
+        for spin in (1, -1):
+            direction = _sign(velocity) or _sign(chain.ram_lever_arm * spin) or spin
+            load = self._loaded(direction, self._in_work)
+            accelerations[spin] = (self._acceleration(chain, torque, load), direction)
+        for spin in (1, -1):
+            acceleration, direction = accelerations[spin]
+            if acceleration * spin > 0.0:
+                self._spin, self._direction = spin, direction
+                return
+        self._spin = 0
+        if reference != 0.0 or self._speed_command != 0.0:
+            needed = chain.generalized_inertia * -accelerations[_sign(reference) or 1][0] + torque
+            self._stall_reason = (
+                f'stalled at input angle {angle:.6g} rad: the motor gives {torque:.6g} N*m at '
+                f'zero speed (max_torque '
+                f'{self._motor.max_torque if self._motor else 0.0:.6g} N*m), the load needs '
+                f'{needed:.6g} N*m to turn the input (cutting_force '
+                f'{self._loads.cutting_force:.6g} N, ram_friction '
+                f'{self._loads.ram_friction:.6g} N)')
+
+    def _extend(self):
+        """Cover the next stretch of time: one solver step, cut at a switch, or a restart."""
+        solver = self._solver
+        if solver.status == 'finished':
+            reference = self._reference_at(solver.t)
+            offset = self._offset_at(solver.t)
+            self._start(solver.t, float(solver.y[0]), float(solver.y[1]), reference, offset, None)
+            return
+        message = solver.step()
+        if solver.status == 'failed':
+            raise dyn.DynamicsError(f'the motor-drive integration failed: {message}')
+        start, end = solver.t_old, solver.t
+        dense = solver.dense_output()
+        switch = self._first_switch(dense, start, end)
+        if switch is None:
+            self._piece = (start, end, dense)
+            return
+        time, kind = switch
+        self._piece = (start, time, dense)
+        angle, speed = dense(time)
+        self._start(time, float(angle), float(speed), self._reference_at(time),
+                    self._offset_at(time), kind)
+
+    def _first_switch(self, dense, start, end):
+        times = np.linspace(start, end, _ROOT_SAMPLES + 1)
+        states = dense(times)
+        previous = self._switching(times[0], states[0, 0], states[1, 0])
+        for index in range(1, times.size):
+            values = self._switching(times[index], states[0, index], states[1, index])
+            found = []
+            for kind, (before, after) in enumerate(zip(previous, values)):
+                if before > 0.0 and after <= 0.0:
+                    if after == 0.0:
+                        found.append((float(times[index]), kind))
+                        continue
+
+                    def switching(time, kind=kind):
+                        angle, speed = dense(time)
+                        return self._switching(time, float(angle), float(speed))[kind]
+                    root = optimize.brentq(switching, times[index - 1], times[index],
+                                           xtol=1e-15, rtol=4 * np.finfo(float).eps)
+                    found.append((root, kind))
+            if found:
+                return min(found)
+            previous = values
+        return None
+
+    # Stepping -----------------------------------------------------------------------------
+
+    def integrate_to(self, stamp_ns):
+        """Advance the state to stamp_ns (int nanoseconds)."""
+        stamp_ns = int(stamp_ns)
+        previous = self._stamp_ns
+        if previous is None:
+            self._new_base(stamp_ns)
+            return
+        if stamp_ns == previous:
+            return
+        if stamp_ns < previous:
+            self.time_resets += 1
+            self._new_base(stamp_ns)
+            return
+        self._stamp_ns = stamp_ns
+        time = (stamp_ns - self._base_ns) / _NANOSECONDS
+        self._time = time
+        if self._spin == 0:
+            # At rest: the reference may have ramped; re-check the stall rule now.
+            self._start(time, self._angle, 0.0, self._reference_at(time),
+                        self._segment_offset, None)
+            return
+        while self._piece[1] < time:
+            self._extend()
+            if self._spin == 0 and self._piece[1] == math.inf:
+                break
+        start, end, dense = self._piece
+        if dense is None:
+            return  # resting, or the segment starts exactly here
+        angle, speed = dense(time)
+        self._angle, self._speed = wrap_angle(float(angle)), float(speed)
+
+    def mechanism_state(self):
+        """Return the kinematics core's exact state (MechanismState) at the present stamp."""
+        return state(self._geometry, self.offset, self._angle, self._speed,
+                     self.input_acceleration, self.offset_rate)
+
+    def advance_to(self, stamp_ns):
+        """Step to stamp_ns (int nanoseconds) and return the mechanism's state there."""
+        self.integrate_to(stamp_ns)
+        return self.mechanism_state()
+
+    def efforts(self):
+        """``dynamics.Efforts`` at the present stamp (the motor's torque drives the input)."""
+        return dyn.efforts(self._geometry, self._mass, self.offset, self._angle, self._speed,
+                           self.input_acceleration, self.offset_rate, 0.0, self._load)
+
+    # State --------------------------------------------------------------------------------
+
+    @property
+    def geometry(self):
+        return self._geometry
+
+    @property
+    def stamp_ns(self):
+        """Stamp of the last step (int ns), or None when the next step starts a time base."""
+        return self._stamp_ns
+
+    @property
+    def input_angle(self):
+        """Input shaft angle, rad, in [-pi, pi)."""
+        return self._angle
+
+    @property
+    def input_speed(self):
+        """Input shaft speed, rad/s."""
+        return self._speed
+
+    @property
+    def input_acceleration(self):
+        """Input shaft acceleration at the present stamp from the equation of motion, rad/s^2."""
+        if self._spin == 0:
+            return 0.0
+        return self._rhs(self._time, (self._angle, self._speed))[1]
+
+    @property
+    def motor_torque(self):
+        """Torque the motor applies to the input shaft now, N m."""
+        reference = self._reference_at(self._time)
+        return self._motor_torque(reference, self._speed,
+                                  self._saturation_of(reference, self._speed))
+
+    @property
+    def ram_load(self):
+        """F_ext on the ram in the present segment, N along +x."""
+        return self._load
+
+    @property
+    def stalled(self):
+        return self._stall_reason is not None
+
+    @property
+    def stall_reason(self):
+        """Why the shaft is held (str) while stalled, else None."""
+        return self._stall_reason
+
+    @property
+    def offset(self):
+        """Coupling offset in force, m."""
+        return self._offset_at(self._time)
+
+    @property
+    def offset_rate(self):
+        """Rate of the coupling offset from the present stamp on, m/s."""
+        return self._offset_rate if self._spin else 0.0
+
+    @property
+    def speed_reference(self):
+        """The motor's speed reference now (the speed command after its ramp), rad/s."""
+        return self._reference_at(self._time)
+
+    @property
+    def speed_command(self):
+        return self._speed_command
+
+    @property
+    def offset_command(self):
+        return self._offset_command
+
+    @property
+    def input_acceleration_limit(self):
+        return self._acceleration_limit
+
+    @property
+    def offset_rate_limit(self):
+        return self._offset_rate_limit
+
+
+class Simulation(NamedTuple):
+    """Sampled trajectory of ``simulate`` (s, rad unwrapped, rad/s, rad/s^2, N m, ...)."""
+
+    time: np.ndarray
+    input_angle: np.ndarray
+    input_speed: np.ndarray
+    input_acceleration: np.ndarray
+    motor_torque: np.ndarray
+    efforts: dyn.Efforts
+    stalled: np.ndarray
+
+
+def simulate(geometry, mass, loads, motor, offset, input_speed, duration, sample_rate,
+             initial_speed=None, input_acceleration_limit=1e6, offset_rate_limit=1.0):
+    """
+    Run a MotorStepper from angle 0 and sample it at sample_rate (Hz) for duration (s).
+
+    It starts at initial_speed (default input_speed, rad/s); the motor's reference ramps to
+    input_speed.
+
+    input_angle is unwrapped (it counts whole turns), for energy and work integrals.
+    """
+    duration = _positive('duration', duration, 's')
+    sample_rate = _positive('sample_rate', sample_rate, 'Hz')
+    input_speed = _finite('input_speed', input_speed, 'rad/s')
+    start_speed = input_speed if initial_speed is None else initial_speed
+    stepper = MotorStepper(geometry, mass, loads, motor, start_speed, offset,
+                           input_acceleration_limit, offset_rate_limit)
+    stepper.integrate_to(0)
+    stepper.set_speed_command(input_speed)
+    count = int(math.floor(duration * sample_rate + 1e-9)) + 1
+    stamps = np.round(np.arange(count) * (_NANOSECONDS / sample_rate)).astype(np.int64)
+    rows = []
+    for stamp in stamps:
+        stepper.integrate_to(int(stamp))
+        rows.append((stepper.input_angle, stepper.input_speed, stepper.input_acceleration,
+                     stepper.motor_torque, *stepper.efforts(), stepper.stalled))
+    table = np.array(rows, dtype=float)
+    return Simulation(time=stamps / _NANOSECONDS, input_angle=np.unwrap(table[:, 0]),
+                      input_speed=table[:, 1], input_acceleration=table[:, 2],
+                      motor_torque=table[:, 3], efforts=dyn.Efforts(*table[:, 4:9].T),
+                      stalled=table[:, 9].astype(bool))
+
+
+# Steady state of speed_fluctuation: samples per revolution, and when a revolution's Cs is
+# taken as periodic (relative change from the previous one).
+_FLUCTUATION_SAMPLES = 400
+_PERIODIC_TOLERANCE = 1e-4
+_MAX_REVOLUTIONS = 400
+
+
+class SpeedFluctuation(NamedTuple):
+    """Steady motor-drive running: Cs (1), the revolution's time (s), its PairEfforts."""
+
+    fluctuation: float
+    revolution_time: float
+    pair_efforts: PairEfforts
+
+
+def _revolution(stepper, start_ns, step_ns, geometry):
+    """Sample one input revolution from start_ns; return its figures and the end stamp."""
+    start_angle, turned = stepper.input_angle, 0.0
+    previous = start_angle
+    stamp = start_ns
+    rows = []
+    while True:
+        stamp += step_ns
+        stepper.integrate_to(stamp)
+        if stepper.stalled:
+            raise dyn.DynamicsError(f'the machine stalls: {stepper.stall_reason}')
+        angle = stepper.input_angle
+        turned += wrap_angle(angle - previous)
+        previous = angle
+        rows.append((stamp, turned, stepper.input_speed, stepper.motor_torque,
+                     stepper.efforts().offset_force))
+        if abs(turned) >= 2.0 * math.pi:
+            break
+    table = np.array(rows)
+    times = (table[:, 0] - start_ns) / _NANOSECONDS
+    # The revolution ends between the last two samples: interpolate its time linearly.
+    over = (abs(table[-1, 1]) - 2.0 * math.pi) / abs(table[-1, 1] - table[-2, 1])
+    period = times[-1] - over * (times[-1] - times[-2])
+    speed, torque = table[:, 2], table[:, 3]
+    energy = float(integrate.trapezoid(torque * speed, times))
+    figures = PairEfforts(
+        peak_input_torque=float(np.max(np.abs(torque))),
+        rms_input_torque=math.sqrt(integrate.trapezoid(torque ** 2, times) / times[-1]),
+        mean_input_power=energy / times[-1], energy_per_pair=energy * period / times[-1],
+        peak_offset_force=float(np.max(np.abs(table[:, 4]))))
+    mean_speed = 2.0 * math.pi / period
+    fluctuation = (np.max(speed) - np.min(speed)) / mean_speed
+    return SpeedFluctuation(float(fluctuation), float(period), figures), int(table[-1, 0])
+
+
+def speed_fluctuation(geometry, mass, loads, motor, offset, input_speed):
+    """
+    Steady-state Cs = (max - min) / mean input speed per revolution under a motor drive.
+
+    The motor's reference is input_speed (rad/s, > 0); the run starts at that speed and goes
+    on until one revolution's Cs differs from the previous one's by less than 1e-4 relative.
+    Speeds are sampled 400 times a revolution (the extremes to about 1e-5 relative); the
+    PairEfforts are of that last revolution, by the trapezoid rule on the samples.
+    """
+    input_speed = _positive('input_speed', input_speed, 'rad/s')
+    stepper = MotorStepper(geometry, mass, loads, motor, input_speed, offset, 1.0, 1.0)
+    step_ns = max(1, int(round(2.0 * math.pi / input_speed / _FLUCTUATION_SAMPLES
+                               * _NANOSECONDS)))
+    stepper.integrate_to(0)
+    stamp, last = 0, None
+    for _ in range(_MAX_REVOLUTIONS):
+        result, stamp = _revolution(stepper, stamp, step_ns, geometry)
+        if last is not None and abs(result.fluctuation - last.fluctuation) <= (
+                _PERIODIC_TOLERANCE * result.fluctuation):
+            return result
+        last = result
+    raise dyn.DynamicsError(f'no steady state within {_MAX_REVOLUTIONS} revolutions (Cs '
+                            f'still changing: {last.fluctuation:.6g})')
+
+
+def _with_input_inertia(mass, input_inertia):
+    values = mass.as_dict()
+    values['input_inertia'] = input_inertia
+    return type(mass)(**values)
+
+
+def _energy_method_inertia(geometry, mass, loads, offset, input_speed, fluctuation):
+    """dynamics.md's energy method: total inertia about Delta E / (Cs w^2)."""
+    angles = np.linspace(0.0, 2.0 * math.pi, 4097)
+    motion = state(geometry, offset, angles, input_speed)
+    load = dyn.ram_load_force(loads, motion.ram_position, motion.ram_velocity,
+                              geometry.ram_stroke)
+    torque = dyn.efforts(geometry, mass, offset, angles, input_speed,
+                         external_ram_force=load).input_torque
+    excess = integrate.cumulative_trapezoid(torque - np.mean(torque), angles, initial=0.0)
+    return float(np.ptp(excess)) / (fluctuation * input_speed ** 2)
+
+
+def input_inertia_for_speed_fluctuation(geometry, mass, loads, motor, offset, input_speed,
+                                        fluctuation):
+    """
+    Return the input_inertia (kg m^2) that gives the steady Cs fluctuation under the motor.
+
+    input_inertia is the input side's total (rotor, gearbox, an added flywheel); mass's
+    other fields are kept.
+
+    Starts from the energy method and solves Cs(input_inertia) = fluctuation by simulation
+    (brentq, to 1e-4 relative in Cs). A target above what the smallest inertia gives, or not
+    > 0, is refused with the reachable range.
+    """
+    fluctuation = _positive('fluctuation', fluctuation, '(1)')
+    input_speed = _positive('input_speed', input_speed, 'rad/s')
+
+    def fluctuation_at(input_inertia):
+        return speed_fluctuation(geometry, _with_input_inertia(mass, input_inertia), loads,
+                                 motor, offset, input_speed).fluctuation
+
+    smallest = 0.0 if mass.flywheel_inertia > 0.0 else 1e-6
+    largest_reachable = fluctuation_at(smallest)
+    if fluctuation >= largest_reachable:
+        raise dyn.DynamicsError(
+            f'fluctuation = {fluctuation:.6g} is out of range: with input_inertia >= '
+            f'{smallest:g} kg*m^2 this drive reaches 0 < Cs < {largest_reachable:.6g}')
+    guess = max(_energy_method_inertia(geometry, mass, loads, offset, input_speed,
+                                       fluctuation), 1e-3)
+    high = guess
+    while fluctuation_at(high) > fluctuation:
+        high *= 2.0
+    result = optimize.root_scalar(lambda inertia: fluctuation_at(inertia) / fluctuation - 1.0,
+                                  bracket=(smallest, high), method='brentq', rtol=1e-6,
+                                  xtol=1e-9)
+    return float(result.root)

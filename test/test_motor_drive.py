@@ -1,0 +1,324 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+Drive-side figures and the motor drive against independent derivations.
+
+pair_efforts: the work per revolution against the loads' path work in closed form (the cut
+once over the workpiece, friction over twice the stroke; gravity and inertia give back what
+they take), the RMS and peaks against dense sampling with no splitting at the switches.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from scipy import integrate
+
+from qrm_ros import dynamics as dyn
+from qrm_ros import motor_drive as md
+from qrm_ros.kinematics import (Geometry, input_angle_for_flywheel_angle, KinematicsError,
+                                reversal_flywheel_angles, state)
+
+GEOMETRY = Geometry.paper()
+MASS = dyn.MassProperties.small_shaper()
+LOADS = dyn.Loads.small_shaper()
+
+
+def _dense_torques(offset, input_speed, samples=400001):
+    """Input torque and offset force sampled over one revolution, loads from each sample."""
+    period = 2 * math.pi / abs(input_speed)
+    times = np.linspace(0.0, period, samples)
+    motion = state(GEOMETRY, offset, input_speed * times, input_speed)
+    load = dyn.ram_load_force(LOADS, motion.ram_position, motion.ram_velocity,
+                              GEOMETRY.ram_stroke)
+    result = dyn.efforts(GEOMETRY, MASS, offset, input_speed * times, input_speed,
+                         external_ram_force=load)
+    return times, result.input_torque, result.offset_force
+
+
+@pytest.mark.parametrize('offset, input_speed', [(0.0, 2 * math.pi), (0.015, 2 * math.pi),
+                                                 (-0.01, 3.0), (0.012, -4.0)])
+def test_pair_efforts_against_path_work_and_dense_sampling(offset, input_speed):
+    figures = md.pair_efforts(GEOMETRY, MASS, LOADS, offset, input_speed)
+    # Cutting only happens on the stroke toward -x, which is the cut for a positive speed and
+    # the return for a negative one: either way it crosses the workpiece once per pair.
+    path_work = (LOADS.cutting_force * LOADS.cutting_length
+                 + LOADS.ram_friction * 2 * GEOMETRY.ram_stroke)
+    assert figures.energy_per_pair == pytest.approx(path_work, rel=1e-10)
+    period = 2 * math.pi / abs(input_speed)
+    assert figures.mean_input_power == pytest.approx(path_work / period, rel=1e-10)
+    times, torque, force = _dense_torques(offset, input_speed)
+    dense_rms = math.sqrt(np.trapezoid(torque ** 2, times) / period)
+    # The trapezoid straddles each load jump: an error of about half the jump in torque^2
+    # times one sample spacing per jump, ~1e-5 of the mean square here.
+    assert figures.rms_input_torque == pytest.approx(dense_rms, rel=2e-5)
+    assert figures.peak_input_torque >= np.max(np.abs(torque)) * (1 - 1e-12)
+    assert figures.peak_input_torque == pytest.approx(np.max(np.abs(torque)), rel=1e-6)
+    assert figures.peak_offset_force >= np.max(np.abs(force)) * (1 - 1e-12)
+    assert figures.peak_offset_force == pytest.approx(np.max(np.abs(force)), rel=1e-6)
+
+
+def test_pair_efforts_free_running_costs_nothing():
+    figures = md.pair_efforts(GEOMETRY, MASS, dyn.Loads.none(), 0.01, 5.0)
+    assert abs(figures.energy_per_pair) < 1e-9
+    assert figures.peak_input_torque > 0.0
+
+
+def test_pair_efforts_refuses_bad_input():
+    with pytest.raises(KinematicsError, match='input_speed'):
+        md.pair_efforts(GEOMETRY, MASS, LOADS, 0.0, 0.0)
+    with pytest.raises(KinematicsError, match='offset'):
+        md.pair_efforts(GEOMETRY, MASS, LOADS, 0.03, 1.0)
+    with pytest.raises(dyn.DynamicsError, match='cutting_length'):
+        md.pair_efforts(GEOMETRY, MASS, dyn.Loads(1.0, 1.0, 1.0), 0.0, 1.0)
+
+
+# Motor drive -------------------------------------------------------------------------------
+
+def _energy(mass, offset, angle, speed):
+    """T + V from the kinematics core's velocities (dynamics.md's energies)."""
+    motion = state(GEOMETRY, offset, angle, speed)
+    return (0.5 * mass.input_inertia * speed ** 2
+            + 0.5 * mass.flywheel_inertia * motion.flywheel_speed ** 2
+            + 0.5 * mass.lever_inertia * motion.lever_speed ** 2
+            + 0.5 * mass.ram_mass * motion.ram_velocity ** 2
+            + mass.lever_mass * mass.gravity * mass.lever_com_distance
+            * np.cos(motion.lever_angle))
+
+
+def test_free_running_conserves_energy_over_100_revolutions():
+    offset = 0.015
+    run = md.simulate(GEOMETRY, MASS, dyn.Loads.none(), None, offset, 2 * math.pi, 110.0,
+                      20.0)
+    assert run.input_angle[-1] > 100 * 2 * math.pi
+    energy = _energy(MASS, offset, run.input_angle, run.input_speed)
+    assert np.max(np.abs(energy / energy[0] - 1.0)) <= 1e-9
+    assert np.all(np.isfinite(run.input_acceleration))
+
+
+def _path_dissipation(offset, start_angle, end_angle):
+    """Work of the loads against the ram's path from start_angle to end_angle (forward)."""
+    reversals = [float(input_angle_for_flywheel_angle(GEOMETRY, offset, angle))
+                 for angle in reversal_flywheel_angles(GEOMETRY)]
+    breaks = [start_angle, end_angle]
+    for reversal in reversals:
+        turn = math.ceil((start_angle - reversal) / (2 * math.pi))
+        angle = reversal + turn * 2 * math.pi
+        while angle < end_angle:
+            breaks.append(angle)
+            angle += 2 * math.pi
+    positions = state(GEOMETRY, offset, np.sort(breaks), 1.0).ram_position
+    half = 0.5 * LOADS.cutting_length
+    work = 0.0
+    for before, after in zip(positions[:-1], positions[1:]):
+        work += LOADS.ram_friction * abs(after - before)
+        if after < before:  # toward -x: cutting inside the workpiece
+            work += LOADS.cutting_force * max(0.0, min(before, half) - max(after, -half))
+    return work
+
+
+def test_work_in_equals_energy_change_plus_dissipation():
+    # A saturated motor gives a constant torque: its work is that torque times the angle.
+    offset, torque = -0.01, 60.0
+    motor = dyn.MotorDrive(speed_stiffness=100.0, max_torque=torque)
+    run = md.simulate(GEOMETRY, MASS, LOADS, motor, offset, 1e4, 3.0, 1000.0,
+                      initial_speed=2 * math.pi)
+    # The reference ramps from the initial speed for 10 ms: from the second sample on, the
+    # motor is at its limit.
+    assert np.all(run.motor_torque[1:] == torque)
+    run = run._replace(input_angle=run.input_angle[1:], input_speed=run.input_speed[1:])
+    energy = _energy(MASS, offset, run.input_angle, run.input_speed)
+    work_in = torque * (run.input_angle[-1] - run.input_angle[0])
+    dissipated = _path_dissipation(offset, run.input_angle[0], run.input_angle[-1])
+    assert work_in > 2 * dissipated > 0
+    assert energy[-1] - energy[0] + dissipated == pytest.approx(work_in, rel=1e-9)
+
+
+def _reference_run(mass, loads, motor, offset, reference_speed, initial_speed, duration):
+    """solve_ivp (DOP853, events at the load and motor-limit switches) on dynamics' API."""
+    stroke = GEOMETRY.ram_stroke
+
+    def mode_at(angle, speed):
+        # The load and motor limit just after this state (positions nudged forward).
+        ahead = angle + 1e-7 * math.copysign(1.0, speed)
+        motion = state(GEOMETRY, offset, ahead, speed)
+        load = dyn.ram_load_force(loads, motion.ram_position, motion.ram_velocity, stroke)
+        demand = motor.speed_stiffness * (reference_speed - speed)
+        return load, float(np.clip(demand, -motor.max_torque, motor.max_torque))
+
+    def right_hand_side(load, saturated):
+        def rhs(time, y):
+            y = [float(value) for value in y]
+            bias = dyn.efforts(GEOMETRY, mass, offset, y[0], y[1],
+                               external_ram_force=load).input_torque
+            torque = saturated if saturated is not None else (
+                motor.speed_stiffness * (reference_speed - y[1]))
+            return [y[1], (torque - bias) / dyn.generalized_inertia(GEOMETRY, mass, offset,
+                                                                    y[0])]
+        return rhs
+
+    def velocity(time, y):
+        y = [float(value) for value in y]
+        return state(GEOMETRY, offset, y[0], y[1]).ram_velocity
+
+    def edge_high(time, y):
+        return state(GEOMETRY, offset, y[0], y[1]).ram_position - 0.5 * loads.cutting_length
+
+    def edge_low(time, y):
+        return state(GEOMETRY, offset, y[0], y[1]).ram_position + 0.5 * loads.cutting_length
+
+    def limit(time, y):
+        return abs(motor.speed_stiffness * (reference_speed - y[1])) - motor.max_torque
+
+    def event(function, sign):
+        def crossing(time, y):
+            return function(time, y)
+        crossing.terminal = True
+        crossing.direction = -sign  # only leaving the present side ends the piece
+        return crossing
+
+    functions = [velocity, edge_high, edge_low, limit]
+    time, y = 0.0, [0.0, initial_speed]
+    times = []
+    while time < duration:
+        load, torque = mode_at(*y)
+        saturated = torque if abs(torque) >= motor.max_torque else None
+        ahead = [y[0] + 1e-7 * math.copysign(1.0, y[1]), y[1]]
+        events = [event(function, math.copysign(1.0, function(time, ahead)))
+                  for function in functions]
+        solution = integrate.solve_ivp(right_hand_side(load, saturated), (time, duration), y,
+                                       method='DOP853', rtol=1e-13, atol=1e-13, events=events,
+                                       dense_output=True)
+        times.append((time, solution.t[-1], solution.sol))
+        time, y = solution.t[-1], list(solution.y[:, -1])
+    return times
+
+
+def test_forward_dynamics_against_solve_ivp_over_10_revolutions():
+    offset = 0.012
+    motor = dyn.MotorDrive.small_shaper()
+    duration = 10 * 2 * math.pi / (2 * math.pi)
+    pieces = _reference_run(MASS, LOADS, motor, offset, 2 * math.pi, 2 * math.pi, duration)
+    run = md.simulate(GEOMETRY, MASS, LOADS, motor, offset, 2 * math.pi, duration, 100.0)
+    assert run.input_angle[-1] > 9.5 * 2 * math.pi
+    reference = np.empty_like(run.time)
+    for index, time in enumerate(run.time):
+        for start, end, dense in pieces:
+            if start <= time <= end:
+                reference[index] = dense(time)[1]
+                break
+    assert np.max(np.abs(run.input_speed / reference - 1.0)) <= 1e-8
+
+
+def _stepper(loads=LOADS, motor=None, speed=2 * math.pi):
+    motor = dyn.MotorDrive.small_shaper() if motor is None else motor
+    return md.MotorStepper(GEOMETRY, MASS, loads, motor, speed, 0.01, 50.0, 0.01)
+
+
+def _run(stepper, start_ns, end_ns, step_ns=1_000_000):
+    rows = []
+    for stamp in range(start_ns, end_ns + 1, step_ns):
+        motion = stepper.advance_to(stamp)
+        values = (stepper.input_angle, stepper.input_speed, stepper.input_acceleration,
+                  stepper.motor_torque, *motion, *stepper.efforts())
+        assert all(math.isfinite(value) for value in values)
+        rows.append(values)
+    return rows
+
+
+def test_a_cut_the_motor_cannot_carry_stalls_and_resumes():
+    heavy = dyn.Loads(cutting_force=20000.0, ram_friction=20.0, cutting_length=0.15)
+    stepper = _stepper(heavy)
+    _run(stepper, 0, 3_000_000_000)
+    assert stepper.stalled
+    assert stepper.input_speed == 0.0 and stepper.input_acceleration == 0.0
+    assert 'stalled' in stepper.stall_reason and 'cutting_force 20000' in stepper.stall_reason
+    held = stepper.input_angle
+    _run(stepper, 3_000_000_000, 3_500_000_000)
+    assert stepper.stalled and stepper.input_angle == held
+    # The motor's torque at zero speed is the same while held; the ram is in the work.
+    assert stepper.motor_torque == pytest.approx(250.0)
+    stepper.set_dynamics(loads=LOADS)
+    _run(stepper, 3_500_000_000, 4_500_000_000)
+    assert not stepper.stalled and stepper.stall_reason is None
+    assert stepper.input_speed > 1.0
+    # Again, and this time a stronger motor frees it.
+    stepper.set_dynamics(loads=heavy)
+    _run(stepper, 4_500_000_000, 7_500_000_000)
+    assert stepper.stalled
+    stepper.set_dynamics(motor=dyn.MotorDrive(speed_stiffness=360.0, max_torque=5000.0))
+    _run(stepper, 7_500_000_000, 8_500_000_000)
+    assert not stepper.stalled and stepper.input_speed > 1.0
+
+
+def test_stopped_by_command_is_not_a_stall():
+    stepper = _stepper()
+    stepper.advance_to(0)
+    stepper.set_speed_command(0.0)
+    _run(stepper, 0, 4_000_000_000)
+    assert abs(stepper.input_speed) < 1e-6 or stepper.input_speed == 0.0
+    assert not stepper.stalled
+
+
+def test_same_commands_same_stamps_bit_identical_and_independent_of_the_stamps_asked():
+    def commanded(step_ns):
+        stepper = _stepper()
+        rows = _run(stepper, 0, 500_000_000, step_ns)
+        stepper.set_offset_command(-0.012)
+        stepper.set_speed_command(9.0)
+        rows += _run(stepper, 500_000_000, 2_000_000_000, step_ns)
+        return rows
+
+    fine = commanded(1_000_000)
+    assert fine == commanded(1_000_000)
+    coarse = commanded(100_000_000)
+    # Stamps every 100 ms are every 100th of the 1 ms run: the same numbers, bit for bit.
+    assert coarse == fine[:501:100] + fine[501::100]
+
+
+def test_time_reset_and_restore():
+    stepper = _stepper()
+    _run(stepper, 10_000_000, 200_000_000)
+    angle, speed = stepper.input_angle, stepper.input_speed
+    stepper.advance_to(5_000_000)
+    assert stepper.time_resets == 1
+    assert (stepper.input_angle, stepper.input_speed) == (angle, speed)
+    twin = _stepper()
+    twin.restore(5_000_000, angle, speed, stepper.offset, stepper.speed_reference)
+    assert _run(twin, 5_000_000, 300_000_000) == _run(stepper, 5_000_000, 300_000_000)
+
+
+SOFT_MOTOR = dyn.MotorDrive(speed_stiffness=20.0, max_torque=250.0)
+
+
+def test_flywheel_sizing_gives_the_asked_fluctuation_when_simulated():
+    inertia = md.input_inertia_for_speed_fluctuation(GEOMETRY, MASS, LOADS, SOFT_MOTOR, 0.01,
+                                                     2 * math.pi, 0.05)
+    sized = dyn.MassProperties(**{**MASS.as_dict(), 'input_inertia': inertia})
+    # Checked on an independent sampling: simulate at 5 kHz, last whole revolution.
+    run = md.simulate(GEOMETRY, sized, LOADS, SOFT_MOTOR, 0.01, 2 * math.pi, 30.0, 5000.0)
+    turns = np.floor(run.input_angle / (2 * math.pi))
+    last = (turns == turns[-1] - 1)
+    times = run.time[last]
+    fluctuation = np.ptp(run.input_speed[last]) / (2 * math.pi / (times[-1] - times[0]))
+    assert fluctuation == pytest.approx(0.05, rel=0.01)
+
+
+def test_unreachable_fluctuation_names_the_reachable_range():
+    with pytest.raises(dyn.DynamicsError, match='fluctuation = 10 is out of range: .* reaches'):
+        md.input_inertia_for_speed_fluctuation(GEOMETRY, MASS, LOADS, SOFT_MOTOR, 0.01,
+                                               2 * math.pi, 10.0)
+    with pytest.raises(KinematicsError, match='fluctuation'):
+        md.input_inertia_for_speed_fluctuation(GEOMETRY, MASS, LOADS, SOFT_MOTOR, 0.01,
+                                               2 * math.pi, -0.1)
