@@ -52,8 +52,12 @@ def schedule_states(geometry, offsets, hold=4.0, offset_rate=0.01, input_speed=2
 
 def write_run(path, geometry, offsets, with_geometry=True, joint_states_topic='/joint_states',
               start_ns=1_700_000_000_000_000_000, chunk_size=256 * 1024, data_crc=False,
-              **schedule):
-    """Write a synthetic run as a ros2-profile MCAP file; return the number of messages."""
+              effort=None, **schedule):
+    """
+    Write a synthetic run as a ros2-profile MCAP file; return the number of messages.
+
+    ``effort``: None (no efforts, as the golden logs) or time (s) -> the five joints' efforts.
+    """
     from mcap.writer import Writer
     from rosbags.typesys import get_typestore, Stores
 
@@ -84,7 +88,7 @@ def write_run(path, geometry, offsets, with_geometry=True, joint_states_topic='/
                                    state.lever_angle[i], state.ram_position[i], offset[i]]),
                 velocity=np.array([speed, state.flywheel_speed[i], state.lever_speed[i],
                                    state.ram_velocity[i], offset_velocity[i]]),
-                effort=np.array([], dtype=float))
+                effort=np.array([] if effort is None else effort(t), dtype=float))
             data = store.serialize_cdr(message, type_name)
             writer.add_message(channel, log_time=stamp_ns + 250_000, publish_time=stamp_ns,
                                data=bytes(data), sequence=i)
