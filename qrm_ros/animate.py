@@ -243,7 +243,7 @@ class LinkageFigure:
         return np.asarray(self.canvas.buffer_rgba())[:, :, :3].copy()
 
     def drawn_points(self):
-        """What the moving artists show now: name -> (x, y) in m (the trace: s, m/s)."""
+        """Return what the moving artists show now: name -> (x, y) in m (traces: s, m/s)."""
         def ends(line):
             x, y = line.get_data()
             return np.array((x[0], y[0])), np.array((x[-1], y[-1]))
@@ -310,7 +310,7 @@ def render_frames(figure, samples, indices, row_at, efforts=None):
 
 def read_efforts(path, samples):
     """
-    The recorded input torque (N m) at each sample, or None if not every sample has one.
+    Return the recorded input torque (N m) at each sample; None if a sample has none.
 
     Samples are matched to messages by stamp: the analysis' time zero is the stamp of the
     message its first sample came from (the same angle, offset and speeds, bit for bit).
