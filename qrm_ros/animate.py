@@ -53,7 +53,7 @@ from qrm_ros.names import (absolute_topic, JOINT_NAMES, JOINT_STATE_TYPE,  # noq
 
 __all__ = ['AnimationError', 'FORMATS', 'FRAME_SIZE', 'FramePlan', 'LinkageFigure',
            'MAX_GIF_FPS', 'MAX_GIF_FRAMES', 'MP4_MISSING', 'check_output', 'check_rates',
-           'frame_plan', 'frame_text', 'main', 'read_efforts', 'render_frames',
+           'frame_plan', 'main', 'ratio_text', 'read_efforts', 'render_frames',
            'write_animation', 'write_offset_tour']
 
 # Pixels (width, height): multiples of 16, as H.264 encoders want.
@@ -142,7 +142,7 @@ class LinkageFigure:
         self.figure = Figure(figsize=(width / _DPI, height / _DPI), dpi=_DPI)
         self.canvas = FigureCanvasAgg(self.figure)
         grid = self.figure.add_gridspec(2, 1, height_ratios=(2.2, 1.0), left=0.1, right=0.88,
-                                        top=0.95, bottom=0.08, hspace=0.25)
+                                        top=0.90, bottom=0.08, hspace=0.25)
         self.axes = axes = self.figure.add_subplot(grid[0])
         self.trace_axes = self.figure.add_subplot(grid[1])
         self._draw_static(axes, geometry, sizes, cutting_length)
@@ -158,8 +158,12 @@ class LinkageFigure:
         self.pivots, = axes.plot([], [], 'o', color=_colour('frame_grey'), markersize=7,
                                  markeredgecolor='black', zorder=5)
         self.pins, = axes.plot([], [], 'o', color=_colour('pin_black'), markersize=7, zorder=6)
-        self.label = axes.text(0.01, 0.98, '', transform=axes.transAxes, va='top',
-                               family='monospace', fontsize=10)
+        # Above the linkage, clear of the ram's guides.
+        text = dict(transform=self.figure.transFigure, va='top', family='monospace',
+                    fontsize=10)
+        self.label = axes.text(0.1, 0.985, '', **text)
+        # The ratios change once a segment: drawn into the background, not every frame.
+        self.ratios = axes.text(0.1, 0.985, '', **text)
         self._draw_traces(time, ram_velocity, effort)
         # The axes, ticks and static parts are drawn once; each frame restores them and
         # draws only the moving artists (a full redraw costs several times more).
@@ -169,10 +173,10 @@ class LinkageFigure:
         self.moving += [(self.trace_axes, self.cursor), (self.trace_axes, self.velocity_dot)]
         if self.torque_dot is not None:
             self.moving.append((self.torque_axes, self.torque_dot))
-        for _, artist in self.moving:
+        for _, artist in self.moving + [(axes, self.ratios)]:
             artist.set_animated(True)
         self.canvas.draw()
-        self.background = self.canvas.copy_from_bbox(self.figure.bbox)
+        self.bare = self.background = self.canvas.copy_from_bbox(self.figure.bbox)
 
     def _draw_static(self, axes, geometry, sizes, cutting_length):
         h = geometry.pivot_distance
@@ -217,8 +221,14 @@ class LinkageFigure:
             self.torque_dot, = twin.plot([], [], 'o', color=_colour('input_orange'),
                                          markersize=5)
 
-    def draw(self, input_angle, offset, time, ram_velocity, text, effort=None):
-        """Draw one state; return the frame as an (height, width, 3) uint8 array."""
+    def draw(self, input_angle, offset, time, ram_velocity, ratios, effort=None):
+        """Draw one state (ratios: ``ratio_text``); return it as (height, width, 3) uint8."""
+        ratios = '\n\n' + ratios  # below the clock and the offset
+        if ratios != self.ratios.get_text():
+            self.ratios.set_text(ratios)
+            self.canvas.restore_region(self.bare)
+            self.axes.draw_artist(self.ratios)
+            self.background = self.canvas.copy_from_bbox(self.figure.bbox)
         points = linkage_points(self.geometry, offset, input_angle, sizes=self.sizes)
         self.slot.set_data(*zip(points.flywheel_centre, points.slot_end))
         self.crank.set_data(*zip(points.flywheel_centre, points.crank_pin))
@@ -232,7 +242,7 @@ class LinkageFigure:
         self.pivots.set_data(*zip(points.input_centre, points.flywheel_centre,
                                   points.lever_pivot))
         self.pins.set_data(*zip(points.coupling_pin, points.crank_pin, points.ram_block))
-        self.label.set_text(text)
+        self.label.set_text(f't = {time:8.3f} s\noffset {offset * 1e3:+7.2f} mm')
         self.cursor.set_xdata([time, time])
         self.velocity_dot.set_data([time], [ram_velocity])
         if self.torque_dot is not None:
@@ -272,18 +282,15 @@ class LinkageFigure:
         self.figure.clear()
 
 
-def frame_text(time, offset, row):
-    """Return the frame's label: time, offset in force, the segment's measured ratios."""
-    lines = [f't = {time:8.3f} s', f'offset {offset * 1e3:+7.2f} mm']
+def ratio_text(row):
+    """Return the label of an analysis row (None: no segment): its measured TR and SR."""
     if row is None or not row['stroke_pairs']:
-        lines.append('TR, SR: no whole stroke pair at steady settings here')
-    else:
-        ratios = [f'{name} {value:.4f}' for name, value in (
-            ('TR', row['time_ratio_measured']), ('SR', row['speed_ratio_measured']))
-            if value is not None and math.isfinite(value)]
-        lines.append('  '.join(ratios or ['TR, SR: not measurable'])
-                     + f'  (measured, {row["stroke_pairs"]} pairs)')
-    return '\n'.join(lines)
+        return 'TR, SR: no whole stroke pair at steady settings here'
+    ratios = [f'{name} {value:.4f}' for name, value in (
+        ('TR', row['time_ratio_measured']), ('SR', row['speed_ratio_measured']))
+        if value is not None and math.isfinite(value)]
+    return ('  '.join(ratios or ['TR, SR: not measurable'])
+            + f'  (measured, {row["stroke_pairs"]} pairs)')
 
 
 def _segment_of(result):
@@ -304,7 +311,7 @@ def render_frames(figure, samples, indices, row_at, efforts=None):
         time, offset = float(samples.time[index]), float(samples.offset[index])
         yield index, figure.draw(samples.input_angle[index], offset, time,
                                  samples.ram_velocity[index],
-                                 frame_text(time, offset, row_at(time)),
+                                 ratio_text(row_at(time)),
                                  None if efforts is None else efforts[index])
 
 

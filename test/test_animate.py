@@ -195,8 +195,10 @@ def test_drawn_pins_equal_the_mechanism_at_the_frames_sample(run_with_efforts):
             assert drawn['velocity_dot'].tolist() == [samples.time[index],
                                                       samples.ram_velocity[index]]
             assert drawn['torque_dot'].tolist() == [samples.time[index], efforts[index]]
-            assert figure.label.get_text().startswith(
-                f't = {samples.time[index]:8.3f} s\noffset {offset * 1e3:+7.2f} mm\n')
+            label = f't = {samples.time[index]:8.3f} s\noffset {offset * 1e3:+7.2f} mm'
+            assert figure.label.get_text() == label
+            row = row_at(samples.time[index])
+            assert figure.ratios.get_text() == '\n\n' + animate.ratio_text(row)
             checked.add(offset)
     finally:
         figure.close()
@@ -207,16 +209,14 @@ def test_drawn_pins_equal_the_mechanism_at_the_frames_sample(run_with_efforts):
 def test_frame_label_gives_the_segments_measured_ratios(run_with_efforts):
     result = analysis.analyse(analysis.read_recording(str(run_with_efforts)))
     row = result.rows[1]
-    text = animate.frame_text(row['start_time'], row['offset'], row)
-    assert text.splitlines()[2] == (f'TR {row["time_ratio_measured"]:.4f}  SR '
-                                    f'{row["speed_ratio_measured"]:.4f}  (measured, '
-                                    f'{row["stroke_pairs"]} pairs)')
+    assert animate.ratio_text(row) == (
+        f'TR {row["time_ratio_measured"]:.4f}  SR {row["speed_ratio_measured"]:.4f}  '
+        f'(measured, {row["stroke_pairs"]} pairs)')
     assert animate._segment_of(result)(row['start_time']) is row
     # on the offset ramp between the segments there is no steady segment
     between = 0.5 * (result.rows[0]['end_time'] + row['start_time'])
     assert animate._segment_of(result)(between) is None
-    assert animate.frame_text(between, 0.006, None).endswith(
-        'TR, SR: no whole stroke pair at steady settings here')
+    assert animate.ratio_text(None) == 'TR, SR: no whole stroke pair at steady settings here'
 
 
 # --- efforts ---------------------------------------------------------------------------------
