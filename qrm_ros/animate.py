@@ -494,13 +494,20 @@ def write_animation(recording, path, start=None, end=None, fps=25.0, speed=1.0, 
 
 def offset_tour_samples(result, offsets=4, fps=20.0, revolutions=1.0):
     """
-    Sample indices of a short tour: the last revolution(s) of a few steady segments.
+    Sample indices of a short tour: the last revolution(s) at a few of the recorded offsets.
 
-    ``offsets``: how many segments at most, spread over those recorded (first and last
-    included); each is shown in real time at fps. Empty when no segment turns.
+    ``offsets``: how many offsets at most, spread over those recorded (first and last
+    included); each shows the end of its segment with the most stroke pairs (a gap can
+    split one offset's time into several), in real time at fps. Empty when nothing turns.
     """
     samples = result.recording.samples
-    segments = [s for s in result.segments if s.input_speed != 0.0]
+    chosen = {}
+    for segment, row in zip(result.segments, result.rows):
+        held = chosen.get(segment.offset)
+        if segment.input_speed != 0.0 and (
+                held is None or row['stroke_pairs'] >= held[1]['stroke_pairs']):
+            chosen[segment.offset] = (segment, row)
+    segments = sorted((segment for segment, _ in chosen.values()), key=lambda s: s.start)
     if len(segments) > offsets:
         picks = np.unique(np.round(np.linspace(0, len(segments) - 1, offsets)).astype(int))
         segments = [segments[i] for i in picks]

@@ -273,6 +273,26 @@ def test_offset_tour_shows_the_last_revolution_of_a_few_segments(tmp_path):
     assert (frames, size) == (indices.size, animate.FRAME_SIZE)
 
 
+def test_offset_tour_shows_each_offset_once_when_a_gap_splits_it(tmp_path):
+    path = tmp_path / 'run.mcap'
+    write_run(path, PAPER, [0.0, 0.01], hold=3.0, offset_rate=0.05)
+    recorded = take_apart(path.read_bytes())
+    joints = recorded.joint_states()
+    lost = {id(m) for m in joints[100:110]}  # 0.1 s lost 1 s into the first offset
+    recorded.messages[:] = [m for m in recorded.messages if id(m) not in lost]
+    split = tmp_path / 'split.mcap'
+    split.write_bytes(put_together(recorded))
+    result = analysis.analyse(analysis.read_recording(str(split)))
+    assert [row['offset'] for row in result.rows] == [0.0, 0.0, 0.01]
+    indices = animate.offset_tour_samples(result, offsets=4, fps=20.0)
+    samples = result.recording.samples
+    assert sorted(set(samples.offset[indices])) == [0.0, 0.01]
+    longer = result.segments[1]  # 1.9 s after the gap, against 1.0 s before it
+    assert longer.end - longer.start > result.segments[0].end - result.segments[0].start
+    first = indices[samples.offset[indices] == 0.0]
+    assert first.min() >= longer.start and first.max() == longer.end - 1
+
+
 # --- bad input and the exit codes -------------------------------------------------------------
 
 def _run(arguments, capsys):
