@@ -52,15 +52,17 @@ from qrm_ros.names import (absolute_topic, JOINT_NAMES, JOINT_STATE_TYPE,  # noq
                            JOINT_STATES_TOPIC, PARAMETERS_METADATA)
 
 __all__ = ['AnimationError', 'FORMATS', 'FRAME_SIZE', 'FramePlan', 'LinkageFigure',
-           'MAX_GIF_FPS', 'MAX_GIF_FRAMES', 'MP4_MISSING', 'check_output', 'check_rates',
+           'MAX_FRAMES', 'MAX_GIF_FPS', 'MP4_MISSING', 'check_output', 'check_rates',
            'frame_plan', 'main', 'ratio_text', 'read_efforts', 'render_frames',
            'write_animation', 'write_offset_tour']
 
 # Pixels (width, height): multiples of 16, as H.264 encoders want.
 FRAME_SIZE = (800, 640)
 _DPI = 100
-# A GIF is assembled in memory (Pillow keeps every frame, 0.5 MB each, until written).
-MAX_GIF_FRAMES = 600
+# Frames at most, by format: a GIF is assembled in memory (Pillow keeps every frame, 0.5 MB
+# each, until written); an MP4 streams, but two hours is surely a mistaken span (a clock
+# jump in the recording, a tiny --speed).
+MAX_FRAMES = {'.gif': 600, '.mp4': 180_000}
 # GIF delays are whole hundredths of a second, and viewers slow down delays under 0.02 s.
 MAX_GIF_FPS = 50.0
 FORMATS = ('.gif', '.mp4')
@@ -98,12 +100,13 @@ def check_rates(fps, speed, extension='.mp4'):
         raise AnimationError(f'--speed must be a positive playback factor, got {speed:g}')
 
 
-def frame_plan(sample_time, start=None, end=None, fps=25.0, speed=1.0):
+def frame_plan(sample_time, start=None, end=None, fps=25.0, speed=1.0, extension='.mp4'):
     """
     Plan frames over [start, end] (s from the run's first sample) at fps, played at speed.
 
     Frame k is at start + k speed / fps and shows the last sample (by stamp) at or before
-    it; a recording whose clock jumps back is taken in stamp order.
+    it; a recording whose clock jumps back is taken in stamp order. ``extension`` sets the
+    most frames allowed (MAX_FRAMES).
     """
     check_rates(fps, speed)
     order = np.argsort(sample_time, kind='stable')
@@ -121,7 +124,14 @@ def frame_plan(sample_time, start=None, end=None, fps=25.0, speed=1.0):
         raise AnimationError(f'empty span: --end ({end:g} s) must be after --start '
                              f'({start:g} s)')
     end = min(end, last)
-    count = int(math.floor((end - start) * fps / speed + 1e-9)) + 1
+    count = math.floor((end - start) * fps / speed + 1e-9) + 1
+    if count > MAX_FRAMES[extension]:
+        held = ', all held in memory' if extension == '.gif' else ''
+        raise AnimationError(
+            f'{count} frames ({end - start:g} s of run at --fps {fps:g} and --speed {speed:g}) '
+            f'are too many for {extension} (at most {MAX_FRAMES[extension]}{held}): shorten '
+            'the span with --start/--end, lower --fps or raise --speed'
+            + (', or write an .mp4' if extension == '.gif' else ''))
     times = start + np.arange(count) * (speed / fps)
     shown = np.searchsorted(ordered, times + _TIME_SLACK, side='right') - 1
     return FramePlan(order[np.clip(shown, 0, ordered.size - 1)], times)
@@ -472,12 +482,7 @@ def write_animation(recording, path, start=None, end=None, fps=25.0, speed=1.0, 
     extension = check_output(path)
     check_rates(fps, speed, extension)
     samples = recording.samples
-    plan = frame_plan(samples.time, start, end, fps, speed)
-    if extension == '.gif' and plan.sample.size > MAX_GIF_FRAMES:
-        raise AnimationError(
-            f'{plan.sample.size} frames are too many for a GIF (at most {MAX_GIF_FRAMES}, all '
-            'held in memory): shorten the span with --start/--end, lower --fps, raise '
-            '--speed, or write an .mp4')
+    plan = frame_plan(samples.time, start, end, fps, speed, extension)
     _check_offsets(recording.geometry, samples.offset[plan.sample])
     result = result or analysis.analyse(recording)
     # The traces cover the samples of the span, in recording order.

@@ -32,7 +32,7 @@ from PIL import Image
 from qrm_ros import analysis, animate
 from qrm_ros import kinematics as kin
 from qrm_ros.linkage import linkage_sizes
-from damaged_runs import _decode, _encode, put_together, take_apart
+from damaged_runs import _decode, _encode, cases, put_together, take_apart
 from synthetic_run import schedule_states, write_run
 
 PAPER = kin.Geometry.paper()
@@ -118,6 +118,8 @@ def test_frame_plan_takes_a_clock_that_jumps_back_in_stamp_order():
     (None, None, float('inf'), 1.0, '--fps must be a positive number'),
     (None, None, 25.0, -2.0, '--speed must be a positive playback factor, got -2'),
     (None, None, 25.0, float('nan'), '--speed must be a positive playback factor, got nan'),
+    (None, None, 50.0, 1e-3, '500001 frames (10 s of run at --fps 50 and --speed 0.001) are '
+     'too many for .mp4 (at most 180000): shorten the span'),
 ])
 def test_frame_plan_refuses_what_it_cannot_show(start, end, fps, speed, words):
     with pytest.raises(animate.AnimationError, match='^' + re.escape(words)):
@@ -330,7 +332,9 @@ def test_unknown_geometry_exits_2_and_names_the_options(tmp_path, capsys):
     (['--fps', '0'], '--fps must be a positive number of frames per second, got 0'),
     (['--fps', '60'], '--fps 60 is too high for a GIF (at most 50'),
     (['--speed', 'nan'], '--speed must be a positive playback factor, got nan'),
-    (['--fps', '50', '--speed', '0.1'], '996 frames are too many for a GIF (at most 600'),
+    (['--fps', '50', '--speed', '0.1'], '996 frames (1.99 s of run at --fps 50 and --speed '
+     '0.1) are too many for .gif (at most 600, all held in memory): shorten the span with '
+     '--start/--end, lower --fps or raise --speed, or write an .mp4'),
 ])
 def test_bad_span_or_rates_exit_2_with_one_line(tmp_path, capsys, arguments, words):
     path = tmp_path / 'run.mcap'
@@ -397,3 +401,39 @@ def test_mp4_has_the_frame_count_and_size(tmp_path, capsys, run_with_efforts):
     count = sum(1 for _ in reader)
     assert (count, tuple(meta['size']), meta['fps']) == (31, animate.FRAME_SIZE, 30.0)
     assert os.listdir(tmp_path) == ['run.mp4']
+
+
+# --- damaged and odd recordings (test/damaged_runs.py, as test_fuzz.py) -----------------------
+
+# Two of each kind of damage or oddity by default; qrm_analyze's own fuzz test runs 300.
+FUZZ_CASES = int(os.environ.get('QRM_ANIMATE_FUZZ_CASES', '14'))
+
+
+@pytest.fixture(scope='module')
+def fuzz_cases():
+    logs = {name: open(os.path.join(GOLDEN, f'{name}.mcap'), 'rb').read()
+            for name in ('steady_positive_offset', 'offset_and_speed_change')}
+    return cases(logs, FUZZ_CASES, seed=20261122)
+
+
+@pytest.mark.parametrize('number', range(FUZZ_CASES))
+def test_damaged_run_is_animated_or_refused_as_qrm_analyze_does(number, fuzz_cases, tmp_path,
+                                                                capsys):
+    case = fuzz_cases[number]
+    run = tmp_path / 'run.mcap'
+    run.write_bytes(case.data)
+    analysed = analysis.main([str(run)])
+    capsys.readouterr()
+    out = tmp_path / 'run.gif'
+    code, stdout, err = _run([run, '-o', out, '--fps', '1', '--speed', '8'], capsys)
+    context = f'{case.name}: exit {code} (qrm_analyze: {analysed})\n{err}'
+    assert 'Traceback' not in stdout + err, context
+    # A clock that jumps by days makes an animation of days: refused, with what to do.
+    assert code == analysed or (code == 2 and ' are too many for .gif' in err), context
+    written = ['run.gif'] if code != analysis.EXIT_BAD_INPUT else []
+    assert sorted(os.listdir(tmp_path)) == sorted(['run.mcap'] + written), context
+    if code == analysis.EXIT_BAD_INPUT:
+        assert err.startswith('qrm_animate: error: ') and err.count('\n') == 1, context
+    else:
+        frames, size, _ = _gif_frames(out)
+        assert f'{frames} frames' in stdout and size == animate.FRAME_SIZE, context
