@@ -31,7 +31,8 @@ from PIL import Image
 
 from qrm_ros import analysis, animate
 from qrm_ros import kinematics as kin
-from qrm_ros.linkage import linkage_sizes
+from qrm_ros.linkage import COLOURS, linkage_sizes
+from qrm_ros.names import PARAMETERS_METADATA
 from damaged_runs import _decode, _encode, cases, put_together, take_apart
 from synthetic_run import schedule_states, write_run
 
@@ -250,6 +251,31 @@ def test_no_efforts_recorded_means_no_torque_trace():
     path = os.path.join(GOLDEN, 'steady_positive_offset.mcap')
     samples = analysis.read_recording(path).samples
     assert animate.read_efforts(path, samples) is None
+
+
+def test_a_run_with_a_cutting_load_shows_the_workpiece(tmp_path, run_with_efforts):
+    recorded = take_apart(run_with_efforts.read_bytes())
+    recorded.metadata[PARAMETERS_METADATA] = {'cutting_force': '1500.0',
+                                              'cutting_length': '0.08'}
+    path = tmp_path / 'cutting.mcap'
+    path.write_bytes(put_together(recorded))
+    assert animate._cutting_length(str(path)) == 0.08
+    assert animate._cutting_length(str(run_with_efforts)) is None  # no parameters recorded
+    recorded.metadata[PARAMETERS_METADATA]['cutting_force'] = '0.0'
+    path.write_bytes(put_together(recorded))
+    assert animate._cutting_length(str(path)) is None  # no load, no workpiece
+    samples = analysis.read_recording(str(path)).samples
+    figure = animate.LinkageFigure(PHASED, samples.time, samples.ram_velocity,
+                                   cutting_length=0.08)
+    try:
+        sizes = linkage_sizes(PHASED)
+        (workpiece,) = [patch for patch in figure.axes.patches
+                        if patch.get_facecolor()[:3] == COLOURS['workpiece_brown'][:3]]
+        # the tool tip's span while the ram is within +/- cutting_length / 2 (dynamics.md)
+        assert workpiece.get_x() == pytest.approx(-0.5 * sizes.ram_length - 0.04, abs=1e-15)
+        assert workpiece.get_width() == pytest.approx(0.08, abs=1e-15)
+    finally:
+        figure.close()
 
 
 # --- the main job's tour ---------------------------------------------------------------------
