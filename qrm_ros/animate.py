@@ -239,6 +239,14 @@ class LinkageFigure:
             self.canvas.restore_region(self.bare)
             self.axes.draw_artist(self.ratios)
             self.background = self.canvas.copy_from_bbox(self.figure.bbox)
+        self.update(input_angle, offset, time, ram_velocity, effort)
+        self.canvas.restore_region(self.background)
+        for axes, artist in self.moving:
+            axes.draw_artist(artist)
+        return np.asarray(self.canvas.buffer_rgba())[:, :, :3].copy()
+
+    def update(self, input_angle, offset, time, ram_velocity, effort=None):
+        """Move the moving artists to one state, without drawing them."""
         points = linkage_points(self.geometry, offset, input_angle, sizes=self.sizes)
         self.slot.set_data(*zip(points.flywheel_centre, points.slot_end))
         self.crank.set_data(*zip(points.flywheel_centre, points.crank_pin))
@@ -257,10 +265,6 @@ class LinkageFigure:
         self.velocity_dot.set_data([time], [ram_velocity])
         if self.torque_dot is not None:
             self.torque_dot.set_data([time], [effort])
-        self.canvas.restore_region(self.background)
-        for axes, artist in self.moving:
-            axes.draw_artist(artist)
-        return np.asarray(self.canvas.buffer_rgba())[:, :, :3].copy()
 
     def drawn_points(self):
         """Return what the moving artists show now: name -> (x, y) in m (traces: s, m/s)."""
