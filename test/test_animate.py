@@ -20,9 +20,12 @@ code's own helpers; the recordings are synthetic runs (test/synthetic_run.py) an
 logs.
 """
 
+import importlib.metadata
+import io
 import math
 import os
 import re
+import subprocess
 import sys
 
 import numpy as np
@@ -220,6 +223,35 @@ def test_frame_label_gives_the_segments_measured_ratios(run_with_efforts):
     between = 0.5 * (result.rows[0]['end_time'] + row['start_time'])
     assert animate._segment_of(result)(between) is None
     assert animate.ratio_text(None) == 'TR, SR: no whole stroke pair at steady settings here'
+
+
+def test_console_script_is_installed_and_runs(tmp_path, run_with_efforts):
+    scripts = {entry.name: entry.value
+               for entry in importlib.metadata.entry_points(group='console_scripts')}
+    assert scripts['qrm_animate'] == 'qrm_ros.entry_points:qrm_animate'
+    out = tmp_path / 'run.gif'
+    done = subprocess.run(
+        [sys.executable, '-c', 'import sys; from qrm_ros import entry_points; '
+         'sys.exit(entry_points.qrm_animate())', str(run_with_efforts), '-o', str(out),
+         '--end', '0.5', '--fps', '10'], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout == f'{out}: 6 frames, 800 x 640 px, 10 fps, 0.60 s\n'
+    assert done.stderr == ''  # no progress bar when stderr is not a terminal
+
+
+def test_progress_bar_on_a_terminal(tmp_path, run_with_efforts):
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    terminal = Terminal()
+    recording = analysis.read_recording(str(run_with_efforts))
+    count = animate.write_animation(recording, str(tmp_path / 'run.gif'), end=0.5, fps=10.0,
+                                    progress_stream=terminal)
+    assert count == 6
+    shown = terminal.getvalue()
+    assert shown.startswith('\rdrawing:   0%|') and '| 0/6 [' in shown
+    assert shown.endswith(' ' * 20 + '\r')  # the bar is wiped when done (tqdm leave=False)
 
 
 # --- efforts ---------------------------------------------------------------------------------
