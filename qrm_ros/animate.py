@@ -63,7 +63,8 @@ _DPI = 100
 # each, until written); an MP4 streams, but two hours is surely a mistaken span (a clock
 # jump in the recording, a tiny --speed).
 MAX_FRAMES = {'.gif': 600, '.mp4': 180_000}
-# GIF delays are whole hundredths of a second, and viewers slow down delays under 0.02 s.
+# GIF frame delays are whole hundredths of a second, and viewers slow down delays under
+# 0.02 s: a GIF plays exactly at 100 / k frames per second for a whole k >= 2.
 MAX_GIF_FPS = 50.0
 FORMATS = ('.gif', '.mp4')
 MP4_MISSING = ('writing MP4 needs the optional imageio-ffmpeg package: pip install '
@@ -82,6 +83,13 @@ def _colour(name):
     return COLOURS[name][:3]
 
 
+def _gif_delay(fps):
+    """Return a GIF's frame delay in 1/100 s for fps, or None if no delay plays fps."""
+    delay = 100.0 / fps
+    whole = round(delay)
+    return whole if whole >= 100.0 / MAX_GIF_FPS and abs(delay - whole) <= 1e-9 * delay else None
+
+
 class FramePlan(NamedTuple):
     """Which recorded sample each frame shows, and the frame's own time (s)."""
 
@@ -93,9 +101,11 @@ def check_rates(fps, speed, extension='.mp4'):
     """Refuse a frame rate or playback speed outside what the format can play."""
     if not (math.isfinite(fps) and fps > 0):
         raise AnimationError(f'--fps must be a positive number of frames per second, got {fps:g}')
-    if extension == '.gif' and fps > MAX_GIF_FPS:
-        raise AnimationError(f'--fps {fps:g} is too high for a GIF (at most {MAX_GIF_FPS:g}: '
-                             'GIF frame delays are in 1/100 s); lower it or write an .mp4')
+    if extension == '.gif' and not _gif_delay(fps):
+        raise AnimationError(
+            f'--fps {fps:g} cannot be played by a GIF, whose frame delays are whole hundredths '
+            f'of a second (at least 2): use 100/k, e.g. {MAX_GIF_FPS:g}, 25, 20, 12.5 or 10, '
+            'or write an .mp4')
     if not (math.isfinite(speed) and speed > 0):
         raise AnimationError(f'--speed must be a positive playback factor, got {speed:g}')
 
@@ -404,7 +414,7 @@ class _GifWriter:
         sequence = images()
         first = next(sequence)
         first.save(self.path, format='GIF', save_all=True, append_images=sequence,
-                   duration=1000.0 / self.fps, loop=0)
+                   duration=10 * _gif_delay(self.fps), loop=0)  # ms
 
 
 class _Mp4Writer:
@@ -569,8 +579,8 @@ def _parser():
     parser.add_argument('--end', type=float, default=None, metavar='S',
                         help='end time [s] after the first joint state (default: the last)')
     parser.add_argument('--fps', type=float, default=25.0, metavar='N',
-                        help=f'frames per second [1/s] of the animation, > 0, at most '
-                             f'{MAX_GIF_FPS:g} for a GIF (default: 25)')
+                        help='frames per second [1/s] of the animation, > 0; for a GIF 100/k '
+                             f'for a whole k >= 2 (at most {MAX_GIF_FPS:g}) (default: 25)')
     parser.add_argument('--speed', type=float, default=1.0, metavar='X',
                         help='playback speed [-]: run seconds per animation second, > 0 '
                              '(default: 1)')

@@ -130,6 +130,17 @@ def test_frame_plan_refuses_what_it_cannot_show(start, end, fps, speed, words):
         animate.frame_plan(np.arange(0, 1001) * 0.01, start, end, fps, speed)
 
 
+def test_gif_frame_rates_are_those_a_gif_plays_exactly():
+    for fps, delay in ((50.0, 2), (25.0, 4), (20.0, 5), (12.5, 8), (100 / 7, 7), (1.0, 100),
+                       (0.5, 200)):
+        animate.check_rates(fps, 1.0, '.gif')
+        assert animate._gif_delay(fps) == delay
+    for fps in (100.0, 60.0, 30.0, 24.0, 14.0, 0.3):
+        with pytest.raises(animate.AnimationError, match='cannot be played by a GIF'):
+            animate.check_rates(fps, 1.0, '.gif')
+        animate.check_rates(fps, 1.0, '.mp4')
+
+
 # --- frames: count, size, what is drawn ------------------------------------------------------
 
 def test_gif_has_one_frame_per_planned_time_at_the_frame_size(
@@ -388,7 +399,10 @@ def test_unknown_geometry_exits_2_and_names_the_options(tmp_path, capsys):
      'empty span: --end (1 s) must be after --start (1.5 s)'),
     (['--start', '40'], '--start 40 s is outside the recording (allowed: 0.000 to 1.990 s)'),
     (['--fps', '0'], '--fps must be a positive number of frames per second, got 0'),
-    (['--fps', '60'], '--fps 60 is too high for a GIF (at most 50'),
+    (['--fps', '60'], '--fps 60 cannot be played by a GIF, whose frame delays are whole '
+     'hundredths of a second (at least 2): use 100/k, e.g. 50, 25, 20, 12.5 or 10, or write '
+     'an .mp4'),
+    (['--fps', '30'], '--fps 30 cannot be played by a GIF'),
     (['--speed', 'nan'], '--speed must be a positive playback factor, got nan'),
     (['--fps', '50', '--speed', '0.1'], '996 frames (1.99 s of run at --fps 50 and --speed '
      '0.1) are too many for .gif (at most 600, all held in memory): shorten the span with '
