@@ -69,7 +69,8 @@ MAX_GIF_FPS = 50.0
 FORMATS = ('.gif', '.mp4')
 MP4_MISSING = ('writing MP4 needs the optional imageio-ffmpeg package: pip install '
                "'qrm_ros[video]' (or imageio-ffmpeg), or write a .gif")
-INPUT_SHAFT = JOINT_NAMES.index('input_shaft_joint')
+# The joints in names.JOINT_NAMES order, as the analysis' Samples take them.
+INPUT_SHAFT, RAM, OFFSET = JOINT_NAMES[0], JOINT_NAMES[3], JOINT_NAMES[4]
 # Frame times are a float sum; recorded stamps are whole nanoseconds apart.
 _TIME_SLACK = 1e-12
 _NS = 1_000_000_000
@@ -345,31 +346,35 @@ def read_efforts(path, samples):
 
     Samples are matched to messages by stamp: the analysis' time zero is the stamp of the
     message its first sample came from (the same angle, offset and speeds, bit for bit).
+    A run whose first message has no efforts (older recordings) costs one message.
     """
     from rosbags.typesys import get_typestore, Stores
     deserialize = get_typestore(Stores.ROS2_JAZZY).deserialize_cdr
     first = (samples.input_angle[0], samples.offset[0], samples.input_speed[0],
              samples.ram_velocity[0])
-    stamps, values, zero = [], [], None
+    stamps, values, zero, decoded = [], [], None, None
     run = open_run(path)
     for message in run.messages([absolute_topic(JOINT_STATES_TOPIC)], log_time_order=False,
                                 on_loss=lambda loss: None):  # the analysis lists losses
+        first_message = decoded is None
         try:
             decoded = deserialize(message.data, JOINT_STATE_TYPE)
         except Exception:  # noqa: B902 - the analysis lists undecodable messages
             continue
         names = list(decoded.name)
-        if len(decoded.effort) != len(names) or JOINT_NAMES[INPUT_SHAFT] not in names:
+        if len(decoded.effort) != len(names) or INPUT_SHAFT not in names:
+            if first_message:
+                return None
             continue
         stamp = decoded.header.stamp.sec * _NS + decoded.header.stamp.nanosec
         if zero is None and len(decoded.position) == len(names) == len(decoded.velocity):
             position = dict(zip(names, decoded.position))
             velocity = dict(zip(names, decoded.velocity))
-            if (position[JOINT_NAMES[0]], position[JOINT_NAMES[4]], velocity[JOINT_NAMES[0]],
-                    velocity[JOINT_NAMES[3]]) == first:
+            if (position.get(INPUT_SHAFT), position.get(OFFSET), velocity.get(INPUT_SHAFT),
+                    velocity.get(RAM)) == first:
                 zero = stamp
         stamps.append(stamp)
-        values.append(float(decoded.effort[names.index(JOINT_NAMES[INPUT_SHAFT])]))
+        values.append(float(decoded.effort[names.index(INPUT_SHAFT)]))
     if zero is None:
         return None
     time = (np.asarray(stamps, dtype=np.int64) - zero) / _NS  # as the analysis computes it
