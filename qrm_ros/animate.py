@@ -53,8 +53,8 @@ from qrm_ros.names import (absolute_topic, JOINT_NAMES, JOINT_STATE_TYPE,  # noq
 
 __all__ = ['AnimationError', 'FORMATS', 'FRAME_SIZE', 'FramePlan', 'LinkageFigure',
            'MAX_FRAMES', 'MAX_GIF_FPS', 'MP4_MISSING', 'check_output', 'check_rates',
-           'frame_plan', 'main', 'ratio_text', 'read_efforts', 'render_frames',
-           'write_animation', 'write_offset_tour']
+           'frame_plan', 'main', 'offset_tour_samples', 'ratio_text', 'read_efforts',
+           'render_frames', 'segment_at', 'write_animation', 'write_offset_tour']
 
 # Pixels (width, height): multiples of 16, as H.264 encoders want.
 FRAME_SIZE = (800, 640)
@@ -318,7 +318,7 @@ def ratio_text(row):
             + f'  (measured, {row["stroke_pairs"]} pairs)')
 
 
-def _segment_of(result):
+def segment_at(result):
     """Return time -> the analysis row of the steady segment holding it, or None."""
     spans = [(row['start_time'], row['end_time'], row) for row in result.rows]
 
@@ -510,7 +510,7 @@ def write_animation(recording, path, start=None, end=None, fps=25.0, speed=1.0, 
                            None if efforts is None else efforts[span], cutting_length)
     try:
         frames = (rgb for _, rgb in render_frames(figure, samples, plan.sample,
-                                                  _segment_of(result), efforts))
+                                                  segment_at(result), efforts))
         return _write(frames, path, fps, plan.sample.size, progress_stream)
     finally:
         figure.close()
@@ -559,7 +559,7 @@ def write_offset_tour(result, path, offsets=4, fps=20.0, revolutions=1.0):
     figure = LinkageFigure(result.recording.geometry, samples.time, samples.ram_velocity)
     try:
         frames = (rgb for _, rgb in render_frames(figure, samples, indices,
-                                                  _segment_of(result)))
+                                                  segment_at(result)))
         _write(frames, path, fps, indices.size)
     finally:
         figure.close()

@@ -180,7 +180,7 @@ def test_drawn_pins_equal_the_mechanism_at_the_frames_sample(run_with_efforts):
     span = slice(int(plan.sample.min()), int(plan.sample.max()) + 1)
     figure = animate.LinkageFigure(recording.geometry, samples.time[span],
                                    samples.ram_velocity[span], efforts[span])
-    row_at = animate._segment_of(result)
+    row_at = animate.segment_at(result)
     sizes = linkage_sizes(PHASED)
     checked = set()
     try:
@@ -229,10 +229,10 @@ def test_frame_label_gives_the_segments_measured_ratios(run_with_efforts):
     assert animate.ratio_text(row) == (
         f'TR {row["time_ratio_measured"]:.4f}  SR {row["speed_ratio_measured"]:.4f}  '
         f'(measured, {row["stroke_pairs"]} pairs)')
-    assert animate._segment_of(result)(row['start_time']) is row
+    assert animate.segment_at(result)(row['start_time']) is row
     # on the offset ramp between the segments there is no steady segment
     between = 0.5 * (result.rows[0]['end_time'] + row['start_time'])
-    assert animate._segment_of(result)(between) is None
+    assert animate.segment_at(result)(between) is None
     assert animate.ratio_text(None) == 'TR, SR: no whole stroke pair at steady settings here'
 
 
