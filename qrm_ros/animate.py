@@ -549,17 +549,20 @@ def write_offset_tour(result, path, offsets=4, fps=20.0, revolutions=1.0):
     """
     Write a short animation beside the main job's figures (``offset_tour_samples``).
 
-    Returns the path written, or None when the run has no steady turning segment.
+    With the input torque when the run recorded it. Returns the path written, or None when
+    the run has no steady turning segment.
     """
     indices = offset_tour_samples(result, offsets, fps, revolutions)
     if not indices.size:
         return None
     samples = result.recording.samples
     _check_offsets(result.recording.geometry, samples.offset[indices])
-    figure = LinkageFigure(result.recording.geometry, samples.time, samples.ram_velocity)
+    efforts = read_efforts(result.recording.path, samples)
+    figure = LinkageFigure(result.recording.geometry, samples.time, samples.ram_velocity,
+                           efforts)
     try:
         frames = (rgb for _, rgb in render_frames(figure, samples, indices,
-                                                  segment_at(result)))
+                                                  segment_at(result), efforts))
         _write(frames, path, fps, indices.size)
     finally:
         figure.close()

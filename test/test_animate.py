@@ -344,6 +344,25 @@ def test_offset_tour_shows_the_last_revolution_of_a_few_segments(tmp_path):
     assert (frames, size) == (indices.size, animate.FRAME_SIZE)
 
 
+def test_offset_tour_draws_the_recorded_torque(tmp_path, run_with_efforts, monkeypatch):
+    drawn = []
+
+    class Recorded(animate.LinkageFigure):
+        def draw(self, *state, **options):
+            frame = super().draw(*state, **options)
+            drawn.append(self.drawn_points())
+            return frame
+
+    monkeypatch.setattr(animate, 'LinkageFigure', Recorded)
+    result = analysis.analyse(analysis.read_recording(str(run_with_efforts)))
+    animate.write_offset_tour(result, str(tmp_path / 'tour.gif'))
+    samples = result.recording.samples
+    indices = animate.offset_tour_samples(result)
+    efforts = animate.read_efforts(str(run_with_efforts), samples)
+    assert [d['torque_dot'].tolist() for d in drawn] == [
+        [samples.time[i], efforts[i]] for i in indices]
+
+
 def test_offset_tour_shows_each_offset_once_when_a_gap_splits_it(tmp_path):
     path = tmp_path / 'run.mcap'
     write_run(path, PAPER, [0.0, 0.01], hold=3.0, offset_rate=0.05)
