@@ -30,10 +30,12 @@ setup(
         ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
         ('share/' + package_name + '/urdf', glob('urdf/*.urdf')),
     ],
-    install_requires=['setuptools', 'numpy', 'scipy', 'mcap', 'rosbags', 'matplotlib'],
+    install_requires=['setuptools', 'numpy', 'scipy', 'mcap', 'rosbags', 'matplotlib', 'tqdm'],
     extras_require={
         'test': ['pytest', 'flake8', 'pydocstyle', 'mcap-ros2-support', 'pyyaml',
                  'yourdfpy', 'mypy'],
+        # MP4 animations (qrm_animate -o OUT.mp4): a bundled ffmpeg
+        'video': ['imageio-ffmpeg'],
     },
     zip_safe=True,
     maintainer='qrm_ros developers',
@@ -47,6 +49,7 @@ setup(
             'shaper_sim = qrm_ros.entry_points:shaper_sim',
             'mcap_recorder = qrm_ros.entry_points:mcap_recorder',
             'qrm_analyze = qrm_ros.entry_points:qrm_analyze',
+            'qrm_animate = qrm_ros.entry_points:qrm_animate',
             'qrm_main = qrm_ros.entry_points:qrm_main',
             'qrm_urdf = qrm_ros.entry_points:qrm_urdf',
         ],

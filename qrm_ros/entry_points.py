@@ -25,7 +25,8 @@ import importlib
 import signal
 import sys
 
-__all__ = ['mcap_recorder', 'qrm_analyze', 'qrm_design', 'qrm_main', 'qrm_urdf', 'shaper_sim']
+__all__ = ['mcap_recorder', 'qrm_analyze', 'qrm_animate', 'qrm_design', 'qrm_main', 'qrm_urdf',
+           'shaper_sim']
 
 EXIT_INTERRUPTED = 130  # the shell's code for a Ctrl-C
 
@@ -58,6 +59,10 @@ def mcap_recorder():
 
 def qrm_analyze():
     return _run('qrm_ros.analysis')
+
+
+def qrm_animate():
+    return _run('qrm_ros.animate')
 
 
 def qrm_design():

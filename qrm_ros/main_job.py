@@ -53,6 +53,8 @@ RECORDER_SETTLE_TIME = 0.5
 START_TIMEOUT = 30.0  # s, for each child to come up
 PARAMETER_CALL_TIMEOUT = 10.0  # s
 CHILD_STOP_TIMEOUT = 15.0  # s, after SIGINT, before SIGKILL
+# Beside the figures: one input revolution at each of a few offsets (qrm_ros.animate).
+TOUR_FILE = 'offset_tour.gif'
 
 
 class MainJobError(Exception):
@@ -320,6 +322,7 @@ def report(recording, folder):
     figures = analysis.write_outputs(  # all or none
         result, os.path.join(folder, 'results.csv'), os.path.join(folder, 'results.json'),
         os.path.join(folder, 'figures'))
+    tour = _write_tour(result, os.path.join(folder, 'figures', TOUR_FILE))
     missing = analysis.incompleteness(loaded)
     for line in missing:
         print(f'qrm_main: warning: {line}', file=sys.stderr)
@@ -329,7 +332,19 @@ def report(recording, folder):
           f'{os.path.join(folder, "results.csv")}')
     for path in figures:
         print(f'qrm_main: figure     {path}')
+    if tour:
+        print(f'qrm_main: animation  {tour}')
     return missing
+
+
+def _write_tour(result, path):
+    """Write the linkage at a few offsets beside the figures; a failure only warns."""
+    from qrm_ros import animate  # matplotlib: only once there is something to draw
+    try:
+        return animate.write_offset_tour(result, path)
+    except (OSError, animate.AnimationError) as error:
+        print(f'qrm_main: warning: no animation written: {error}', file=sys.stderr)
+        return None
 
 
 def run(options):

@@ -64,13 +64,14 @@ def schedule_efforts(geometry, mass, loads, offset, input_angle, input_speed, of
 
 def write_run(path, geometry, offsets, with_geometry=True, joint_states_topic='/joint_states',
               start_ns=1_700_000_000_000_000_000, chunk_size=256 * 1024, data_crc=False,
-              mass=None, loads=None, **schedule):
+              mass=None, loads=None, effort=None, **schedule):
     """
     Write a synthetic run as a ros2-profile MCAP file; return the number of messages.
 
     With mass and loads (dynamics.MassProperties, Loads), the messages carry the efforts and
     the file the parameters metadata, as the node and the recorder write them; the ramps'
-    offset acceleration is taken as 0 (the node's speed drive does the same).
+    offset acceleration is taken as 0 (the node's speed drive does the same). Otherwise
+    ``effort``: None (no efforts, as the golden logs) or time (s) -> the five joints' efforts.
     """
     from mcap.writer import Writer
     from rosbags.typesys import get_typestore, Stores
@@ -111,7 +112,7 @@ def write_run(path, geometry, offsets, with_geometry=True, joint_states_topic='/
                                    state.lever_angle[i], state.ram_position[i], offset[i]]),
                 velocity=np.array([speed, state.flywheel_speed[i], state.lever_speed[i],
                                    state.ram_velocity[i], offset_velocity[i]]),
-                effort=efforts[i])
+                effort=efforts[i] if effort is None else np.array(effort(t), dtype=float))
             data = store.serialize_cdr(message, type_name)
             writer.add_message(channel, log_time=stamp_ns + 250_000, publish_time=stamp_ns,
                                data=bytes(data), sequence=i)

@@ -21,10 +21,11 @@ import signal
 import subprocess
 import sys
 
+from PIL import Image
 import pytest
 
+from qrm_ros import animate, main_job
 from qrm_ros import kinematics as kin
-from qrm_ros import main_job
 from qrm_ros.bag_reader import open_run
 
 from ros_probe import installed_executable, stop_process, wait_for
@@ -42,7 +43,11 @@ def test_main_job_runs_a_short_schedule_end_to_end(tmp_path, capsys):
         assert (folder / name).is_file(), name
     assert sorted(os.listdir(folder / 'figures')) == sorted(
         ['fig10_time_ratio.png', 'fig11_speed_ratio.png', 'fig12_flywheel_speed.png',
-         'ram_motion.png', 'fig_input_torque.png', 'fig_offset_cost.png'])
+         'ram_motion.png', 'fig_input_torque.png', 'fig_offset_cost.png', main_job.TOUR_FILE])
+    # the last input revolution (0.5 s) of each offset at 20 frames per second, both ends
+    with Image.open(folder / 'figures' / main_job.TOUR_FILE) as tour:
+        assert (tour.n_frames, tour.size) == (2 * 11, animate.FRAME_SIZE)
+    assert f'qrm_main: animation  {folder / "figures" / main_job.TOUR_FILE}' in out
     assert str(folder / 'run.mcap') in out
     document = json.loads((folder / 'results.json').read_text())
     segments = document['segments']
