@@ -26,7 +26,8 @@ import numpy as np
 
 from qrm_ros import kinematics as kin
 
-__all__ = ['CUTTING_SPEED_DEFINITIONS', 'CUTTING_SPEED_FIGURES', 'HoldAnswer', 'cutting_speed', 'hold_offset',
+__all__ = ['CUTTING_SPEED_DEFINITIONS', 'CUTTING_SPEED_FIGURES', 'HoldAnswer', 'cutting_speed',
+           'hold_offset',
            'reachable_cutting_speeds']
 
 # 'mean': stroke length / cutting time, the figure of shop tables; 'peak': the largest
@@ -71,7 +72,7 @@ class HoldAnswer(NamedTuple):
 
 def hold_offset(geometry: kin.Geometry, input_speed: float, target: float,
                 definition: str) -> HoldAnswer:
-    """The offset giving the target cutting speed at input_speed, or the nearest one."""
+    """Return the offset giving the target cutting speed at input_speed, or the nearest."""
     if input_speed == 0.0:
         return HoldAnswer(0.0, (0.0, 0.0),
                           'the input speed command is 0 rad/s: no offset gives a cutting '

@@ -28,7 +28,8 @@ from qrm_ros.dynamics import Loads, MassProperties, MotorDrive
 from qrm_ros.kinematics import Geometry, KinematicsError
 
 __all__ = ['AtLeast', 'DoubleRange', 'DRIVES', 'GEOMETRY_NAMES', 'MOTOR_PREFIX', 'NonEmptyText',
-           'OneOf', 'ParameterSpec', 'PARAMETERS', 'PositiveLength', 'SymmetricRange', 'View', 'allowed_text',
+           'OneOf', 'ParameterSpec', 'PARAMETERS', 'PositiveLength', 'SymmetricRange', 'View',
+           'allowed_text',
            'default_values', 'refusal_reason', 'shown']
 
 GEOMETRY_NAMES = Geometry.field_names()
@@ -209,7 +210,7 @@ _STRUCTURAL = 'Structural: set at start-up only.'
 
 
 def _target_reachable(value, view):
-    """A cutting speed target must be reachable at the speed command, within the safe offsets."""
+    """Refuse a cutting speed the safe offsets cannot give at the speed command."""
     target = view.values['cutting_speed_target']
     if target == 0.0:
         return None
@@ -234,6 +235,7 @@ def _offset_by_hand(value, view):
     return (f'the offset is commanded by cutting_speed_target = {shown(target)} m/s; set '
             'cutting_speed_target to 0 to command coupling_offset by hand (or set both in '
             'one atomic call)')
+
 
 PARAMETERS = {
     'coupling_radius': ParameterSpec(

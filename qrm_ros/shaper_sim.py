@@ -35,8 +35,9 @@ from qrm_ros.motor_drive import MotorStepper
 from qrm_ros.kinematics import Geometry
 from qrm_ros.linkage_markers import delete_all_marker_array, linkage_marker_array
 from qrm_ros.names import (CUTTING_SPEED_STATUS, DIAGNOSTICS_TOPIC, DRIVE_STATUS,
-                           JOINT_NAMES, JOINT_STATES_TOPIC, LINKAGE_MARKERS_TOPIC, RAM_TWIST_TOPIC, SIM_NODE_NAME,
-                           SPEED_COMMAND_TOPIC, STROKE_PAIR_STATUS)
+                           JOINT_NAMES, JOINT_STATES_TOPIC, LINKAGE_MARKERS_TOPIC,
+                           RAM_TWIST_TOPIC, SIM_NODE_NAME, SPEED_COMMAND_TOPIC,
+                           STROKE_PAIR_STATUS)
 from qrm_ros.ros_process import (init_rclpy, RCLError, rcl_error_text, spin_until_stopped,
                                  StopRequest)
 from qrm_ros.shaper_parameters import (allowed_text, default_values, GEOMETRY_NAMES,
@@ -303,9 +304,11 @@ class ShaperSimNode(Node):
 
     def command_offset(self):
         """
-        Command the offset: coupling_offset by hand, or while cutting_speed_target is set,
-        the offset that gives it at the speed command in force (the nearest reachable one,
-        with a WARN, when a speed change has put the target out of reach).
+        Command the offset: coupling_offset by hand, or the cutting speed's.
+
+        While cutting_speed_target is set, the offset that gives it at the speed command in
+        force (the nearest reachable one, with a WARN, when a speed change has put the
+        target out of reach).
         """
         values = self._values
         target = values['cutting_speed_target']
@@ -494,8 +497,9 @@ class ShaperSimNode(Node):
 
     def _report_stall(self, stepper, stamp_ns):
         """
-        Say on /diagnostics (ERROR) and in the log when the motor stalls; repeat the ERROR
-        every second while it lasts (so monitors do not take it as stale) and say when it ends.
+        Say on /diagnostics (ERROR) and in the log when the motor stalls, and when it ends.
+
+        The ERROR is repeated every second while it lasts, so monitors do not take it as stale.
         """
         reason = stepper.stall_reason if stepper.stalled else None
         changed = reason != self._stall_reason
@@ -519,7 +523,7 @@ class ShaperSimNode(Node):
         self._diagnostics_publisher.publish(message)
 
     def _publish_hold_status(self):
-        """The cutting-speed hold's state on /diagnostics: OK when exact, WARN when not."""
+        """Publish the cutting-speed hold's state on /diagnostics: OK when exact, else WARN."""
         values = self._values
         answer = self._hold
         level = DiagnosticStatus.WARN if answer.problem else DiagnosticStatus.OK

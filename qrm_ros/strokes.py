@@ -227,7 +227,7 @@ def _window_extremes(t, f, start, end):
 def measure_pair_efforts(time: ArrayLike, input_speed: ArrayLike, input_torque: ArrayLike,
                          offset_force: ArrayLike, pairs: StrokePairs) -> PairEffortsMeasured:
     """
-    The effort figures of each pair in pairs (from find_stroke_pairs on the same samples).
+    Measure the effort figures of each pair in pairs (find_stroke_pairs, same samples).
 
     Between samples every signal is taken as linear (trapezoid integrals, the pair's ends
     interpolated), so a load switch between two samples costs an error of order its jump x

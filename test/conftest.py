@@ -41,7 +41,7 @@ def ros_domain_id():
 
 @pytest.fixture(scope='module')
 def context():
-    """An rclpy context of the test module's own."""
+    """Give the test module an rclpy context of its own."""
     context = Context()
     rclpy.init(context=context)
     yield context

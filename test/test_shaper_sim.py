@@ -22,22 +22,20 @@ services, pause and simulated time go through a spinning executor.
 import math
 import time
 
-from diagnostic_msgs.msg import DiagnosticArray
 import pytest
 from qrm_ros.kinematics import peak_speed_ratio, speed_ratio, state, time_ratio
 from qrm_ros.shaper_sim import JOINT_NAMES, PARAMETERS, ShaperSimNode
 from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterType, ParameterValue
 from rcl_interfaces.srv import DescribeParameters, SetParameters
 import rclpy
-from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, Trigger
 from visualization_msgs.msg import Marker, MarkerArray
 
+from ros_probe import call
 from shaper_harness import NS, pair_values, run_ticks
 
 R1, R, H_PIVOT = 0.025, 0.0505, 0.113
