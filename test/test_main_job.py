@@ -26,6 +26,7 @@ import pytest
 
 from qrm_ros import animate, main_job
 from qrm_ros import kinematics as kin
+from qrm_ros.dynamics import Loads
 from qrm_ros.bag_reader import open_run
 
 from ros_probe import installed_executable, stop_process, wait_for
@@ -61,9 +62,17 @@ def test_main_job_runs_a_short_schedule_end_to_end(tmp_path, capsys):
             kin.time_ratio_rk4(geometry, segment['offset']), rel=tolerance)
         eq25 = kin.speed_ratio_eq25(geometry, segment['offset'])
         assert segment['speed_ratio_measured'] == pytest.approx(eq25, rel=tolerance)
-        # The node's default masses, no loads: inertia and gravity only, no work per pair.
+        # The main job's default loads (the small shaper's): inertia and gravity give back
+        # what they take over a pair, so the drive's work per pair is the loads' work, one
+        # cut of the workpiece plus friction over twice the stroke (dynamics.md).
+        loads = Loads.small_shaper()
+        loads_work = (loads.cutting_force * loads.cutting_length
+                      + 2.0 * loads.ram_friction * geometry.ram_stroke)
         assert segment['stroke_pairs_with_efforts'] == segment['stroke_pairs']
-        assert segment['energy_per_pair_theory'] == 0.0
+        assert segment['energy_per_pair_theory'] == pytest.approx(loads_work, rel=1e-9)
+        # Measured at 100 Hz: each of the four force jumps per pair (workpiece edges,
+        # reversals) costs at most jump x speed x dt, 400 N x 0.3 m/s x 0.01 s = 1.2 J.
+        assert segment['energy_per_pair_measured'] == pytest.approx(loads_work, abs=4 * 1.2)
         assert segment['speed_fluctuation_absolute_error'] == 0.0
         assert segment['peak_input_torque_relative_error'] is not None
 
