@@ -336,7 +336,9 @@ def write_figures(analysis, directory, stage=None):
         figure = build(analysis)
         path = os.path.join(directory, name)
         try:
-            figure.tight_layout()
+            # tight_layout leaves no room for a suptitle by itself: keep 0.35 inch for it.
+            top = 1.0 - 0.35 / figure.get_figheight() if figure.get_suptitle() else 1.0
+            figure.tight_layout(rect=(0.0, 0.0, 1.0, top))
             figure.savefig(path if stage is None else stage(path), dpi=110, format='png')
         finally:
             plt.close(figure)
