@@ -28,7 +28,7 @@ from scipy import integrate, optimize
 
 from qrm_ros import dynamics as dyn
 from qrm_ros.kinematics import check_offset, KinematicsError, state
-from qrm_ros.stepping import _finite, _positive, _ramp, wrap_angle
+from qrm_ros.stepping import _finite, _positive, _ramp, checked_limits, wrap_angle
 
 __all__ = ['MotorStepper', 'PairEfforts', 'Simulation', 'SpeedFluctuation',
            'input_inertia_for_speed_fluctuation', 'pair_efforts', 'simulate',
@@ -228,13 +228,8 @@ class MotorStepper:
 
     def set_limits(self, input_acceleration_limit=None, offset_rate_limit=None):
         """Change either limit (rad/s^2, m/s; > 0); None keeps the present value."""
-        acceleration = self._acceleration_limit
-        rate = self._offset_rate_limit
-        if input_acceleration_limit is not None:
-            acceleration = _positive('input_acceleration_limit', input_acceleration_limit,
-                                     'rad/s^2')
-        if offset_rate_limit is not None:
-            rate = _positive('offset_rate_limit', offset_rate_limit, 'm/s')
+        acceleration, rate = checked_limits(self._acceleration_limit, self._offset_rate_limit,
+                                            input_acceleration_limit, offset_rate_limit)
 
         def change():
             self._acceleration_limit, self._offset_rate_limit = acceleration, rate

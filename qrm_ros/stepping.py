@@ -42,7 +42,7 @@ from typing import Optional
 from qrm_ros.kinematics import (check_offset, Geometry, KinematicsError, MechanismState,
                                 state)
 
-__all__ = ['ShaperStepper', 'wrap_angle']
+__all__ = ['checked_limits', 'ShaperStepper', 'wrap_angle']
 
 # 2 pi split into the nearest double and the remainder. Measured, it makes no difference to
 # long-run precision (bench/bench_angle_precision.py: ~2.5e-16 rad per revolution either
@@ -85,6 +85,22 @@ def _positive(name, value, unit):
     if value <= 0.0:
         raise KinematicsError(f'{name} must be > 0 {unit}, got {value!r}')
     return value
+
+
+def checked_limits(acceleration_limit: float, offset_rate_limit: float,
+                   new_acceleration_limit: Optional[float] = None,
+                   new_offset_rate_limit: Optional[float] = None):
+    """
+    Return the (input acceleration, offset rate) limits after a change (None keeps one).
+
+    Both are checked before either is taken, so a refused change changes nothing.
+    """
+    if new_acceleration_limit is not None:
+        acceleration_limit = _positive('input_acceleration_limit', new_acceleration_limit,
+                                       'rad/s^2')
+    if new_offset_rate_limit is not None:
+        offset_rate_limit = _positive('offset_rate_limit', new_offset_rate_limit, 'm/s')
+    return acceleration_limit, offset_rate_limit
 
 
 def _ramp(value, target, rate_limit, duration):
@@ -139,14 +155,9 @@ class ShaperStepper:
     def set_limits(self, input_acceleration_limit: Optional[float] = None,
                    offset_rate_limit: Optional[float] = None) -> None:
         """Change either limit (rad/s^2, m/s; > 0); None keeps the present value."""
-        acceleration = self._acceleration_limit
-        rate = self._offset_rate_limit
-        if input_acceleration_limit is not None:
-            acceleration = _positive('input_acceleration_limit', input_acceleration_limit,
-                                     'rad/s^2')
-        if offset_rate_limit is not None:
-            rate = _positive('offset_rate_limit', offset_rate_limit, 'm/s')
-        self._acceleration_limit, self._offset_rate_limit = acceleration, rate
+        self._acceleration_limit, self._offset_rate_limit = checked_limits(
+            self._acceleration_limit, self._offset_rate_limit, input_acceleration_limit,
+            offset_rate_limit)
 
     def reset(self, input_speed: float, offset: float) -> None:
         """
