@@ -27,7 +27,7 @@ import numpy as np
 from qrm_ros import kinematics as kin
 
 __all__ = ['CUTTING_SPEED_DEFINITIONS', 'CUTTING_SPEED_FIGURES', 'HoldAnswer', 'cutting_speed',
-           'hold_offset',
+           'hold_offset', 'unreachable_reason',
            'reachable_cutting_speeds']
 
 # 'mean': stroke length / cutting time, the figure of shop tables; 'peak': the largest
@@ -49,17 +49,37 @@ def cutting_speed(geometry: kin.Geometry, offset, input_speed, definition: str):
                               f'{", ".join(CUTTING_SPEED_DEFINITIONS)}')
 
 
-def _safe_offsets(geometry):
+def _over_safe_offsets(geometry, input_speed, definition):
+    """(offsets, cutting speeds) across the safe offset range, ends included."""
     limit = geometry.max_safe_offset
-    return np.linspace(-limit, limit, _RANGE_SAMPLES)
+    offsets = np.linspace(-limit, limit, _RANGE_SAMPLES)
+    return offsets, np.asarray(cutting_speed(geometry, offsets, input_speed, definition))
 
 
 def reachable_cutting_speeds(geometry: kin.Geometry, input_speed: float,
                              definition: str) -> Tuple[float, float]:
     """(lowest, highest) cutting speed the safe offsets give at input_speed (m/s)."""
-    speeds = np.asarray(cutting_speed(geometry, _safe_offsets(geometry), input_speed,
-                                      definition))
+    _, speeds = _over_safe_offsets(geometry, input_speed, definition)
     return float(speeds.min()), float(speeds.max())
+
+
+def unreachable_reason(geometry: kin.Geometry, input_speed: float, target: float,
+                       definition: str,
+                       reachable: Optional[Tuple[float, float]] = None) -> Optional[str]:
+    """
+    Say why no safe offset gives the target at input_speed, or return None if one does.
+
+    The node's refusal of a target and its warning when it holds the nearest offset both say
+    this, in these words. reachable: the range if already known.
+    """
+    if input_speed == 0.0:
+        return 'the input speed command is 0 rad/s: no offset gives a cutting speed'
+    low, high = reachable or reachable_cutting_speeds(geometry, input_speed, definition)
+    if low <= target <= high:
+        return None
+    return (f'{definition} cutting speed {target:.6g} m/s is out of reach at the input speed '
+            f'command {input_speed:.6g} rad/s: offsets within the safety limit (|offset| <= '
+            f'{geometry.max_safe_offset:.6g} m) give {low:.6g} to {high:.6g} m/s')
 
 
 class HoldAnswer(NamedTuple):
@@ -74,22 +94,21 @@ def hold_offset(geometry: kin.Geometry, input_speed: float, target: float,
                 definition: str) -> HoldAnswer:
     """Return the offset giving the target cutting speed at input_speed, or the nearest."""
     if input_speed == 0.0:
-        return HoldAnswer(0.0, (0.0, 0.0),
-                          'the input speed command is 0 rad/s: no offset gives a cutting '
-                          'speed; offset 0 m held')
-    offsets = _safe_offsets(geometry)
-    speeds = np.asarray(cutting_speed(geometry, offsets, input_speed, definition))
-    low, high = float(speeds.min()), float(speeds.max())
-    if low <= target <= high:
+        reason = unreachable_reason(geometry, input_speed, target, definition)
+        return HoldAnswer(0.0, (0.0, 0.0), f'{reason}; offset 0 m held')
+    offsets, speeds = _over_safe_offsets(geometry, input_speed, definition)
+    reachable = float(speeds.min()), float(speeds.max())
+    reason = unreachable_reason(geometry, input_speed, target, definition, reachable)
+    if reason is None:
         invert = (kin.offset_for_mean_cutting_speed if definition == 'mean'
                   else kin.offset_for_cutting_speed)
         offset = float(invert(geometry, input_speed, target))
         if abs(offset) <= geometry.max_safe_offset:
-            return HoldAnswer(offset, (low, high), None)
+            return HoldAnswer(offset, reachable, None)
+        reason = (f'{definition} cutting speed {target:.6g} m/s needs offset {offset:.6g} m, '
+                  f'beyond the safety limit {geometry.max_safe_offset:.6g} m')
     nearest = int(np.argmin(np.abs(speeds - target)))
     return HoldAnswer(
-        float(offsets[nearest]), (low, high),
-        f'{definition} cutting speed {target:.6g} m/s is out of reach at input speed '
-        f'{input_speed:.6g} rad/s: offsets within the safety limit (|offset| <= '
-        f'{geometry.max_safe_offset:.6g} m) give {low:.6g} to {high:.6g} m/s; holding the '
-        f'nearest, offset {float(offsets[nearest]):.6g} m ({float(speeds[nearest]):.6g} m/s)')
+        float(offsets[nearest]), reachable,
+        f'{reason}; holding the nearest, offset {float(offsets[nearest]):.6g} m '
+        f'({float(speeds[nearest]):.6g} m/s)')

@@ -23,7 +23,7 @@ the node turns specs into descriptors and reasons into SetParametersResults.
 import math
 from typing import Callable, NamedTuple, Optional, Tuple
 
-from qrm_ros.cutting_speed_hold import CUTTING_SPEED_DEFINITIONS, reachable_cutting_speeds
+from qrm_ros.cutting_speed_hold import CUTTING_SPEED_DEFINITIONS, unreachable_reason
 from qrm_ros.dynamics import Loads, MassProperties, MotorDrive
 from qrm_ros.kinematics import Geometry, KinematicsError
 
@@ -214,18 +214,8 @@ def _target_reachable(value, view):
     target = view.values['cutting_speed_target']
     if target == 0.0:
         return None
-    speed = view.speed_command
-    definition = view.values['cutting_speed_definition']
-    if speed == 0.0:
-        return (f'cutting_speed_target {shown(target)} m/s cannot be held: the input speed '
-                'command is 0 rad/s')
-    low, high = reachable_cutting_speeds(view.geometry, speed, definition)
-    if low <= target <= high:
-        return None
-    return (f'{definition} cutting speed {shown(target)} m/s is out of reach at the input speed '
-            f'command {shown(speed)} rad/s: offsets within the safety limit (|offset| <= '
-            f'{shown(float(view.geometry.max_safe_offset))} m) give {shown(low)} to '
-            f'{shown(high)} m/s')
+    return unreachable_reason(view.geometry, view.speed_command, target,
+                              view.values['cutting_speed_definition'])
 
 
 def _offset_by_hand(value, view):

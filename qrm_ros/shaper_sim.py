@@ -113,6 +113,7 @@ class ShaperSimNode(Node):
             if reason:
                 raise ValueError(f'start-up value refused: {reason}')
         self._report_unknown_overrides()
+        self._stepper = None  # made below, from the dynamics in force
         self.update_dynamics()
         self._stepper = self._new_stepper(self._values['drive'])
         self._stall_reason = None
@@ -443,9 +444,8 @@ class ShaperSimNode(Node):
         self._loads = Loads(**{n: values[n] for n in Loads.field_names()})
         self._motor = MotorDrive(**{n: values[MOTOR_PREFIX + n]
                                     for n in MotorDrive.field_names()})
-        stepper = getattr(self, '_stepper', None)
-        if isinstance(stepper, MotorStepper):
-            stepper.set_dynamics(self._mass, self._loads, self._motor)
+        if isinstance(self._stepper, MotorStepper):
+            self._stepper.set_dynamics(self._mass, self._loads, self._motor)
 
     def _new_stepper(self, drive):
         values = self._values
