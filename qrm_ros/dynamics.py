@@ -26,7 +26,7 @@ time derivative for any prescribed offset motion (offset_rate and offset_acceler
 from dataclasses import dataclass, fields
 import math
 from types import SimpleNamespace
-from typing import NamedTuple
+from typing import ClassVar, NamedTuple
 
 import numpy as np
 
@@ -70,7 +70,7 @@ class _Validated:
     """Field validation shared by the three parameter sets."""
 
     # name -> (unit, minimum or None, strictly greater)
-    _LIMITS = {}
+    _LIMITS: ClassVar[dict[str, tuple[str, float | None, bool]]] = {}
 
     def __post_init__(self):
         for name, (unit, minimum, strict) in self._LIMITS.items():

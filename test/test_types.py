@@ -20,7 +20,8 @@ import sys
 import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-TYPED_MODULES = ['kinematics', 'stepping', 'strokes', 'stroke_monitor', 'analysis', 'gearbox']
+TYPED_MODULES = ['kinematics', 'stepping', 'strokes', 'stroke_monitor', 'analysis', 'gearbox',
+                 'dynamics']
 
 
 def test_mypy_finds_no_type_errors_in_the_public_api():
