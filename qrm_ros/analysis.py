@@ -40,20 +40,20 @@ import math
 import multiprocessing
 import os
 import sys
-import warnings
 from typing import (Any, Callable, Dict, List, NamedTuple, Optional, Sequence, TextIO,
                     Tuple)
 
 import numpy as np
-from scipy import integrate, interpolate
+from scipy import interpolate
 
 from qrm_ros import dynamics as dyn
 from qrm_ros import kinematics as kin
-from qrm_ros import motor_drive
 from qrm_ros import names
 from qrm_ros.atomic_files import staged_outputs
 from qrm_ros.bag_reader import Loss, open_run, Run, RunFileError
 from qrm_ros.design_table import add_geometry_arguments
+from qrm_ros.effort_theory import (EFFORT_FIGURES, Setting, steady_effort_theory,
+                                   THEORY_FIGURES, ZERO_CAN_BE_EXACT)
 from qrm_ros.names import (absolute_topic, GEOMETRY_METADATA, JOINT_NAMES, JOINT_STATE_TYPE,
                            PARAMETERS_METADATA)
 from qrm_ros.strokes import find_stroke_pairs, measure_pair_efforts
@@ -766,17 +766,6 @@ def _mean_and_spread(values) -> Tuple[Optional[float], Optional[float]]:
     return float(np.mean(values)), spread
 
 
-# Per-pair effort figures (strokes.measure_pair_efforts), in the order of the table.
-EFFORT_FIGURES = ('peak_input_torque', 'rms_input_torque', 'mean_input_power',
-                  'energy_per_pair', 'peak_offset_force')
-# Figures whose theory can be exactly 0 (no loads: inertia and gravity give back over a
-# revolution what they take; the ideal speed drive: no fluctuation). Their error is also
-# given as measured - theory, the only error of a zero theory.
-ZERO_CAN_BE_EXACT = ('mean_input_power', 'energy_per_pair', 'speed_fluctuation')
-# A theoretical work per pair below this fraction of RMS torque x 2 pi is roundoff of 0.
-_ROUNDOFF = 1e-9
-
-
 def flywheel_speed_swing(geometry: kin.Geometry, offset: float) -> float:
     """
     Max / min flywheel speed over a revolution at a steady input speed: the offset's cost.
@@ -805,31 +794,6 @@ def _speed_extremes(time: np.ndarray, angle: np.ndarray, speed: np.ndarray,
         values = np.concatenate([rate(inside), speed[(time > start) & (time < end)]])
         high[index], low[index] = np.max(values), np.min(values)
     return high, low
-
-
-def _effort_theory(geometry: kin.Geometry, drive: Optional[Drive], offset: float,
-                   input_speed: float) -> Dict[str, Optional[float]]:
-    """Return the drive's figures of one pair at a steady setting (None: no theory)."""
-    theory: Dict[str, Optional[float]] = dict.fromkeys(EFFORT_FIGURES + ('speed_fluctuation',))
-    if drive is None or input_speed == 0.0:
-        return theory
-    with contextlib.suppress(kin.KinematicsError), warnings.catch_warnings():
-        # quad warns of roundoff when its 1e-12 goal is met to within roundoff already.
-        warnings.simplefilter('ignore', integrate.IntegrationWarning)
-        if drive.motor is None:  # the ideal speed drive holds the speed: no fluctuation
-            figures = motor_drive.pair_efforts(geometry, drive.mass, drive.loads, offset,
-                                               input_speed)
-            if (drive.loads.cutting_force == 0.0 and drive.loads.ram_friction == 0.0
-                    and abs(figures.energy_per_pair)
-                    <= _ROUNDOFF * 2 * math.pi * figures.rms_input_torque):
-                figures = figures._replace(energy_per_pair=0.0, mean_input_power=0.0)
-            theory.update(figures._asdict(), speed_fluctuation=0.0)
-        else:
-            steady = motor_drive.speed_fluctuation(geometry, drive.mass, drive.loads,
-                                                   drive.motor, offset, input_speed)
-            theory.update(steady.pair_efforts._asdict(),
-                          speed_fluctuation=steady.fluctuation)
-    return theory
 
 
 class InputTorqueParts(NamedTuple):
@@ -927,7 +891,9 @@ def _measure_efforts(row: Dict[str, Any], samples: Samples, span: slice, pairs: 
                                     pairs)
     row['stroke_pairs_with_efforts'] = int(np.count_nonzero(
         np.isfinite(measured.energy_per_pair)))
-    theory = _effort_theory(geometry, drive, row['offset'], row['input_speed'])
+    theory = (dict.fromkeys(THEORY_FIGURES) if drive is None else steady_effort_theory(
+        Setting(geometry, drive.mass, drive.loads, drive.motor, row['offset'],
+                row['input_speed'])))
     for name in EFFORT_FIGURES:
         _measured_and_theory(row, name, getattr(measured, name), theory[name])
     _measured_and_theory(row, 'speed_fluctuation', measured.speed_fluctuation,

@@ -31,6 +31,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import TwistStamped
 from qrm_ros.cutting_speed_hold import CUTTING_SPEED_FIGURES, hold_offset
 from qrm_ros.dynamics import efforts, Loads, MassProperties, MotorDrive, ram_load_force
+from qrm_ros.effort_theory import BackgroundTheory, Setting, THEORY_FIGURES
 from qrm_ros.motor_drive import MotorStepper
 from qrm_ros.kinematics import Geometry
 from qrm_ros.linkage_markers import delete_all_marker_array, linkage_marker_array
@@ -91,6 +92,7 @@ class ShaperSimNode(Node):
 
     def __init__(self, **node_options):
         super().__init__(SIM_NODE_NAME, **node_options)
+        self._theory = BackgroundTheory()
         try:
             self._set_up()
         except Exception:
@@ -121,6 +123,9 @@ class ShaperSimNode(Node):
         self._hold = None
         self._paused = False
         self._monitor = StrokeMonitor(self._geometry)
+        # What the effort theory of a pair depends on, and since when (ns) it has held.
+        self._setting = None
+        self._setting_since_ns = 0
 
         depth = max(MIN_PUBLISHER_DEPTH,
                     math.ceil(PUBLISHER_HISTORY_SECONDS * self._values['publish_rate']))
@@ -430,12 +435,48 @@ class ShaperSimNode(Node):
         twist.header.frame_id = frame_id
         twist.twist.linear.x = sample.ram_velocity
         self._twist_publisher.publish(twist)
+        self._note_setting(stepper, stamp_ns)
         for report in self._monitor.add(stamp_ns, sample.ram_position, sample.ram_velocity,
                                         stepper.offset, stepper.offset_rate,
                                         stepper.input_speed, joint_efforts[0],
                                         joint_efforts[-1]):
             self._publish_pair(report)
         return True
+
+    def _note_setting(self, stepper, stamp_ns):
+        # The parameter sets compare by identity: any change of them makes new ones.
+        setting = (stepper, self._mass, self._loads, self._motor, stepper.offset,
+                   self._setting_speed(stepper))
+        if setting != self._setting:
+            self._setting, self._setting_since_ns = setting, stamp_ns
+
+    @staticmethod
+    def _setting_speed(stepper):
+        """Return the speed a steady pair runs at: the drive's, or the motor's reference."""
+        if isinstance(stepper, MotorStepper):
+            return stepper.speed_reference
+        return stepper.input_speed
+
+    def _effort_theory(self, report):
+        """Return the pair's effort theory as key-values, and a word on where it stands."""
+        if report.pair_start * 1e9 < self._setting_since_ns:
+            return [], 'none: the setting changed during the pair'
+        stepper, mass, loads, motor, offset, speed = self._setting
+        theory, problem = self._theory.lookup(Setting(
+            self._geometry, mass, loads, motor if isinstance(stepper, MotorStepper) else None,
+            offset, speed))
+        if problem:
+            return [], f'unavailable: {problem}'
+        if theory is None:
+            return [], 'pending: worked out in the background'
+        values = [KeyValue(key=f'{name}_theory', value=repr(theory[name]))
+                  for name in THEORY_FIGURES if theory[name] is not None]
+        return values, ('steady setting' if values else
+                        'none: no steady running at this setting (stopped or stalled)')
+
+    def destroy_node(self):
+        self._theory.close()
+        return super().destroy_node()
 
     def update_dynamics(self):
         """Take the mass, load and motor parameters in force (checked by their rules)."""
@@ -548,6 +589,9 @@ class ShaperSimNode(Node):
         key_values.append(KeyValue(key='offset_steady', value=str(report.offset_steady).lower()))
         key_values.append(KeyValue(key='input_speed_steady',
                                    value=str(report.input_speed_steady).lower()))
+        effort_theory, effort_theory_state = self._effort_theory(report)
+        key_values += effort_theory
+        key_values.append(KeyValue(key='effort_theory', value=effort_theory_state))
         target = self._values['cutting_speed_target']
         if target:
             definition = self._values['cutting_speed_definition']

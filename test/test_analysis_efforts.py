@@ -41,6 +41,7 @@ import pytest
 from qrm_ros import analysis, figures
 from qrm_ros import dynamics as dyn
 from qrm_ros import kinematics as kin
+from qrm_ros.effort_theory import EFFORT_FIGURES, ZERO_CAN_BE_EXACT
 from qrm_ros.motor_drive import pair_efforts
 from synthetic_run import write_run
 
@@ -81,7 +82,7 @@ def check_against_theory(result, loads, mass=MASS):
         assert row['stroke_pairs'] >= 1
         assert row['stroke_pairs_with_efforts'] == row['stroke_pairs']
         exact = pair_efforts(PAPER, mass, loads, row['offset'], row['input_speed'])
-        for name in analysis.EFFORT_FIGURES:
+        for name in EFFORT_FIGURES:
             expected = getattr(exact, name)
             if row[f'{name}_theory'] == 0.0:  # no loads: zero up to roundoff
                 assert abs(expected) < 1e-9 * row['rms_input_torque_theory']
@@ -171,11 +172,11 @@ def test_effort_keys_in_json_and_csv(synthetic, tmp_path):
     analysis.write_outputs(synthetic, str(tmp_path / 'r.csv'), str(tmp_path / 'r.json'))
     document = json.loads((tmp_path / 'r.json').read_text())
     header = (tmp_path / 'r.csv').read_text().splitlines()[0].split(',')
-    for name in analysis.EFFORT_FIGURES + ('speed_fluctuation', 'flywheel_speed_swing'):
+    for name in EFFORT_FIGURES + ('speed_fluctuation', 'flywheel_speed_swing'):
         for suffix in ('measured', 'measured_std', 'theory', 'relative_error'):
             assert f'{name}_{suffix}' in header
             assert f'{name}_{suffix}' in document['segments'][0]
-    for name in analysis.ZERO_CAN_BE_EXACT:
+    for name in ZERO_CAN_BE_EXACT:
         assert f'{name}_absolute_error' in header
 
 
@@ -241,7 +242,7 @@ def test_golden_logs_without_efforts_analyse_as_before(log, tmp_path):
     result = analysis.analyse(recording)
     for row in result.rows:
         assert row['stroke_pairs_with_efforts'] == 0
-        for name in analysis.EFFORT_FIGURES:
+        for name in EFFORT_FIGURES:
             assert row[f'{name}_measured'] is None and row[f'{name}_theory'] is None
         assert row['speed_fluctuation_measured'] == 0.0  # the speed is recorded
         assert row['flywheel_speed_swing_measured'] == pytest.approx(
