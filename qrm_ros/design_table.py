@@ -36,7 +36,6 @@ from qrm_ros import flywheel_design
 from qrm_ros import gearbox
 from qrm_ros import kinematics as kin
 from qrm_ros import motor_drive as md
-from qrm_ros.shaper_parameters import MOTOR_PREFIX
 
 DEFAULT_OFFSETS_MM = np.arange(-20.0, 20.0 + 1e-9, 2.5)
 
@@ -95,7 +94,7 @@ def design_table_data(geometry, offsets, input_speed, mass, loads, motor=None):
             time_ratio_offsets.append({'time_ratio': target, 'offset': None,
                                        'problem': str(error)})
     return {
-        'geometry': {name: float(value) for name, value in geometry.as_dict().items()}, 'input_speed': float(input_speed),
+        'geometry': geometry_dict(geometry), 'input_speed': float(input_speed),
         'ram_stroke': geometry.ram_stroke,
         'mass_properties': mass.as_dict(), 'loads': loads.as_dict(),
         'motor': None if motor is None else motor.as_dict(),
@@ -104,6 +103,10 @@ def design_table_data(geometry, offsets, input_speed, mass, loads, motor=None):
         'offsets_for_time_ratio': time_ratio_offsets,
         'max_safe_offset': geometry.max_safe_offset,
     }
+
+
+def geometry_dict(geometry):
+    return {name: float(value) for name, value in geometry.as_dict().items()}
 
 
 def describe(title, values, kind):
@@ -151,7 +154,8 @@ def format_design_table(data):
         if entry['offset'] is None:
             lines.append(f'  TR = {entry["time_ratio"]:g}: {entry["problem"]}')
         else:
-            lines.append(f'  TR = {entry["time_ratio"]:g} at offset {entry["offset"] * 1e3:.6f} mm')
+            lines.append(f'  TR = {entry["time_ratio"]:g} at offset '
+                         f'{entry["offset"] * 1e3:.6f} mm')
     lines.append(f'  offsets accepted by the node: |offset| <= {data["max_safe_offset"] * 1e3:g}'
                  f' mm ({kin.SAFE_OFFSET_FRACTION:g} x r1)')
     lines += [''] + format_drive_rows(data)
@@ -159,14 +163,14 @@ def format_design_table(data):
 
 
 def format_drive_rows(data):
-    """The drive's part of the table: efforts per stroke pair and, if asked, Cs."""
+    """Format the drive's part of the table: efforts per stroke pair and, if asked, Cs."""
     motor = data['motor']
     lines = [
         f'  Drive, per stroke pair at each offset: ideal speed drive (input held at '
         f'{data["input_speed"]:g} rad/s)',
         *describe('mass properties', data['mass_properties'], dyn.MassProperties),
         *describe('loads', data['loads'], dyn.Loads),
-        '  mean power = energy per pair / revolution time; the energy is the loads\' work (the cut '
+        "  mean power = energy per pair / revolution time; the energy is the loads' work (the cut "
         'once over',
         '  the workpiece, friction over twice the stroke): the offset changes the torques, not '
         'the energy',
@@ -176,8 +180,9 @@ def format_drive_rows(data):
                      '(a simulation per')
         lines.append('  offset, 0.3 s near offset 0 to 40 s at 20 mm)')
     else:
-        lines += describe(f'Cs = (max - min) / mean input speed, steady, under the motor drive '
-                          f'with reference {data["input_speed"]:g} rad/s', motor, dyn.MotorDrive)
+        lines.append(f'  Cs = (max - min) / mean input speed, steady, under the motor drive with '
+                     f'reference {data["input_speed"]:g} rad/s')
+        lines += describe('motor', motor, dyn.MotorDrive)
     lines += ['',
               '  offset  peak tau_in  RMS tau_in  mean power  energy/pair  peak F_offset'
               + ('         Cs' if motor else ''),
@@ -215,8 +220,12 @@ def geometry_from_arguments(args):
                         args.ram_height, args.crank_phase)
 
 
+# The node's prefix of MotorDrive's parameters (shaper_parameters.MOTOR_PREFIX, tested equal;
+# not imported, so that mypy's check of analysis, which imports this module, stays off the
+# node's parameter code).
+MOTOR_PREFIX = 'motor_'
 # The parameter sets a drive needs, as (kind, option prefix, group title); the motor's
-# options carry the node's parameter prefix (motor_speed_stiffness, ...).
+# options carry the node's parameter names (motor_speed_stiffness, ...).
 DRIVE_PARAMETER_SETS = ((dyn.MassProperties, '', 'mass properties'),
                         (dyn.Loads, '', 'loads on the ram'),
                         (dyn.MotorDrive, MOTOR_PREFIX, 'motor'))
@@ -318,10 +327,10 @@ def gearbox_main(argv):
 
 
 def flywheel_data(geometry, mass, loads, motor, offset, input_speed, fluctuation):
-    """The sizing and what it was asked with, as a JSON-ready dict in SI units."""
+    """Size the flywheel; return the sizing and what it was asked with, JSON-ready, SI units."""
     sizing = flywheel_design.size_flywheel(geometry, mass, loads, motor, offset, input_speed,
                                            fluctuation)
-    return {'geometry': {name: float(value) for name, value in geometry.as_dict().items()},
+    return {'geometry': geometry_dict(geometry),
             'offset': float(offset), 'input_speed': float(input_speed),
             'mass_properties': mass.as_dict(), 'loads': loads.as_dict(),
             'motor': motor.as_dict(), **sizing._asdict()}
@@ -358,7 +367,8 @@ def format_flywheel(data):
     flywheel = data['equivalent_flywheel_inertia']
     ratio = data['flywheel_mean_square_ratio']
     if flywheel is None:
-        lines += ['  on the crank shaft instead, J1 kept: none, the flywheel_inertia J2 would be < 0',
+        lines += ['  on the crank shaft instead, J1 kept: none, the flywheel_inertia J2 would be '
+                  '< 0',
                   f'    (given J2 + delta J1 / mean (dphi/dtheta)^2, mean = {ratio:.6g})']
     else:
         simulated = f'    simulated with it: Cs = {data["equivalent_speed_fluctuation"]:.6g}'
