@@ -392,6 +392,8 @@ def test_flywheel_at_offset_zero_is_the_same_machine(capsys):
      'max_torque = -3.0 N*m is out of range: allowed > 0 N*m'),
     (['--fluctuation', '0.01', '--lever-mass', 'inf'], 'lever_mass must be finite'),
     (['--fluctuation', '0.01', '--cutting-length', '0.5'], 'cutting_length = 0.5 m'),
+    (['--fluctuation', '0.01', '--motor-max-torque', '1'],
+     'the machine stalls: stalled at input angle'),
 ])
 def test_flywheel_refusals_are_one_line_exit_2(capsys, extra, words):
     code, out, err = run_design(['flywheel'] + extra, capsys)
@@ -427,3 +429,14 @@ def test_drive_options_are_the_node_parameter_names():
     names = {name for kind, prefix, _ in design_table.DRIVE_PARAMETER_SETS
              for name in (prefix + field for field in kind.field_names())}
     assert names <= set(shaper_parameters.PARAMETERS)
+
+
+def test_readme_speed_fluctuation_figures(sized, capsys):
+    code, out, _ = run_design(['--speed-fluctuation', '--offsets-mm', '0', '15', '--json'],
+                              capsys)
+    assert code == 0
+    at_zero, at_fifteen = (row['speed_fluctuation'] for row in json.loads(out)['rows'])
+    assert ('goes from 0.020 at δ = 0 to 0.086 at +10 mm and 0.30 at +15 mm'
+            in ' '.join(README.read_text().split()))
+    assert round(at_zero, 3) == 0.020 and round(at_fifteen, 2) == 0.30
+    assert round(sized['given_speed_fluctuation'], 3) == 0.086
