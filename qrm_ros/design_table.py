@@ -14,20 +14,28 @@
 """
 Design table of the mechanism: what each coupling offset does to the ram's strokes.
 
-Printed by ``qrm_design`` (and at the end of the main job), straight from the kinematics core,
-so a designer can pick an offset before running anything. ``qrm_design gearbox`` plans the
-gear steps (see qrm_ros.gearbox); further subcommands are one line in SUBCOMMANDS.
+Printed by ``qrm_design``, straight from the kinematics and dynamics cores, so a designer can
+pick an offset before running anything: the stroke figures, then what the drive must give per
+stroke pair (and, asked for, the speed fluctuation under the motor). ``qrm_design gearbox``
+plans the gear steps (see qrm_ros.gearbox), ``qrm_design flywheel`` sizes the input side's
+inertia for a speed fluctuation (see qrm_ros.flywheel_design); further subcommands are one
+line in SUBCOMMANDS.
 """
 
 import argparse
 import json
 import math
 import sys
+import warnings
 
 import numpy as np
+from scipy import integrate
 
+from qrm_ros import dynamics as dyn
+from qrm_ros import flywheel_design
 from qrm_ros import gearbox
 from qrm_ros import kinematics as kin
+from qrm_ros import motor_drive as md
 
 DEFAULT_OFFSETS_MM = np.arange(-20.0, 20.0 + 1e-9, 2.5)
 
@@ -41,7 +49,84 @@ def design_rows(geometry, offsets, input_speed):
             for i in range(len(offsets))]
 
 
-def format_design_table(geometry, offsets, input_speed):
+def drive_rows(geometry, mass, loads, motor, offsets, input_speed):
+    """
+    One dict per offset: the speed drive's ``PairEfforts``, and Cs under motor if not None.
+
+    Cs is a simulation per offset; where it fails (a stall, no steady state) the row's
+    speed_fluctuation is None and speed_fluctuation_problem says why.
+    """
+    rows = []
+    for offset in offsets:
+        with warnings.catch_warnings():
+            # quad is asked for 1e-12 relative and may say it got a little less; the table
+            # prints five digits, and the tests hold its figures to dense sampling.
+            warnings.simplefilter('ignore', integrate.IntegrationWarning)
+            figures = md.pair_efforts(geometry, mass, loads, float(offset), input_speed)
+        row = dict(figures._asdict())
+        if motor is not None:
+            try:
+                row['speed_fluctuation'] = md.speed_fluctuation(
+                    geometry, mass, loads, motor, float(offset), input_speed).fluctuation
+            except dyn.DynamicsError as error:
+                row['speed_fluctuation'] = None
+                row['speed_fluctuation_problem'] = str(error)
+        rows.append(row)
+    return rows
+
+
+def design_table_data(geometry, offsets, input_speed, mass, loads, motor=None):
+    """Everything the design table prints, as a JSON-ready dict in SI units."""
+    offsets = np.asarray(offsets, dtype=float)
+    loads.check_against(geometry.ram_stroke)
+    if motor is not None and not input_speed > 0.0:
+        raise kin.KinematicsError(f'input_speed must be > 0 rad/s for the speed fluctuation '
+                                  f'(the motor runs forward), got {input_speed!r}')
+    rows = [{**kinematic, **drive} for kinematic, drive in zip(
+        design_rows(geometry, offsets, input_speed),
+        drive_rows(geometry, mass, loads, motor, offsets, input_speed))]
+    time_ratio_offsets = []
+    for target in (1.0, 2.0, 3.0):
+        try:
+            time_ratio_offsets.append({'time_ratio': target,
+                                       'offset': kin.offset_for_time_ratio(geometry, target)})
+        except kin.KinematicsError as error:
+            time_ratio_offsets.append({'time_ratio': target, 'offset': None,
+                                       'problem': str(error)})
+    return {
+        'geometry': geometry_dict(geometry), 'input_speed': float(input_speed),
+        'ram_stroke': geometry.ram_stroke,
+        'mass_properties': mass.as_dict(), 'loads': loads.as_dict(),
+        'motor': None if motor is None else motor.as_dict(),
+        'rows': rows,
+        'offset_for_unity_speed_ratio': kin.offset_for_speed_ratio(geometry, 1.0),
+        'offsets_for_time_ratio': time_ratio_offsets,
+        'max_safe_offset': geometry.max_safe_offset,
+    }
+
+
+def geometry_dict(geometry):
+    return {name: float(value) for name, value in geometry.as_dict().items()}
+
+
+def describe(title, values, kind):
+    """Indented 'title: name value unit, ...' of a parameter set's dict, wrapped at 99."""
+    units = kind.units()
+    items = [f'{name} {value:g} {units[name]}' for name, value in values.items()]
+    lines = [f'  {title}: {items[0]}']
+    for item in items[1:]:
+        if len(lines[-1]) + len(item) + 2 > 99:
+            lines[-1] += ','
+            lines.append(f'    {item}')
+        else:
+            lines[-1] += f', {item}'
+    return lines
+
+
+def format_design_table(data):
+    """Format ``design_table_data``'s dict: the kinematics, then the drive per offset."""
+    geometry = kin.Geometry(**data['geometry'])
+    input_speed = data['input_speed']
     lines = [
         'Modified quick-return mechanism: design table (exact closed form)',
         f'  coupling radius r1 = {geometry.coupling_radius * 1e3:g} mm, crank radius r = '
@@ -56,25 +141,67 @@ def format_design_table(geometry, offsets, input_speed):
         '    [mm]        [-]       [-]       [-]       [-]     [s]     [s]      [m/s]      '
         '[m/s]',
     ]
-    for row in design_rows(geometry, offsets, input_speed):
+    for row in data['rows']:
         lines.append(
             f'{row["offset"] * 1e3:8.2f} {row["offset_over_pivot_distance"]:+10.5f} '
             f'{row["time_ratio"]:9.5f} {row["speed_ratio"]:9.5f} {row["peak_speed_ratio"]:9.5f} '
             f'{row["cutting_time"]:7.4f} {row["return_time"]:7.4f} '
             f'{row["peak_cutting_speed"]:10.5f} {row["peak_return_speed"]:10.5f}')
     lines.append('')
-    unity_sr = kin.offset_for_speed_ratio(geometry, 1.0)
     lines.append(f'  SR = 1 (equal mid-stroke cutting and return speeds) at offset '
-                 f'{unity_sr * 1e3:.6f} mm (eq. 26: -r r1 / h)')
-    for target in (1.0, 2.0, 3.0):
-        try:
-            offset = kin.offset_for_time_ratio(geometry, target)
-            lines.append(f'  TR = {target:g} at offset {offset * 1e3:.6f} mm')
-        except kin.KinematicsError as error:
-            lines.append(f'  TR = {target:g}: {error}')
-    lines.append(f'  offsets accepted by the node: |offset| <= {geometry.max_safe_offset * 1e3:g}'
+                 f'{data["offset_for_unity_speed_ratio"] * 1e3:.6f} mm (eq. 26: -r r1 / h)')
+    for entry in data['offsets_for_time_ratio']:
+        if entry['offset'] is None:
+            lines.append(f'  TR = {entry["time_ratio"]:g}: {entry["problem"]}')
+        else:
+            lines.append(f'  TR = {entry["time_ratio"]:g} at offset '
+                         f'{entry["offset"] * 1e3:.6f} mm')
+    lines.append(f'  offsets accepted by the node: |offset| <= {data["max_safe_offset"] * 1e3:g}'
                  f' mm ({kin.SAFE_OFFSET_FRACTION:g} x r1)')
+    lines += [''] + format_drive_rows(data)
     return '\n'.join(lines)
+
+
+def format_drive_rows(data):
+    """Format the drive's part of the table: efforts per stroke pair and, if asked, Cs."""
+    motor = data['motor']
+    lines = [
+        f'  Drive, per stroke pair at each offset: ideal speed drive (input held at '
+        f'{data["input_speed"]:g} rad/s)',
+        *describe('mass properties', data['mass_properties'], dyn.MassProperties),
+        *describe('loads', data['loads'], dyn.Loads),
+        "  mean power = energy per pair / revolution time; the energy is the loads' work (the cut "
+        'once over',
+        '  the workpiece, friction over twice the stroke): the offset changes the torques, not '
+        'the energy',
+    ]
+    if motor is None:
+        lines.append('  Cs (speed fluctuation under the motor drive): add --speed-fluctuation '
+                     '(a simulation per')
+        lines.append('  offset, 0.3 s near offset 0 to 40 s at 20 mm)')
+    else:
+        lines.append(f'  Cs = (max - min) / mean input speed, steady, under the motor drive with '
+                     f'reference {data["input_speed"]:g} rad/s')
+        lines += describe('motor', motor, dyn.MotorDrive)
+    lines += ['',
+              '  offset  peak tau_in  RMS tau_in  mean power  energy/pair  peak F_offset'
+              + ('         Cs' if motor else ''),
+              '    [mm]        [N*m]       [N*m]         [W]          [J]            [N]'
+              + ('        [-]' if motor else '')]
+    problems = []
+    for row in data['rows']:
+        line = (f'{row["offset"] * 1e3:8.2f} {row["peak_input_torque"]:12.4f} '
+                f'{row["rms_input_torque"]:11.4f} {row["mean_input_power"]:11.4f} '
+                f'{row["energy_per_pair"]:12.4f} {row["peak_offset_force"]:14.3f}')
+        if motor is not None:
+            if row['speed_fluctuation'] is None:
+                line += f'{"--":>11}'
+                problems.append(f'  offset {row["offset"] * 1e3:g} mm, Cs: '
+                                f'{row["speed_fluctuation_problem"]}')
+            else:
+                line += f' {row["speed_fluctuation"]:10.6f}'
+        lines.append(line)
+    return lines + problems
 
 
 def add_geometry_arguments(parser, defaults=True):
@@ -91,6 +218,36 @@ def add_geometry_arguments(parser, defaults=True):
 def geometry_from_arguments(args):
     return kin.Geometry(args.coupling_radius, args.crank_radius, args.pivot_distance,
                         args.ram_height, args.crank_phase)
+
+
+# The node's prefix of MotorDrive's parameters (shaper_parameters.MOTOR_PREFIX, tested equal;
+# not imported, so that mypy's check of analysis, which imports this module, stays off the
+# node's parameter code).
+MOTOR_PREFIX = 'motor_'
+# The parameter sets a drive needs, as (kind, option prefix, group title); the motor's
+# options carry the node's parameter names (motor_speed_stiffness, ...).
+DRIVE_PARAMETER_SETS = ((dyn.MassProperties, '', 'mass properties'),
+                        (dyn.Loads, '', 'loads on the ram'),
+                        (dyn.MotorDrive, MOTOR_PREFIX, 'motor'))
+
+
+def add_drive_arguments(parser):
+    """Add --input-inertia ... --motor-max-torque; defaults: the small shaper's (dynamics)."""
+    for kind, prefix, title in DRIVE_PARAMETER_SETS:
+        group = parser.add_argument_group(
+            f'{title} (defaults: dynamics.{kind.__name__}.small_shaper(), which says where '
+            'each comes from)')
+        defaults = kind.small_shaper()
+        for name, unit in kind.units().items():
+            group.add_argument('--' + (prefix + name).replace('_', '-'), dest=prefix + name,
+                               type=float, default=getattr(defaults, name),
+                               help=f'{name.replace("_", " ")} [{unit}] (default: %(default)s)')
+
+
+def drive_from_arguments(args):
+    """Return (MassProperties, Loads, MotorDrive) from add_drive_arguments' options."""
+    return tuple(kind(**{name: getattr(args, prefix + name) for name in kind.field_names()})
+                 for kind, prefix, _ in DRIVE_PARAMETER_SETS)
 
 
 def format_gearbox_plan(plan):
@@ -169,9 +326,99 @@ def gearbox_main(argv):
     return 0
 
 
+def flywheel_data(geometry, mass, loads, motor, offset, input_speed, fluctuation):
+    """Size the flywheel; return the sizing and what it was asked with, JSON-ready, SI units."""
+    sizing = flywheel_design.size_flywheel(geometry, mass, loads, motor, offset, input_speed,
+                                           fluctuation)
+    return {'geometry': geometry_dict(geometry),
+            'offset': float(offset), 'input_speed': float(input_speed),
+            'mass_properties': mass.as_dict(), 'loads': loads.as_dict(),
+            'motor': motor.as_dict(), **sizing._asdict()}
+
+
+def format_flywheel(data):
+    """Format ``flywheel_data``'s dict: the refined J1, the energy method, the equivalent J2."""
+    mass = data['mass_properties']
+    input_speed = data['input_speed']
+    wanted = data['speed_fluctuation']
+    lines = [
+        f'Flywheel for a speed fluctuation Cs = {wanted:g} under the motor drive',
+        f'  offset {data["offset"] * 1e3:g} mm, input speed {input_speed:g} rad/s '
+        f'({input_speed * 30 / math.pi:.4g} rpm)',
+        '  Cs = (max - min) / mean input speed over a steady revolution, simulated',
+        *describe('motor', data['motor'], dyn.MotorDrive),
+        *describe('mass properties', mass, dyn.MassProperties),
+        *describe('loads', data['loads'], dyn.Loads),
+        '',
+        '  input_inertia J1 is the whole input side: motor rotor and gearbox referred to the '
+        'input',
+        '  shaft, input shaft, coupling, and a flywheel added there.',
+        f'  given J1 = {mass["input_inertia"]:.6g} kg*m^2: Cs = '
+        f'{data["given_speed_fluctuation"]:.6g}',
+        f'  J1 for Cs = {wanted:g}: {data["input_inertia"]:.6g} kg*m^2 (refined by simulation), '
+        f'{data["added_input_inertia"]:+.6g} kg*m^2 on the given J1',
+        f'    simulated again with it: Cs = {data["simulated_speed_fluctuation"]:.6g}',
+        '  energy method (dynamics.md; it ignores the motor\'s own stiffness):',
+        f'    total equivalent inertia Delta E / (Cs w^2) = {data["energy_method_inertia"]:.6g} '
+        'kg*m^2',
+        f'    less the rest of the chain\'s mean share, {data["chain_mean_inertia"]:.6g} kg*m^2: '
+        f'J1 = {data["energy_method_input_inertia"]:.6g} kg*m^2',
+    ]
+    flywheel = data['equivalent_flywheel_inertia']
+    ratio = data['flywheel_mean_square_ratio']
+    if flywheel is None:
+        lines += ['  on the crank shaft instead, J1 kept: none, the flywheel_inertia J2 would be '
+                  '< 0',
+                  f'    (given J2 + delta J1 / mean (dphi/dtheta)^2, mean = {ratio:.6g})']
+    else:
+        simulated = f'    simulated with it: Cs = {data["equivalent_speed_fluctuation"]:.6g}'
+        lines += [
+            f'  or on the crank shaft, J1 kept: flywheel_inertia J2 = {flywheel:.6g} kg*m^2',
+            f'    (given J2 + delta J1 / mean (dphi/dtheta)^2, mean = {ratio:.6g})',
+        ]
+        if data['offset'] == 0.0:
+            lines.append(simulated + ' (at offset 0 the same machine)')
+        else:
+            lines += [simulated + ' (an estimate: with an offset the crank\'s speed swings every',
+                      '    revolution, and J2\'s inertia torque with it)']
+    return '\n'.join(lines)
+
+
+def flywheel_main(argv):
+    parser = argparse.ArgumentParser(
+        prog='qrm_design flywheel',
+        description='Size the input side\'s total inertia (input_inertia, J1) for a wanted '
+                    'coefficient of speed fluctuation Cs under the motor drive, at one offset and '
+                    'input speed; beside it the energy method\'s estimate, the Cs of the answer '
+                    'simulated again and the flywheel_inertia (J2, on the crank shaft) that would '
+                    'do the same with J1 kept. Takes seconds to a minute (simulations).')
+    parser.add_argument('--fluctuation', type=float, required=True,
+                        help='wanted Cs = (max - min) / mean input speed [-]')
+    parser.add_argument('--offset', type=float, default=0.0,
+                        help='coupling offset [m] (default: %(default)s)')
+    parser.add_argument('--input-speed', type=float, default=2 * math.pi,
+                        help='input speed, the motor\'s speed reference [rad/s] (default: 2 pi)')
+    add_geometry_arguments(parser)
+    add_drive_arguments(parser)
+    parser.add_argument('--json', action='store_true',
+                        help='print the sizing as JSON (SI units) instead of text')
+    args = parser.parse_args(argv)
+    try:
+        geometry = geometry_from_arguments(args)
+        mass, loads, motor = drive_from_arguments(args)
+        data = flywheel_data(geometry, mass, loads, motor, args.offset, args.input_speed,
+                             args.fluctuation)
+    except kin.KinematicsError as error:  # DynamicsError is one
+        print(f'qrm_design flywheel: {error}', file=sys.stderr)
+        return 2
+    print(json.dumps(data, indent=2) if args.json else format_flywheel(data))
+    return 0
+
+
 # Subcommands of qrm_design: name -> main(argv) returning the exit code.
 SUBCOMMANDS = {
     'gearbox': gearbox_main,
+    'flywheel': flywheel_main,
 }
 
 
@@ -180,21 +427,33 @@ def main(argv=None):
     if argv and argv[0] in SUBCOMMANDS:
         return SUBCOMMANDS[argv[0]](argv[1:])
     parser = argparse.ArgumentParser(
-        prog='qrm_design', description='Print TR and SR over a range of coupling offsets.',
+        prog='qrm_design',
+        description='Print TR and SR over a range of coupling offsets, and what the drive must '
+                    'give per stroke pair (peak and RMS input torque, mean power, energy, peak '
+                    'offset force) under the ideal speed drive.',
         epilog='subcommands: ' + ', '.join(f'qrm_design {name} --help' for name in SUBCOMMANDS))
     add_geometry_arguments(parser)
     parser.add_argument('--input-speed', type=float, default=2 * math.pi,
                         help='input shaft speed [rad/s] (default: 2 pi)')
     parser.add_argument('--offsets-mm', type=float, nargs='+', default=None,
                         help='offsets to tabulate [mm] (default: -20 to 20 in 2.5 mm steps)')
+    parser.add_argument('--speed-fluctuation', action='store_true',
+                        help='add the column Cs under the motor drive: a simulation per offset, '
+                             'about 0.3 s near offset 0 and up to 40 s at 20 mm (off by default)')
+    parser.add_argument('--json', action='store_true',
+                        help='print the table as JSON (SI units) instead of text')
+    add_drive_arguments(parser)
     args = parser.parse_args(argv)
     try:
         geometry = geometry_from_arguments(args)
+        mass, loads, motor = drive_from_arguments(args)
         offsets = (np.asarray(args.offsets_mm) if args.offsets_mm else DEFAULT_OFFSETS_MM) / 1e3
-        print(format_design_table(geometry, offsets, args.input_speed))
+        data = design_table_data(geometry, offsets, args.input_speed, mass, loads,
+                                 motor if args.speed_fluctuation else None)
     except kin.KinematicsError as error:
         print(f'qrm_design: {error}', file=sys.stderr)
         return 2
+    print(json.dumps(data, indent=2) if args.json else format_design_table(data))
     return 0
 
 
