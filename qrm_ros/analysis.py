@@ -55,7 +55,7 @@ from qrm_ros.design_table import add_geometry_arguments
 from qrm_ros.effort_theory import (EFFORT_FIGURES, Setting, steady_effort_theory,
                                    THEORY_FIGURES, ZERO_CAN_BE_EXACT)
 from qrm_ros.names import (absolute_topic, GEOMETRY_METADATA, JOINT_NAMES, JOINT_STATE_TYPE,
-                           PARAMETERS_METADATA)
+                           MOTOR_DRIVE, MOTOR_PREFIX, PARAMETERS_METADATA, SPEED_DRIVE)
 from qrm_ros.strokes import find_stroke_pairs, measure_pair_efforts
 
 JOINT_STATES_TOPIC = absolute_topic(names.JOINT_STATES_TOPIC)
@@ -655,12 +655,6 @@ def _geometry(stored: Dict[str, str], overrides: Dict[str, Optional[float]],
         raise AnalysisError(f'{path}: bad geometry: {error}') from None
 
 
-# The node's drive parameter: the ideal speed drive (also before the node had the parameter)
-# or the motor drive, whose MotorDrive fields the node names with this prefix.
-SPEED_DRIVE, MOTOR_DRIVE = 'speed', 'motor'
-MOTOR_PARAMETER_PREFIX = 'motor_'
-
-
 def _drive(stored: Optional[Dict[str, str]],
            geometry: kin.Geometry) -> Tuple[Optional[Drive], Optional[str]]:
     """Read the recorded mass properties, loads and drive; or None and why no theory."""
@@ -672,7 +666,7 @@ def _drive(stored: Optional[Dict[str, str]],
         return None, f'the {PARAMETERS_METADATA} metadata is not JSON'
     drive = values.get('drive', SPEED_DRIVE)
     prefixes: Dict[Any, str] = {dyn.MassProperties: '', dyn.Loads: '',
-                                dyn.MotorDrive: MOTOR_PARAMETER_PREFIX}
+                                dyn.MotorDrive: MOTOR_PREFIX}
     wanted = {kind: {name: prefix + name for name in kind.field_names()}
               for kind, prefix in prefixes.items()}
     if drive not in (SPEED_DRIVE, MOTOR_DRIVE):

@@ -36,6 +36,7 @@ from qrm_ros import flywheel_design
 from qrm_ros import gearbox
 from qrm_ros import kinematics as kin
 from qrm_ros import motor_drive as md
+from qrm_ros.names import MOTOR_PREFIX
 
 DEFAULT_OFFSETS_MM = np.arange(-20.0, 20.0 + 1e-9, 2.5)
 
@@ -220,10 +221,6 @@ def geometry_from_arguments(args):
                         args.ram_height, args.crank_phase)
 
 
-# The node's prefix of MotorDrive's parameters (shaper_parameters.MOTOR_PREFIX, tested equal;
-# not imported, so that mypy's check of analysis, which imports this module, stays off the
-# node's parameter code).
-MOTOR_PREFIX = 'motor_'
 # The parameter sets a drive needs, as (kind, option prefix, group title); the motor's
 # options carry the node's parameter names (motor_speed_stiffness, ...).
 DRIVE_PARAMETER_SETS = ((dyn.MassProperties, '', 'mass properties'),

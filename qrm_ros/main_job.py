@@ -37,12 +37,11 @@ import time
 from qrm_ros import analysis
 from qrm_ros import kinematics as kin
 from qrm_ros.dynamics import DynamicsError, Loads
-from qrm_ros.names import (absolute_topic, DIAGNOSTICS_TOPIC, JOINT_STATES_TOPIC,
+from qrm_ros.names import (absolute_topic, DIAGNOSTICS_TOPIC, DRIVES, JOINT_STATES_TOPIC,
                            LINKAGE_MARKERS_TOPIC, RECORDER_NODE_NAME, SIM_NODE_NAME,
                            STROKE_PAIR_STATUS)
 from qrm_ros.recorder import DEFAULT_TOPICS
 from qrm_ros.ros_process import init_rclpy, StopRequest
-from qrm_ros.shaper_parameters import DRIVES
 
 SIM_NODE = '/' + SIM_NODE_NAME
 # Both signs, and the offset of equal mid-stroke speeds (SR = 1, paper eq. 26: -r r1 / h).

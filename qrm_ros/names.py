@@ -18,11 +18,12 @@ A recording made by one version must stay readable by the next, so these are par
 package's interface: change one only with a migration.
 """
 
-__all__ = ['CUTTING_SPEED_STATUS', 'DIAGNOSTICS_TOPIC', 'DRIVE_STATUS', 'GEOMETRY_METADATA',
-           'JOINT_NAMES', 'JOINT_STATES_TOPIC', 'JOINT_STATE_TYPE', 'LINKAGE_MARKERS_TOPIC',
-           'LINKAGE_MARKERS_TYPE', 'PARAMETERS_METADATA', 'RAM_TWIST_TOPIC',
-           'RECORDER_NODE_NAME', 'ROBOT_DESCRIPTION_TOPIC', 'SIM_NODE_NAME',
-           'SPEED_COMMAND_TOPIC', 'STROKE_PAIR_STATUS', 'absolute_topic']
+__all__ = ['CUTTING_SPEED_STATUS', 'DIAGNOSTICS_TOPIC', 'DRIVE_STATUS', 'DRIVES',
+           'GEOMETRY_METADATA', 'JOINT_NAMES', 'JOINT_STATES_TOPIC', 'JOINT_STATE_TYPE',
+           'LINKAGE_MARKERS_TOPIC', 'LINKAGE_MARKERS_TYPE', 'MOTOR_DRIVE', 'MOTOR_PREFIX',
+           'PARAMETERS_METADATA', 'RAM_TWIST_TOPIC', 'RECORDER_NODE_NAME',
+           'ROBOT_DESCRIPTION_TOPIC', 'SIM_NODE_NAME', 'SPEED_COMMAND_TOPIC', 'SPEED_DRIVE',
+           'STROKE_PAIR_STATUS', 'absolute_topic']
 
 SIM_NODE_NAME = 'shaper_sim'
 RECORDER_NODE_NAME = 'mcap_recorder'
@@ -44,6 +45,13 @@ STROKE_PAIR_STATUS = f'{SIM_NODE_NAME}: stroke pair'
 DRIVE_STATUS = f'{SIM_NODE_NAME}: drive'
 # DiagnosticStatus name of the cutting-speed hold (cutting_speed_target).
 CUTTING_SPEED_STATUS = f'{SIM_NODE_NAME}: cutting speed'
+
+# The motor drive's node parameters are its MotorDrive fields behind this prefix
+# (motor_speed_stiffness, motor_max_torque); qrm_design's options follow them.
+MOTOR_PREFIX = 'motor_'
+# The node's drive parameter: an ideal speed source (the default, and what a recording made
+# before the parameter existed ran on) or the motor (dynamics.md).
+SPEED_DRIVE, MOTOR_DRIVE = DRIVES = ('speed', 'motor')
 
 # MCAP metadata records the recorder writes and the analysis reads.
 GEOMETRY_METADATA = 'qrm_ros.geometry'

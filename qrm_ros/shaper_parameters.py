@@ -26,6 +26,7 @@ from typing import Callable, NamedTuple, Optional, Tuple
 from qrm_ros.cutting_speed_hold import CUTTING_SPEED_DEFINITIONS, unreachable_reason
 from qrm_ros.dynamics import Loads, MassProperties, MotorDrive
 from qrm_ros.kinematics import Geometry, KinematicsError
+from qrm_ros.names import DRIVES, MOTOR_PREFIX
 
 __all__ = ['AtLeast', 'DoubleRange', 'DRIVES', 'GEOMETRY_NAMES', 'MOTOR_PREFIX', 'NonEmptyText',
            'OneOf', 'ParameterSpec', 'PARAMETERS', 'PositiveLength', 'SymmetricRange', 'View',
@@ -316,10 +317,6 @@ _MOTOR_MEANINGS = {
     'max_torque': 'Largest motor torque at the input shaft (drive: motor), the pull-out '
                   'torque there; a load that needs more stalls the machine',
 }
-# MotorDrive's fields are node parameters with this prefix (motor_speed_stiffness, ...).
-MOTOR_PREFIX = 'motor_'
-# drive: how the input shaft is driven (dynamics.md).
-DRIVES = ('speed', 'motor')
 _LOAD_MEANINGS = {
     'cutting_force': 'Cutting force F_c on the ram while the tool cuts (ram moving toward -x, '
                      '|ram position| <= cutting_length / 2)',

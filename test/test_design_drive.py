@@ -425,7 +425,6 @@ def test_readme_speed_fluctuation_at_the_largest_default_offset(capsys):
 
 def test_drive_options_are_the_node_parameter_names():
     from qrm_ros import shaper_parameters
-    assert design_table.MOTOR_PREFIX == shaper_parameters.MOTOR_PREFIX
     names = {name for kind, prefix, _ in design_table.DRIVE_PARAMETER_SETS
              for name in (prefix + field for field in kind.field_names())}
     assert names <= set(shaper_parameters.PARAMETERS)
