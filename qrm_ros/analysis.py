@@ -55,10 +55,17 @@ from qrm_ros.design_table import add_geometry_arguments
 from qrm_ros.effort_theory import (EFFORT_FIGURES, Setting, steady_effort_theory,
                                    THEORY_FIGURES, ZERO_CAN_BE_EXACT)
 from qrm_ros.names import (absolute_topic, GEOMETRY_METADATA, JOINT_NAMES, JOINT_STATE_TYPE,
-                           MOTOR_DRIVE, MOTOR_PREFIX, PARAMETERS_METADATA, SPEED_DRIVE)
+                           MOTOR_DRIVE, MOTOR_PREFIX, PARAMETER_EVENTS_TOPIC,
+                           PARAMETERS_METADATA, SIM_NODE_NAME,
+                           SPEED_DRIVE)
 from qrm_ros.strokes import find_stroke_pairs, measure_pair_efforts
 
 JOINT_STATES_TOPIC = absolute_topic(names.JOINT_STATES_TOPIC)
+PARAMETER_STRING = 4  # rcl_interfaces/msg/ParameterType.PARAMETER_STRING
+# The node's parameters that make the drive (Drive): its masses, loads and motor, and which.
+DRIVE_PARAMETERS = frozenset(
+    ['drive', *dyn.MassProperties.field_names(), *dyn.Loads.field_names(),
+     *(MOTOR_PREFIX + name for name in dyn.MotorDrive.field_names())])
 GEOMETRY_FIELDS = kin.Geometry.field_names()
 # Samples whose offset and input speed differ by less than this (relative) are one setting.
 STEADY_TOLERANCE = 1e-12
@@ -141,10 +148,25 @@ class Recording(NamedTuple):
     repeated_stamps: int = 0  # exact repeats of the previous message, counted once
     drive: Optional[Drive] = None  # None: no theory of the efforts (drive_problem says why)
     drive_problem: Optional[str] = None
+    # The masses, loads or drive changed mid-run (/parameter_events): what held from when.
+    drive_changes: Tuple['DriveSpan', ...] = ()
+    time_origin_ns: int = 0  # the stamp of samples.time 0
+
+    def drive_spans(self) -> Tuple['DriveSpan', ...]:
+        """Return what drove the machine, from the start (-inf) through each change."""
+        return (DriveSpan(-math.inf, self.drive, self.drive_problem),) + self.drive_changes
 
     @property
     def complete(self) -> bool:
         return self.problem is None and not self.losses
+
+
+class DriveSpan(NamedTuple):
+    """The mass properties, loads and drive in force from start_time (s, samples' clock) on."""
+
+    start_time: float
+    drive: Optional[Drive]
+    problem: Optional[str]  # why drive is None
 
 
 class _Part(NamedTuple):
@@ -193,7 +215,8 @@ def read_recording(path: str, geometry_overrides: Optional[Dict[str, Optional[fl
         _check_joint_states(run, path)
         geometry = _geometry(run.metadata.get(GEOMETRY_METADATA, {}),
                              geometry_overrides or {}, path)
-        drive, drive_problem = _drive(run.metadata.get(PARAMETERS_METADATA), geometry)
+        stored = run.metadata.get(PARAMETERS_METADATA)
+        drive, drive_problem = _drive(stored, geometry)
     except AnalysisError as error:
         if run.truncated:  # say why the topic or the metadata may be missing
             raise AnalysisError(f'{error}; note: {run.problem}') from None
@@ -208,8 +231,45 @@ def read_recording(path: str, geometry_overrides: Optional[Dict[str, Optional[fl
         parts = [_decode_part(path, file_parts[0], _Counter(), progress, run)]
     else:
         parts = _decode_in_parallel(path, file_parts, progress)
-    return _combine(path, run, geometry, parts)._replace(drive=drive,
-                                                         drive_problem=drive_problem)
+    recording = _combine(path, run, geometry, parts)
+    return recording._replace(drive=drive, drive_problem=drive_problem,
+                              drive_changes=_drive_changes(run, stored, geometry,
+                                                           recording.time_origin_ns))
+
+
+def _drive_changes(run: Run, stored: Optional[Dict[str, str]],
+                   geometry: kin.Geometry, origin_ns: int) -> Tuple[DriveSpan, ...]:
+    """
+    Return the drives that the node's parameter events put in force mid-run.
+
+    The events are stamped with the node's clock, as the joint states are, so each change
+    falls between the two samples it came between. Only the chunks that hold events are
+    read again (the file's message indexes say which), so this costs little.
+    """
+    values, _ = _stored_parameters(stored)
+    if values is None or PARAMETER_EVENTS_TOPIC not in run.topics():
+        return ()
+    spans = []
+    store = _typestore()
+    for message in run.messages([PARAMETER_EVENTS_TOPIC], on_loss=lambda loss: None):
+        try:
+            event = store.deserialize_cdr(message.data, message.schema_name)
+            changed = [(p.name, _parameter_value(p.value)) for p in event.changed_parameters
+                       if p.name in DRIVE_PARAMETERS]
+            if event.node.rsplit('/', 1)[-1] != SIM_NODE_NAME or not changed:
+                continue
+            stamp = event.stamp.sec * _NS + event.stamp.nanosec
+        except Exception:  # noqa: B902 a damaged event is no change we can know of
+            continue
+        values.update(changed)
+        drive, problem = _drive_of_values(values, geometry)
+        spans.append(DriveSpan((stamp - origin_ns) / _NS, drive, problem))
+    return tuple(spans)
+
+
+def _parameter_value(value: Any) -> Any:
+    """Return a ParameterValue's scalar (the drive's parameters are doubles and a string)."""
+    return value.string_value if value.type == PARAMETER_STRING else value.double_value
 
 
 def _usable_cores() -> int:
@@ -620,7 +680,8 @@ def _combine(path: str, run: Run, geometry: kin.Geometry, parts: List[_Part]) ->
                       effort[:, 0] if with_efforts else None,
                       effort[:, -1] if with_efforts else None)
     return Recording(path, geometry, samples, run.problem if run.truncated else None,
-                     tuple(losses), in_file, read, int((repeat & same).sum()))
+                     tuple(losses), in_file, read, int((repeat & same).sum()),
+                     time_origin_ns=int(stamps[0]))
 
 
 def _loss_clause(losses: Sequence[Lost], run: Run) -> str:
@@ -658,12 +719,26 @@ def _geometry(stored: Dict[str, str], overrides: Dict[str, Optional[float]],
 def _drive(stored: Optional[Dict[str, str]],
            geometry: kin.Geometry) -> Tuple[Optional[Drive], Optional[str]]:
     """Read the recorded mass properties, loads and drive; or None and why no theory."""
+    values, problem = _stored_parameters(stored)
+    if values is None:
+        return None, problem
+    return _drive_of_values(values, geometry)
+
+
+def _stored_parameters(stored: Optional[Dict[str, str]]
+                       ) -> Tuple[Optional[Dict[str, Any]], Optional[str]]:
+    """Return the node's recorded parameter values (JSON in the metadata), or why none."""
     if stored is None:
         return None, f'the file has no {PARAMETERS_METADATA} metadata'
     try:
-        values = {name: json.loads(text) for name, text in stored.items()}
+        return {name: json.loads(text) for name, text in stored.items()}, None
     except ValueError:
         return None, f'the {PARAMETERS_METADATA} metadata is not JSON'
+
+
+def _drive_of_values(values: Dict[str, Any],
+                     geometry: kin.Geometry) -> Tuple[Optional[Drive], Optional[str]]:
+    """Make the mass properties, loads and drive of parameter values; or None and why not."""
     drive = values.get('drive', SPEED_DRIVE)
     prefixes: Dict[Any, str] = {dyn.MassProperties: '', dyn.Loads: '',
                                 dyn.MotorDrive: MOTOR_PREFIX}
@@ -690,7 +765,8 @@ class Segment(NamedTuple):
     start: int  # sample indices, end exclusive
     end: int
     offset: float
-    input_speed: float
+    input_speed: float  # rad/s, commanded (setting_speed)
+    drive: Optional[Drive] = None  # what drove it (None: no theory of the efforts)
 
 
 def sample_period(samples: Samples) -> Optional[float]:
@@ -700,27 +776,57 @@ def sample_period(samples: Samples) -> Optional[float]:
     return float(np.median(steps)) if steps.size else None
 
 
-def split_segments(samples: Samples) -> Tuple[List[Segment], List[Dict[str, Any]]]:
+def setting_speed(samples: Samples, drive: Optional[Drive] = None) -> np.ndarray:
+    """
+    Return the input speed each sample was commanded to run at (rad/s).
+
+    The ideal speed drive runs at it. A motor's speed fluctuates about its reference, but
+    its torque is k (reference - speed) (dynamics.md), so the reference is the recorded
+    speed plus the recorded input torque over k, exact to round-off at every sample. Where
+    the motor is at its torque limit the reference is unknown (NaN: no steady setting).
+    """
+    if drive is None or drive.motor is None or samples.input_torque is None:
+        return samples.input_speed
+    torque = samples.input_torque
+    reference = samples.input_speed + torque / drive.motor.speed_stiffness
+    limited = np.abs(torque) >= drive.motor.max_torque * (1.0 - STEADY_TOLERANCE)
+    return np.where(limited, np.nan, reference)
+
+
+def split_segments(samples: Samples, drives: Sequence[DriveSpan] = ()
+                   ) -> Tuple[List[Segment], List[Dict[str, Any]]]:
     """
     Split into spans of steady offset and input speed; return (segments, transitions).
 
-    A segment is a maximal run of samples that share one offset and one input speed with
-    the offset actuator at rest (a ramp changes the speed at every sample, so its samples
-    never form a run) and no gap between stamps (longer than GAP_PERIODS sample periods,
-    or backwards: a pause, a clock jump, lost messages); what lies between segments is a
-    transition, excluded from the measurement and reported.
+    A segment is a maximal run of samples that share one offset, one commanded input speed
+    (setting_speed: under a motor, its speed reference) and one drive (drives: the masses,
+    loads and drive from when on; none: the ideal speed drive, no theory) with the offset
+    actuator at rest (a ramp changes the speed at every sample, so its samples never form a
+    run) and no gap between stamps (longer than GAP_PERIODS sample periods, or backwards: a
+    pause, a clock jump, lost messages); what lies between segments is a transition,
+    excluded from the measurement and reported.
     """
-    offset, speed, time = samples.offset, samples.input_speed, samples.time
-    scale = max(1.0, float(np.max(np.abs(speed)))) if speed.size else 1.0
+    drives = list(drives) or [DriveSpan(-math.inf, None, None)]
+    offset, time = samples.offset, samples.time
+    span = np.searchsorted([d.start_time for d in drives], time, side='right') - 1
+    span = np.maximum(span, 0)
+    speed = np.empty(time.shape)
+    for index, drive in enumerate(drives):
+        chosen = span == index
+        speed[chosen] = setting_speed(samples, drive.drive)[chosen]
+    finite = np.abs(speed[np.isfinite(speed)])
+    scale = max(1.0, float(np.max(finite))) if finite.size else 1.0
     step = sample_period(samples) or 0.0
     steps = np.diff(time)
     gap = (steps > GAP_PERIODS * step) | (steps < 0)
     changed = ((np.abs(np.diff(offset)) > STEADY_TOLERANCE)
-               | (np.abs(np.diff(speed)) > STEADY_TOLERANCE * scale) | gap)
+               | ~(np.abs(np.diff(speed)) <= STEADY_TOLERANCE * scale) | gap
+               | (np.diff(span) != 0))
     steady = samples.offset_rate == 0.0
     starts = np.flatnonzero(np.concatenate([[True], changed | (steady[1:] != steady[:-1])]))
     ends = np.append(starts[1:], offset.size)
-    segments = [Segment(int(a), int(b), float(offset[a]), float(speed[a]))
+    segments = [Segment(int(a), int(b), float(offset[a]), float(speed[a]),
+                        drives[span[a]].drive)
                 for a, b in zip(starts, ends) if steady[a] and b - a >= MIN_SEGMENT_SAMPLES]
     transitions = []
     for before, after in zip(segments, segments[1:]):
@@ -735,6 +841,7 @@ def split_segments(samples: Samples) -> Tuple[List[Segment], List[Dict[str, Any]
             changes.append(f'offset {before.offset * 1e3:g} -> {after.offset * 1e3:g} mm')
         if after.input_speed != before.input_speed:
             changes.append(f'input speed {before.input_speed:g} -> {after.input_speed:g} rad/s')
+        changes += _drive_differences(before.drive, after.drive)
         transitions.append({
             'kind': 'gap' if jumps.size else 'change',
             'start_time': float(time[before.end - 1]),
@@ -743,6 +850,26 @@ def split_segments(samples: Samples) -> Tuple[List[Segment], List[Dict[str, Any]
             'input_speed_from': before.input_speed, 'input_speed_to': after.input_speed,
             'change': ', '.join(changes) or 'interruption'})
     return segments, transitions
+
+
+def _drive_values(drive: Optional[Drive]) -> Dict[str, Any]:
+    """Return a drive as the node's parameter names -> values ({}: no drive known)."""
+    if drive is None:
+        return {}
+    values: Dict[str, Any] = {'drive': SPEED_DRIVE if drive.motor is None else MOTOR_DRIVE}
+    values.update(drive.mass.as_dict())
+    values.update(drive.loads.as_dict())
+    if drive.motor is not None:
+        values.update((MOTOR_PREFIX + name, value)
+                      for name, value in drive.motor.as_dict().items())
+    return values
+
+
+def _drive_differences(before: Optional[Drive], after: Optional[Drive]) -> List[str]:
+    """Say what changed between two drives, by parameter name ('cutting_force 400 -> 800')."""
+    old, new = _drive_values(before), _drive_values(after)
+    return [f'{name} {old.get(name, "?")} -> {new.get(name, "?")}'
+            for name in sorted(set(old) | set(new)) if old.get(name) != new.get(name)]
 
 
 def _relative_error(measured: float, theory: float) -> Optional[float]:
@@ -918,8 +1045,8 @@ class Analysis(NamedTuple):
 def analyse(recording: Recording) -> Analysis:
     """Segment the recording and measure every segment against the closed form."""
     with np.errstate(all='ignore'):  # absurd recorded values give inf/NaN, reported as null
-        segments, transitions = split_segments(recording.samples)
-        rows = [measure_segment(recording.samples, s, recording.geometry, recording.drive)
+        segments, transitions = split_segments(recording.samples, recording.drive_spans())
+        rows = [measure_segment(recording.samples, s, recording.geometry, s.drive)
                 for s in segments]
     return Analysis(recording, segments, rows, transitions)
 

@@ -21,9 +21,9 @@ package's interface: change one only with a migration.
 __all__ = ['CUTTING_SPEED_STATUS', 'DIAGNOSTICS_TOPIC', 'DRIVE_STATUS', 'DRIVES',
            'GEOMETRY_METADATA', 'JOINT_NAMES', 'JOINT_STATES_TOPIC', 'JOINT_STATE_TYPE',
            'LINKAGE_MARKERS_TOPIC', 'LINKAGE_MARKERS_TYPE', 'MOTOR_DRIVE', 'MOTOR_PREFIX',
-           'PARAMETERS_METADATA', 'RAM_TWIST_TOPIC', 'RECORDER_NODE_NAME',
-           'ROBOT_DESCRIPTION_TOPIC', 'SIM_NODE_NAME', 'SPEED_COMMAND_TOPIC', 'SPEED_DRIVE',
-           'STROKE_PAIR_STATUS', 'absolute_topic']
+           'PARAMETER_EVENTS_TOPIC', 'PARAMETERS_METADATA', 'RAM_TWIST_TOPIC',
+           'RECORDER_NODE_NAME', 'ROBOT_DESCRIPTION_TOPIC', 'SIM_NODE_NAME',
+           'SPEED_COMMAND_TOPIC', 'SPEED_DRIVE', 'STROKE_PAIR_STATUS', 'absolute_topic']
 
 SIM_NODE_NAME = 'shaper_sim'
 RECORDER_NODE_NAME = 'mcap_recorder'
@@ -37,6 +37,9 @@ JOINT_STATES_TOPIC = 'joint_states'
 RAM_TWIST_TOPIC = 'ram/twist'
 SPEED_COMMAND_TOPIC = 'input_speed_cmd'
 DIAGNOSTICS_TOPIC = '/diagnostics'
+# rclpy's parameter events (rcl_interfaces/ParameterEvent): the recorder keeps them, so the
+# analysis knows what changed mid-run.
+PARAMETER_EVENTS_TOPIC = '/parameter_events'
 JOINT_STATE_TYPE = 'sensor_msgs/msg/JointState'
 
 # DiagnosticStatus.name of the node's per-stroke-pair report.

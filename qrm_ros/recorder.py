@@ -51,14 +51,14 @@ from qrm_ros.kinematics import Geometry
 from qrm_ros.mcap_recover import recover_command
 from qrm_ros.mcap_run_file import COMPRESSIONS, ConfigurationError, McapRunFile, RecorderError
 from qrm_ros.names import (DIAGNOSTICS_TOPIC, GEOMETRY_METADATA, JOINT_STATES_TOPIC,
-                           PARAMETERS_METADATA, RAM_TWIST_TOPIC, RECORDER_NODE_NAME,
-                           SPEED_COMMAND_TOPIC)
+                           PARAMETER_EVENTS_TOPIC, PARAMETERS_METADATA, RAM_TWIST_TOPIC,
+                           RECORDER_NODE_NAME, SPEED_COMMAND_TOPIC)
 from qrm_ros.ros_process import (init_rclpy, RCLError, rcl_error_text, spin_until_stopped,
                                  StopRequest)
 
 NODE_NAME = RECORDER_NODE_NAME
 DEFAULT_TOPICS = [JOINT_STATES_TOPIC, RAM_TWIST_TOPIC, SPEED_COMMAND_TOPIC, DIAGNOSTICS_TOPIC,
-                  '/parameter_events']
+                  PARAMETER_EVENTS_TOPIC]
 GEOMETRY_PARAMETERS = list(Geometry.field_names())
 MAX_CHUNK_DURATION_RANGE = (0.001, 3600.0)
 SIM_WAIT_TIMEOUT_RANGE = (0.0, 3600.0)

@@ -38,7 +38,7 @@ import time
 import numpy as np
 import pytest
 
-from qrm_ros import analysis, figures
+from qrm_ros import analysis, figures, motor_drive
 from qrm_ros import dynamics as dyn
 from qrm_ros import kinematics as kin
 from qrm_ros.effort_theory import EFFORT_FIGURES, ZERO_CAN_BE_EXACT
@@ -316,3 +316,57 @@ def test_a_real_recording_measures_the_theory(real_run):
     check_against_theory(real_run._replace(
         rows=rows, segments=[s for s, r in zip(real_run.segments, real_run.rows)
                              if r['stroke_pairs'] >= 1]), LOADS)
+
+
+# Runs of the motor drive: its speed fluctuates, its reference is the setting.
+def _motor_samples(simulation, offset=0.01):
+    """Samples of a motor simulation (the fields the segmenting reads; the ram's exact)."""
+    motion = kin.state(PAPER, offset, simulation.input_angle, simulation.input_speed)
+    zeros = np.zeros(simulation.time.shape)
+    return analysis.Samples(simulation.time, simulation.input_angle, simulation.input_speed,
+                            motion.flywheel_angle, motion.flywheel_speed, motion.ram_position,
+                            motion.ram_velocity, zeros + offset, zeros,
+                            simulation.efforts.input_torque, simulation.efforts.offset_force)
+
+
+def test_the_motor_speed_reference_is_recovered_from_each_sample():
+    motor = dyn.MotorDrive(speed_stiffness=50.0, max_torque=45.0)
+    mass = dyn.MassProperties.small_shaper()
+    # Starting at 4 rad/s the reference ramps to 2 pi at 4 rad/s^2, then holds.
+    simulation = motor_drive.simulate(PAPER, mass, LOADS, motor, 0.01, 2 * math.pi, 3.0, 500.0,
+                                      initial_speed=4.0, input_acceleration_limit=4.0)
+    # The published input torque is the inverse dynamics' at the state: the motor's torque
+    # to round-off.
+    np.testing.assert_allclose(simulation.efforts.input_torque, simulation.motor_torque,
+                               rtol=0.0, atol=1e-12 * motor.max_torque)
+    reference = np.minimum(4.0 + 4.0 * simulation.time, 2 * math.pi)
+    found = analysis.setting_speed(_motor_samples(simulation),
+                                   analysis.Drive(mass, LOADS, motor))
+    limited = np.abs(simulation.motor_torque) >= motor.max_torque
+    assert limited.any() and not limited.all()  # the ramp's start pulls at the limit
+    assert np.all(np.isnan(found[limited]))
+    np.testing.assert_allclose(found[~limited], reference[~limited], rtol=1e-13)
+    # Under the ideal speed drive the setting is the recorded speed itself.
+    samples = _motor_samples(simulation)
+    assert analysis.setting_speed(samples, analysis.Drive(mass, LOADS, None)) is (
+        samples.input_speed)
+
+
+def test_a_motor_run_is_one_segment_per_setting_and_a_load_change_splits_it():
+    motor = dyn.MotorDrive.small_shaper()
+    mass = dyn.MassProperties.small_shaper()
+    simulation = motor_drive.simulate(PAPER, mass, LOADS, motor, 0.01, 2 * math.pi, 4.0, 200.0)
+    samples = _motor_samples(simulation)
+    assert np.ptp(samples.input_speed) > 1e-3  # it fluctuates: no run of equal speeds
+    heavier = dyn.Loads(2 * LOADS.cutting_force, LOADS.ram_friction, LOADS.cutting_length)
+    spans = (analysis.DriveSpan(-math.inf, analysis.Drive(mass, LOADS, motor), None),
+             analysis.DriveSpan(2.0025, analysis.Drive(mass, heavier, motor), None))
+    # The simulation ran the first load throughout; only the segmenting is under test here.
+    segments, transitions = analysis.split_segments(samples, spans[:1])
+    assert [(s.start, s.end) for s in segments] == [(0, samples.time.size)]
+    assert segments[0].input_speed == pytest.approx(2 * math.pi, rel=1e-13)
+    segments, transitions = analysis.split_segments(samples, spans)
+    assert [(s.start, s.end) for s in segments] == [(0, 401), (401, samples.time.size)]
+    assert [s.drive for s in segments] == [span.drive for span in spans]
+    assert transitions[0]['change'] == (
+        f'cutting_force {LOADS.cutting_force!r} -> {heavier.cutting_force!r}')
