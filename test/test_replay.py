@@ -18,11 +18,17 @@ Each log is re-derived from its own content:
 (a) from the logged input angle, input speed, offset and offset rate at every stamp, the
     kinematics core reproduces the logged flywheel, lever and ram states (and the twist) to
     1e-12;
-(b) stepping ShaperStepper from the first logged sample through the logged parameter changes
+(b) stepping the node's stepper (ShaperStepper, or MotorStepper for a drive parameter of
+    motor) from the first logged sample through the logged parameter changes
     (/parameter_events, stamped by the node's clock between two ticks) at the logged stamps
-    reproduces the logged input angle, input speed and offset bit for bit.
-And the offline analysis of each log finds exactly the commanded settings and measures TR and
-SR within the stroke finder's bound of the closed form.
+    reproduces every logged joint position and velocity (and effort, where logged) bit for bit.
+    A MotorStepper's state is more than the logged one (its solver's step history), so a
+    motor log starts at a reset: the first logged sample is where the node's integration
+    started (make_golden_logs.py pauses and resets the node before recording);
+(c) a motor log's efforts are the dynamics' at the logged state, and its input torque is the
+    motor law at the logged speed.
+And the offline analysis of each speed-drive log finds exactly the commanded settings and
+measures TR and SR within the stroke finder's bound of the closed form.
 A change to the physics, the stepping or the analysis that alters their output fails here.
 """
 
@@ -36,10 +42,13 @@ import pytest
 from rosbags.typesys import get_typestore, Stores
 
 from qrm_ros import analysis
+from qrm_ros import dynamics as dyn
 from qrm_ros import kinematics as kin
 from qrm_ros.bag_reader import open_run
+from qrm_ros.motor_drive import MotorStepper
 from qrm_ros.names import JOINT_NAMES
-from qrm_ros.stepping import ShaperStepper
+from qrm_ros.shaper_parameters import MOTOR_PREFIX
+from qrm_ros.stepping import ShaperStepper, wrap_angle
 
 DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'data')
 LOGS = sorted(glob.glob(os.path.join(DATA, '*.mcap')))
@@ -51,7 +60,14 @@ COMMANDED = {
     'offset_and_speed_change': [(0.0, 2 * math.pi), (0.012, 2 * math.pi), (0.012, 9.0),
                                 (-0.008, 2 * math.pi)],
 }
+# The motor-drive logs: what each recorded mid-run, in order (parameter, value).
+MOTOR_CHANGES = {
+    'motor_cutting_load': [('input_speed', 9.0), ('coupling_offset', -0.008),
+                           ('cutting_force', 800.0)],
+}
 STORE = get_typestore(Stores.ROS2_JAZZY)
+# rcl_interfaces/msg/ParameterType -> the ParameterValue field holding it (scalars only).
+VALUE_FIELDS = {1: 'bool_value', 2: 'integer_value', 3: 'double_value', 4: 'string_value'}
 
 
 def _ns(stamp):
@@ -66,7 +82,7 @@ class Log:
                                         run.metadata['qrm_ros.geometry'].items()})
         self.parameters = {k: json.loads(v) for k, v in
                            run.metadata['qrm_ros.parameters'].items()}
-        stamps, positions, velocities, twists, self.events = [], [], [], {}, []
+        stamps, positions, velocities, efforts, twists, self.events = [], [], [], [], {}, []
         for recorded in run.messages():
             message = STORE.deserialize_cdr(recorded.data, recorded.schema_name)
             topic = recorded.topic
@@ -75,16 +91,19 @@ class Log:
                 stamps.append(_ns(message.header.stamp))
                 positions.append(message.position)
                 velocities.append(message.velocity)
+                efforts.append(message.effort)
             elif topic == '/ram/twist':
                 twists[_ns(message.header.stamp)] = message.twist.linear.x
             elif topic == '/parameter_events' and message.node == '/shaper_sim':
                 for parameter in message.changed_parameters:
-                    self.events.append((_ns(message.stamp), parameter.name,
-                                        parameter.value.double_value))
+                    value = getattr(parameter.value, VALUE_FIELDS[parameter.value.type])
+                    self.events.append((_ns(message.stamp), parameter.name, value))
         order = np.argsort(stamps, kind='stable')
         self.stamps = [stamps[i] for i in order]
         self.position = np.array(positions)[order]
         self.velocity = np.array(velocities)[order]
+        self.effort = np.array(efforts)[order]  # (n, 0) when the node published none
+        self.motor = self.parameters.get('drive') == 'motor'
         self.twists = twists
         self.events.sort()
 
@@ -95,7 +114,7 @@ def log(request):
 
 
 def test_the_golden_logs_are_there_and_small():
-    assert {os.path.basename(p)[:-5] for p in LOGS} == set(COMMANDED)
+    assert {os.path.basename(p)[:-5] for p in LOGS} == set(COMMANDED) | set(MOTOR_CHANGES)
     for path in LOGS:
         assert os.path.getsize(path) <= 1_000_000
 
@@ -117,39 +136,116 @@ def test_core_reproduces_every_logged_state(log):
     assert all(twist == joint for twist, joint in matched)
 
 
-def test_stepper_replays_the_logged_trajectory_bit_for_bit(log):
+def _dynamics(parameters):
+    """The mass properties, loads and motor as the node makes them from its parameters."""
+    return (dyn.MassProperties(**{n: parameters[n] for n in dyn.MassProperties.field_names()}),
+            dyn.Loads(**{n: parameters[n] for n in dyn.Loads.field_names()}),
+            dyn.MotorDrive(**{n: parameters[MOTOR_PREFIX + n]
+                              for n in dyn.MotorDrive.field_names()}))
+
+
+DYNAMICS_PARAMETERS = (set(dyn.MassProperties.field_names()) | set(dyn.Loads.field_names())
+                       | {MOTOR_PREFIX + n for n in dyn.MotorDrive.field_names()})
+
+
+def _apply(stepper, parameters, name, value):
+    """Do what shaper_sim does on a parameter change (its stepper calls)."""
+    parameters[name] = value
+    if name == 'input_speed':
+        stepper.set_speed_command(value)
+    elif name == 'coupling_offset':
+        stepper.set_offset_command(value)
+    elif name == 'input_acceleration_limit':
+        stepper.set_limits(input_acceleration_limit=value)
+    elif name == 'offset_rate_limit':
+        stepper.set_limits(offset_rate_limit=value)
+    elif name in DYNAMICS_PARAMETERS and isinstance(stepper, MotorStepper):
+        stepper.set_dynamics(*_dynamics(parameters))
+    else:
+        assert name in DYNAMICS_PARAMETERS, f'a change of {name} the replay does not know'
+
+
+def _published(log, stepper, parameters):
+    """Positions, velocities and efforts as shaper_sim publishes them at the present stamp."""
+    sample = stepper.mechanism_state()
+    positions = (stepper.input_angle, wrap_angle(sample.flywheel_angle), sample.lever_angle,
+                 sample.ram_position, stepper.offset)
+    velocities = (stepper.input_speed, sample.flywheel_speed, sample.lever_speed,
+                  sample.ram_velocity, stepper.offset_rate)
+    if not log.effort.shape[1]:
+        efforts = ()  # logged before the node published efforts
+    elif isinstance(stepper, MotorStepper):
+        efforts = tuple(stepper.efforts())
+    else:
+        mass, loads, _ = _dynamics(parameters)
+        efforts = tuple(dyn.efforts(
+            log.geometry, mass, stepper.offset, stepper.input_angle, stepper.input_speed,
+            stepper.input_acceleration, stepper.offset_rate, 0.0,
+            dyn.ram_load_force(loads, sample.ram_position, sample.ram_velocity,
+                               log.geometry.ram_stroke)))
+    return positions, velocities, efforts
+
+
+def replay(log):
+    """
+    Step the node's stepper through the log; yield (index, positions, velocities, efforts).
+
+    The commands in force at the first sample are the metadata's start-up values and any
+    change stamped before it; the first sample is taken as the state there.
+    """
     parameters = dict(log.parameters)
     events = list(log.events)
     while events and events[0][0] <= log.stamps[0]:  # commands in force at the first sample
         _, name, value = events.pop(0)
         parameters[name] = value
-    stepper = ShaperStepper(log.geometry, parameters['input_speed'],
-                            parameters['coupling_offset'],
-                            parameters['input_acceleration_limit'],
-                            parameters['offset_rate_limit'])
+    arguments = (parameters['input_speed'], parameters['coupling_offset'],
+                 parameters['input_acceleration_limit'], parameters['offset_rate_limit'])
+    if parameters.get('drive') == 'motor':
+        stepper = MotorStepper(log.geometry, *_dynamics(parameters), *arguments)
+    else:
+        stepper = ShaperStepper(log.geometry, *arguments)
     stepper.restore(log.stamps[0], log.position[0, 0], log.velocity[0, 0], log.position[0, 4])
     stepper.set_speed_command(parameters['input_speed'])
     stepper.set_offset_command(parameters['coupling_offset'])
-    applied = 0
+    yield (0, *_published(log, stepper, parameters))
     for k in range(1, len(log.stamps)):
         # A command stamped between two ticks took effect from the earlier tick.
         while events and events[0][0] < log.stamps[k]:
             _, name, value = events.pop(0)
-            applied += 1
-            if name == 'input_speed':
-                stepper.set_speed_command(value)
-            elif name == 'coupling_offset':
-                stepper.set_offset_command(value)
-            elif name == 'input_acceleration_limit':
-                stepper.set_limits(input_acceleration_limit=value)
-            elif name == 'offset_rate_limit':
-                stepper.set_limits(offset_rate_limit=value)
+            _apply(stepper, parameters, name, value)
         stepper.integrate_to(log.stamps[k])
-        got = (stepper.input_angle, stepper.input_speed, stepper.offset, stepper.offset_rate)
-        logged = (log.position[k, 0], log.velocity[k, 0], log.position[k, 4],
-                  log.velocity[k, 4])
+        yield (k, *_published(log, stepper, parameters))
+    assert not events or events[0][0] >= log.stamps[-1]
+
+
+def test_stepper_replays_the_logged_trajectory_bit_for_bit(log):
+    # The stepper's own state (input angle and speed, offset and its rate) in every log; every
+    # joint and effort in the motor logs. The speed-drive logs' derived joints were computed
+    # by an earlier core, to within an ulp of today's (test_core_reproduces_...).
+    stepped = (slice(None), slice(None)) if log.motor else ([0, 4], [0, 4])
+    for k, positions, velocities, efforts in replay(log):
+        if k == 0 and not log.motor:
+            continue  # the state restored
+        got = (np.array(positions)[stepped[0]].tolist(),
+               np.array(velocities)[stepped[1]].tolist())
+        logged = (log.position[k][stepped[0]].tolist(), log.velocity[k][stepped[1]].tolist())
         assert got == logged, f'sample {k} at {log.stamps[k]} ns: replay {got} != log {logged}'
-    assert applied == len(log.events) - sum(1 for e in log.events if e[0] <= log.stamps[0])
+        if log.motor:
+            assert list(efforts) == log.effort[k].tolist(), (
+                f'sample {k} at {log.stamps[k]} ns: efforts {efforts} != log {log.effort[k]}')
+
+
+def test_the_motor_logs_start_at_a_reset_and_hold_the_changes(log, request):
+    name = os.path.basename(request.node.callspec.params['log'])[:-5]
+    if not log.motor:
+        assert not any(name in DYNAMICS_PARAMETERS for _, name, _ in log.events)
+        return
+    # The node's integration starts here: input angle 0 at the commanded speed and offset.
+    assert log.position[0, 0] == 0.0
+    assert log.velocity[0, 0] == log.parameters['input_speed']
+    assert log.position[0, 4] == log.parameters['coupling_offset']
+    assert [(n, v) for _, n, v in log.events] == MOTOR_CHANGES[name]
+    assert all(log.stamps[0] < stamp < log.stamps[-1] for stamp, _, _ in log.events)
 
 
 def test_analysis_finds_the_commanded_settings_and_theory(log, request):

@@ -39,6 +39,15 @@ RUNS = {
     'offset_and_speed_change': [(0.0, TWO_PI, 2), (0.012, TWO_PI, 2), (0.012, 9.0, 3),
                                 (-0.008, TWO_PI, 2)],
 }
+# name -> (start-up parameters, steps: (parameters to set, stroke pairs to record after))
+MOTOR_RUNS = {
+    'motor_cutting_load': (
+        {'drive': 'motor', 'coupling_offset': 0.010, 'input_speed': TWO_PI,
+         'offset_rate_limit': 0.02, 'cutting_force': 400.0, 'ram_friction': 20.0,
+         'cutting_length': 0.15},
+        [({}, 2), ({'input_speed': 9.0}, 2), ({'coupling_offset': -0.008}, 2),
+         ({'cutting_force': 800.0}, 2)]),
+}
 
 
 def record(name, settings):
@@ -56,8 +65,8 @@ def record(name, settings):
     recorder = None
     conductor = Conductor()
     try:
-        conductor.wait_for(conductor.set_client.service_is_ready, 30.0, 'shaper_sim')
-        recorder = _start('recorder', ['-p', f'output:={path}'],
+        conductor.wait_for(conductor.sim_ready, 30.0, 'shaper_sim')
+        recorder = _start('mcap_recorder', ['-p', f'output:={path}'],
                           os.path.join(logs, 'mcap_recorder.log'), env)
         conductor.wait_for(conductor.recorder_subscribed, 30.0, 'mcap_recorder')
         since = time.time() + RECORDER_SETTLE_TIME
@@ -73,10 +82,74 @@ def record(name, settings):
     print(f'{path}: {os.path.getsize(path)} bytes (logs in {logs})')
 
 
+def _call(conductor, service_type, name, request):
+    client = conductor.node.create_client(service_type, f'/shaper_sim/{name}')
+    try:
+        conductor.wait_for(client.service_is_ready, 30.0, f'/shaper_sim/{name}')
+        future = client.call_async(request)
+        conductor.wait_for(future.done, 10.0, f'the answer of /shaper_sim/{name}')
+        if not future.result().success:
+            raise MainJobError(f'/shaper_sim/{name} failed: {future.result().message}')
+    finally:
+        conductor.node.destroy_client(client)
+
+
+def pairs_since(conductor, offset, since):
+    """Count stroke pairs at a steady offset that began after `since` (s, node clock)."""
+    return sum(1 for pair in conductor.pairs
+               if pair.get('offset_steady') == 'true'
+               and float(pair.get('coupling_offset', 'nan')) == offset
+               and float(pair.get('pair_start', '-inf')) >= since)
+
+
+def record_motor(name, run):
+    from std_srvs.srv import SetBool, Trigger
+    start_up, steps = run
+    path = os.path.join(HERE, name + '.mcap')
+    if os.path.exists(path):
+        os.remove(path)
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
+               ROS_DOMAIN_ID=os.environ.get('ROS_DOMAIN_ID', '142'))
+    os.environ.update(env)
+    logs = tempfile.mkdtemp(prefix='golden_')
+    arguments = [item for key, value in start_up.items()
+                 for item in ('-p', f'{key}:={value if isinstance(value, str) else repr(value)}')]
+    sim = _start('shaper_sim', arguments, os.path.join(logs, 'shaper_sim.log'), env)
+    recorder = None
+    conductor = Conductor()
+    try:
+        conductor.wait_for(conductor.sim_ready, 30.0, 'shaper_sim')
+        _call(conductor, SetBool, 'pause', SetBool.Request(data=True))
+        _call(conductor, Trigger, 'reset', Trigger.Request())
+        recorder = _start('mcap_recorder', ['-p', f'output:={path}'],
+                          os.path.join(logs, 'mcap_recorder.log'), env)
+        conductor.wait_for(conductor.recorder_subscribed, 30.0, 'mcap_recorder')
+        settled = time.monotonic() + RECORDER_SETTLE_TIME
+        conductor.wait_for(lambda: time.monotonic() > settled, 10.0, 'the recorder to settle')
+        _call(conductor, SetBool, 'pause', SetBool.Request(data=False))
+        offset = start_up['coupling_offset']
+        for parameters, pairs in steps:
+            since = time.time()
+            if parameters:
+                conductor.set_parameters(**parameters)
+            offset = parameters.get('coupling_offset', offset)
+            conductor.wait_for(lambda: pairs_since(conductor, offset, since) >= pairs, 60.0,
+                               f'{pairs} pairs at {offset} m after setting {parameters}')
+    finally:
+        conductor.close()
+        if recorder is not None:
+            _stop(recorder)
+        _stop(sim)
+    print(f'{path}: {os.path.getsize(path)} bytes (logs in {logs})')
+
+
 def main(names):
-    for name in names or RUNS:
+    for name in names or list(RUNS) + list(MOTOR_RUNS):
         try:
-            record(name, RUNS[name])
+            if name in MOTOR_RUNS:
+                record_motor(name, MOTOR_RUNS[name])
+            else:
+                record(name, RUNS[name])
         except MainJobError as error:
             sys.exit(f'make_golden_logs: {name}: {error}')
 
