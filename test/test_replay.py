@@ -113,6 +113,14 @@ def log(request):
     return Log(request.param)
 
 
+MOTOR_LOGS = [path for path in LOGS if os.path.basename(path)[:-5] in MOTOR_CHANGES]
+
+
+@pytest.fixture(scope='module', params=MOTOR_LOGS, ids=lambda p: os.path.basename(p)[:-5])
+def motor_log(request):
+    return Log(request.param)
+
+
 def test_the_golden_logs_are_there_and_small():
     assert {os.path.basename(p)[:-5] for p in LOGS} == set(COMMANDED) | set(MOTOR_CHANGES)
     for path in LOGS:
@@ -248,8 +256,142 @@ def test_the_motor_logs_start_at_a_reset_and_hold_the_changes(log, request):
     assert all(log.stamps[0] < stamp < log.stamps[-1] for stamp, _, _ in log.events)
 
 
-def test_analysis_finds_the_commanded_settings_and_theory(log, request):
-    name = os.path.basename(request.node.callspec.params['log'])[:-5]
+def _in_force(log):
+    """Yield (index, parameters in force) per sample: a change counts from the next sample."""
+    parameters, events = dict(log.parameters), list(log.events)
+    for k, stamp in enumerate(log.stamps):
+        while events and events[0][0] < stamp:
+            _, name, value = events.pop(0)
+            parameters[name] = value
+        yield k, dict(parameters)
+
+
+def _dynamics_efforts(log, k, parameters, at=None):
+    """
+    The efforts the dynamics give at sample k's logged state and input torque.
+
+    The input acceleration is not logged: it is the one the logged input torque gives
+    (tau1 = M theta'' + b, dynamics.md); the other four efforts then follow from the chain.
+    The ram load is the one at sample `at`'s logged ram position and velocity (default k).
+    """
+    mass, loads, _ = _dynamics(parameters)
+    geometry, at = log.geometry, k if at is None else at
+    load = dyn.ram_load_force(loads, float(log.position[at, 3]), float(log.velocity[at, 3]),
+                              geometry.ram_stroke)
+    angle, offset = log.position[k, 0], log.position[k, 4]
+    speed, offset_rate = log.velocity[k, 0], log.velocity[k, 4]
+    bias = dyn.efforts(geometry, mass, offset, angle, speed, 0.0, offset_rate, 0.0,
+                       load).input_torque
+    inertia = dyn.generalized_inertia(geometry, mass, offset, angle)
+    acceleration = (log.effort[k, 0] - bias) / inertia
+    return np.array(dyn.efforts(geometry, mass, offset, angle, speed, acceleration,
+                                offset_rate, 0.0, load))
+
+
+def _agree(expected, logged):
+    """Equal to roundoff: 1e-9 of the input torque's size (N m), ten times that in N."""
+    scale = np.array([1.0, 1.0, 1.0, 10.0, 10.0]) * max(1.0, abs(logged[0]))
+    return bool(np.all(np.abs(expected - logged) <= 1e-9 * scale))
+
+
+def _disagreeing_samples(log):
+    return [k for k, parameters in _in_force(log)
+            if not _agree(_dynamics_efforts(log, k, parameters), log.effort[k])]
+
+
+def test_motor_log_efforts_are_the_dynamics_at_the_logged_state(motor_log):
+    """
+    The logged efforts from the logged state alone, but for the known MotorStepper fault.
+
+    At a stamp inside the solver step in which a load switch lies (a reversal, a workpiece
+    edge), ahead of that switch, MotorStepper has already started the segment after the
+    switch: its motion is right (the old step's dense output), its efforts use the load
+    after the switch. Those samples (a few per thousand) must be exactly these: the last
+    sample before a change of the logged state's load, agreeing with the dynamics when
+    given the next sample's load. Everywhere else the efforts are the dynamics'.
+    """
+    log = motor_log
+    loads = [dyn.ram_load_force(_dynamics(p)[1], float(log.position[k, 3]),
+                                float(log.velocity[k, 3]), log.geometry.ram_stroke)
+             for k, p in _in_force(log)]
+    disagreeing = _disagreeing_samples(log)
+    assert len(disagreeing) <= 0.01 * len(log.stamps)
+    for k, parameters in _in_force(log):
+        if k in disagreeing:
+            assert k + 1 < len(log.stamps) and loads[k + 1] != loads[k], k
+            assert _agree(_dynamics_efforts(log, k, parameters, at=k + 1), log.effort[k]), k
+
+
+@pytest.mark.xfail(strict=True, reason='MotorStepper.efforts() just before a load switch uses '
+                   'the load after it (see test_motor_log_efforts_are_the_dynamics_...); fixed '
+                   'there, regenerate the motor logs and drop this mark')
+def test_motor_log_efforts_are_the_dynamics_at_every_sample(motor_log):
+    assert _disagreeing_samples(motor_log) == []
+
+
+def test_motor_log_input_torque_is_the_motor_law(motor_log):
+    """
+    The logged input torque is clip(k (w_ref - w), +-T_max) at the logged input speed.
+
+    w_ref is the commanded speed ramped at input_acceleration_limit from the tick before
+    each command; the log holds reversals and the tool entering and leaving the workpiece
+    in every stroke pair.
+    """
+    log = motor_log
+    reference = ramp_start = None
+    reversals = edges = 0
+    for k, parameters in _in_force(log):
+        motor = _dynamics(parameters)[2]
+        command, limit = parameters['input_speed'], parameters['input_acceleration_limit']
+        if reference is None or command != reference[1]:
+            start = log.stamps[max(k - 1, 0)]
+            begin = (log.velocity[0, 0] if reference is None
+                     else _ramp_value(reference, ramp_start, start, limit))
+            reference, ramp_start = (begin, command), start
+        speed_reference = _ramp_value(reference, ramp_start, log.stamps[k], limit)
+        law = min(max(motor.speed_stiffness * (speed_reference - log.velocity[k, 0]),
+                      -motor.max_torque), motor.max_torque)
+        assert log.effort[k, 0] == pytest.approx(law, rel=0, abs=1e-8), k
+        if k:
+            reversals += np.sign(log.velocity[k, 3]) != np.sign(log.velocity[k - 1, 3])
+            inside = [abs(log.position[i, 3]) <= 0.5 * parameters['cutting_length']
+                      for i in (k - 1, k)]
+            edges += log.velocity[k, 3] < 0 and inside[0] != inside[1]
+    pairs = (log.stamps[-1] - log.stamps[0]) / 1e9 / (2 * math.pi / 9.0)  # at most
+    assert reversals >= pairs and edges >= pairs, (reversals, edges)
+
+
+def _ramp_value(reference, start_ns, stamp_ns, acceleration_limit):
+    """The value at stamp_ns of a ramp from reference[0] to reference[1] begun at start_ns."""
+    begin, end = reference
+    step = acceleration_limit * (stamp_ns - start_ns) / 1e9
+    return end if step >= abs(end - begin) else begin + math.copysign(step, end - begin)
+
+
+def test_a_load_change_mid_run_is_recoverable_from_the_file(motor_log):
+    """
+    The metadata holds the start-up values; /parameter_events holds each change after.
+
+    After the logged cutting_force change, the logged efforts are the dynamics' with the
+    changed value (test_motor_log_efforts_...), and not with the metadata's: the file's
+    parameter events are needed to explain the run, and they suffice.
+    """
+    log = motor_log
+    stamp, name, value = next(event for event in log.events if event[1] == 'cutting_force')
+    assert value != log.parameters[name]
+    after = [k for k, stamp_ns in enumerate(log.stamps) if stamp_ns > stamp]
+    in_force = dict(_in_force(log))
+    start_up = dict(log.parameters, **{n: v for _, n, v in log.events if n != name})
+    cutting = [k for k in after if log.velocity[k, 3] < 0.0
+               and abs(log.position[k, 3]) < 0.5 * in_force[k]['cutting_length']]
+    assert len(cutting) >= 20
+    for k in cutting:
+        assert in_force[k][name] == value
+        assert not _agree(_dynamics_efforts(log, k, start_up), log.effort[k]), k
+
+
+@pytest.mark.parametrize('name', sorted(COMMANDED))
+def test_analysis_finds_the_commanded_settings_and_theory(name):
     path = os.path.join(DATA, name + '.mcap')
     result = analysis.analyse(analysis.read_recording(path))
     assert [(row['offset'], row['input_speed']) for row in result.rows] == COMMANDED[name]
@@ -259,4 +401,31 @@ def test_analysis_finds_the_commanded_settings_and_theory(log, request):
         for key in ('time_ratio', 'speed_ratio', 'peak_speed_ratio'):
             assert abs(row[f'{key}_relative_error']) < tolerance, (key, row)
         assert row['time_ratio_theory'] == pytest.approx(
-            kin.time_ratio_rk4(log.geometry, row['offset']), rel=1e-9)
+            kin.time_ratio_rk4(result.recording.geometry, row['offset']), rel=1e-9)
+
+
+def test_analysis_reads_a_motor_logs_drive_as_started(motor_log, request):
+    """The analysis takes the drive, masses and loads from the metadata: the start-up values."""
+    path = request.node.callspec.params['motor_log']
+    drive = analysis.read_recording(path).drive
+    mass, loads, motor = _dynamics(motor_log.parameters)
+    assert [part.as_dict() for part in drive] == [part.as_dict() for part in (mass, loads, motor)]
+
+
+@pytest.mark.xfail(strict=True, reason='qrm_analyze splits a run where the input speed changes '
+                   'between samples, and a motor\'s speed changes at every sample: a motor run '
+                   'has no segment (and a change of mass or load mid-run keeps the theory of '
+                   'the start)')
+def test_analysis_finds_a_motor_logs_commanded_settings(request, motor_log):
+    path = request.node.callspec.params['motor_log']
+    result = analysis.analyse(analysis.read_recording(path))
+    settings = [(motor_log.parameters['coupling_offset'], motor_log.parameters['input_speed'])]
+    for _, name, value in motor_log.events:
+        offset, speed = settings[-1]
+        settings.append((value, speed) if name == 'coupling_offset' else
+                        (offset, value) if name == 'input_speed' else (offset, speed))
+    assert [(row['offset'], row['input_speed']) for row in result.rows] == settings
+    for row in result.rows:
+        assert row['stroke_pairs'] >= 2
+        for key in ('energy_per_pair', 'rms_input_torque', 'speed_fluctuation'):
+            assert abs(row[f'{key}_relative_error']) < 1e-2, (key, row)
