@@ -377,8 +377,9 @@ def test_a_load_change_mid_run_is_recoverable_from_the_file(motor_log):
     The metadata holds the start-up values; /parameter_events holds each change after.
 
     After the logged cutting_force change, the logged efforts are the dynamics' with the
-    changed value (test_motor_log_efforts_...), and not with the metadata's: the file's
-    parameter events are needed to explain the run, and they suffice.
+    changed value (test_motor_log_efforts_...), and not with the metadata's; the replay with
+    it is bit for bit (test_stepper_...), without it the motion parts at the next cut: the
+    file's parameter events are needed to explain the run, and they suffice.
     """
     log = motor_log
     stamp, name, value = next(event for event in log.events if event[1] == 'cutting_force')
@@ -392,6 +393,15 @@ def test_a_load_change_mid_run_is_recoverable_from_the_file(motor_log):
     for k in cutting:
         assert in_force[k][name] == value
         assert not _agree(_dynamics_efforts(log, k, start_up), log.effort[k]), k
+    # And the node's motion: replayed with the start-up value, it leaves the log at the
+    # first cut after the change.
+    unchanged = Log.__new__(Log)
+    unchanged.__dict__.update(vars(log), events=[(s, n, log.parameters[n] if n == name else v)
+                                                 for s, n, v in log.events])
+    first = next(k for k, _, velocities, _ in replay(unchanged)
+                 if velocities[0] != log.velocity[k, 0])
+    assert first == next(k for k in after if log.velocity[k, 3] < 0.0
+                         and abs(log.position[k, 3]) <= 0.5 * in_force[k]['cutting_length'])
 
 
 @pytest.mark.parametrize('name', sorted(COMMANDED))
