@@ -430,10 +430,11 @@ def _steady_spans(log, samples):
     """
     The spans a motor log's settings were held: each change to the next, once settled.
 
-    A span starts when the offset is at rest at its command and the motor's transient has
-    decayed: its speed error decays as exp(-t k / M) (dynamics.md, T_m = k (w_ref - w)),
-    so 30 M_max / k after the last change leaves e^-30 of it (M_max: the largest generalised
-    inertia the span's samples see; the reference's ramp is ended by then too).
+    A span starts once the speed reference's ramp has ended and the offset is at rest at its
+    command (its rate's jump there is an impulse), and the motor's transient has decayed:
+    the speed error decays as exp(-t k / M) (dynamics.md, T_m = k (w_ref - w)), so
+    30 M_max / k after the last of these leaves e^-30 of it (M_max: the largest generalised
+    inertia the span's samples see).
     """
     in_force = [parameters for _, parameters in _in_force(log)]
     changes = [0] + [k for k in range(1, len(in_force)) if in_force[k] != in_force[k - 1]]
@@ -444,10 +445,12 @@ def _steady_spans(log, samples):
                                                  samples.input_angle[start:end]))
         ramp = abs(parameters['input_speed'] - samples.input_speed[max(start - 1, 0)]) / (
             parameters['input_acceleration_limit'])
-        settled = samples.time[start] + ramp + 30.0 * inertia / motor.speed_stiffness
-        held = [k for k in range(start, end) if samples.time[k] >= settled
-                and samples.offset_rate[k] == 0.0
-                and samples.offset[k] == parameters['coupling_offset']]
+        at_rest = [k for k in range(start, end) if samples.offset_rate[k] == 0.0
+                   and samples.offset[k] == parameters['coupling_offset']]
+        assert at_rest == list(range(at_rest[0], end))  # the offset stays once there
+        settled = (max(samples.time[start] + ramp, samples.time[at_rest[0]])
+                   + 30.0 * inertia / motor.speed_stiffness)
+        held = [k for k in at_rest if samples.time[k] >= settled]
         yield (analysis.Segment(held[0], held[-1] + 1, parameters['coupling_offset'],
                                 parameters['input_speed']),
                analysis.Drive(mass, loads, motor))
