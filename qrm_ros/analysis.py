@@ -89,8 +89,10 @@ MAX_WORKERS = 8
 # Read payloads that repeat a learnt layout with numpy (False: rosbags for every message).
 FAST_DECODING = True
 _BAD_NANOSEC = 'an invalid stamp (nanosec of 10^9 or more)'
-# The loss stages: not read from the file at all, or read but not usable as a sample.
-IN_FILE, IN_MESSAGE = 'file', 'message'
+# The loss stages: not read from the file at all, read but not usable as a sample, or used
+# as a sample without its efforts (the motion kept).
+IN_FILE, IN_MESSAGE, IN_EFFORTS = 'file', 'message', 'efforts'
+_LOSS_VERBS = {IN_FILE: 'lost', IN_MESSAGE: 'excluded', IN_EFFORTS: 'used without their efforts'}
 _NS = 1_000_000_000
 
 
@@ -122,7 +124,7 @@ class Samples(NamedTuple):
 class Lost(NamedTuple):
     """Joint-state messages left out of the analysis, and why (times: s of log time)."""
 
-    stage: str  # IN_FILE: never read; IN_MESSAGE: read but not usable
+    stage: str  # IN_FILE: never read; IN_MESSAGE: read but not usable; IN_EFFORTS: see above
     reason: str
     messages: Optional[int]  # None: unknown
     start_time: Optional[float]  # from the recording's first message; None: unknown
@@ -648,8 +650,8 @@ def _combine(path: str, run: Run, geometry: kin.Geometry, parts: List[_Part]) ->
     if unusable.any():
         effort[unusable] = np.nan
         bad = log_times[unusable]
-        rejected['non-finite efforts (the motion kept)'] = [
-            int(bad.size), int(bad.min()), int(bad.max())]
+        losses.append(Lost(IN_EFFORTS, 'non-finite efforts (the motion kept)', int(bad.size),
+                           _seconds(int(bad.min()), start), _seconds(int(bad.max()), start)))
     # The same stamp as the previous message: an exact repeat counts once; a conflicting
     # one is excluded (which of the two is right cannot be told).
     repeat = np.zeros(stamps.size, dtype=bool)
@@ -1161,7 +1163,7 @@ def incompleteness(recording: Recording) -> List[str]:
             when = (f', log time {loss.start_time:.3f} s' + (
                 '' if loss.end_time is None else f' to {loss.end_time:.3f} s')
                 + ' after the first message')
-        verb = 'lost' if loss.stage == IN_FILE else 'excluded'
+        verb = _LOSS_VERBS[loss.stage]
         lines.append(f'{count} {JOINT_STATES_TOPIC} messages {verb}{when}: {loss.reason}')
     return lines
 

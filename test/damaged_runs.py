@@ -308,6 +308,8 @@ def odd_arrays(rng, recorded):
             decoded.name = [decoded.name[i] for i in order]
             decoded.position = decoded.position[order]
             decoded.velocity = decoded.velocity[order]
+            if len(decoded.effort):
+                decoded.effort = decoded.effort[order]
         _rewrite_joint_states(recorded, permute)
         return None
     picked = _pick(rng, recorded.joint_states())
@@ -348,7 +350,8 @@ def cases(logs: Dict[str, bytes], count: int, seed: int) -> List[Case]:
         original = apart[log]
         recorded = Recorded(dict(original.schemas), dict(original.channels),
                             {k: dict(v) for k, v in original.metadata.items()},
-                            [list(m) for m in original.joint_states()], original.joint_channel)
+                            # every message: the parameter events say what changed mid-run
+                            [list(m) for m in original.messages], original.joint_channel)
         allowed: Optional[FrozenSet[int]] = kind(rng, recorded)
         made.append(Case(label, put_together(recorded), len(recorded.joint_states()),
                          allowed or frozenset({0}), same_results=allowed is None,
