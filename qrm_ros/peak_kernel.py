@@ -19,9 +19,11 @@ d|v|/dphi_c (kinematics._speed_rise's division-free form) at evenly spread crank
 the coupling's two crossings, then safeguarded Newton steps on dv/dphi_c (the closed-form
 slopes of kinematics._ram_speed_terms) in every bracket where |v| rises then falls. The
 formulas are those of kinematics, written out for scalars; the tests hold the two to
-agree to 1e-14. Imported only for sweeps big enough to repay loading it (kinematics
-decides): importing numba and loading the cached machine code cost about 0.3 s, a first
-compile some seconds (then cached beside this file, or in numba's user cache).
+agree to 1e-12 (they do to 5e-14). Imported only for sweeps big enough to repay loading it
+(kinematics._COMPILED_MIN_CONFIGURATIONS): importing numba and loading the cached machine
+code take 0.5-0.8 s; the first import compiles (3-5 s), cached beside this file (or in
+numba's user cache) until the file changes. peak_speeds is compiled for its one signature
+on import, so no call can start another compilation.
 """
 
 import math
