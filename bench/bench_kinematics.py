@@ -30,7 +30,8 @@ vs RK4), peaks (compiled vs numpy search on the random designs, compiled vs brac
 
     python3 dev.py run python bench/bench_kinematics.py [--grid 1000] [--repeats 5]
 
-Where the time goes (cProfile; perf counters for the compiled search). Bracketing, 10^4
+Where the time goes (cProfile for numpy; the compiled search timed in CPU time with its
+Newton steps, or all but one sample per stroke, switched off). Bracketing, 10^4
 configurations: 83 % in state() and input_angle_for_flywheel_angle() on the 2 x 47 samples
 per configuration (general code: arctan2, both stages, accelerations), 14 % in
 Chandrupatla's iterations (each another round of both). The numpy search, 9 x 10^4
@@ -38,15 +39,17 @@ configurations: 51 % in the sign test at the 24 + 12 samples (and two crossings)
 stroke pair (sin, cos, one square root, no division), 24 % bracket bookkeeping
 (column_stack, sort, nonzero, copies), 16 % the safeguarded Newton iterations (run only on
 bracketed peaks, 2.5 per configuration, 2.5 steps each), the rest set-up: about 4.4 us per
-configuration, of which numpy's per-element passes over temporaries are most. The compiled
-search, 10^5 random designs: a first port of the same steps ran 1.0 us per configuration,
-of which sin and cos (24 ns a pair here) took about half: 12 pairs per configuration of
-set-up and every Newton step. Now no sin or cos but per configuration of a new phase and
-one pair per stroke (its best root, taken again): the samples' sines come from rotating the
+configuration, most of it numpy's passes over temporaries. The compiled search, 10^5
+random designs: a first port of the same steps took 1.0 us per configuration (0.6 us
+without its Newton steps), calling sin and cos (24 ns a pair here) about 12 times per
+configuration and once per Newton step, and eight divisions per step. Now sin and cos are
+called once per configuration (for its phase, and not even that where the phase repeats)
+and once per stroke (its best root, taken again): the samples' come from rotating the
 reversal's (sin = -r/h there, exact) by the sample spacing, the crossings' are +-those of
-the phase, and Newton rotates its point by each step by a series; the slopes take three
-divisions instead of eight. About 0.7 us per random design: sampling 0.2, Newton 0.3, the
-rest set-up and the two final speeds.
+the phase, and Newton rotates its point by each step by a series; a step takes three
+divisions. 0.7 us per random design: Newton 0.29 (about 6 steps, latency-bound: a square
+root, three divisions and the rotation in a chain), the 40 samples 0.2, set-up and the
+two final speeds 0.2; 0.53 us on the grid rows (phase and lever geometry repeat there).
 """
 
 import argparse
@@ -82,7 +85,11 @@ def random_designs(count, seed):
 
 
 def first_answer():
-    """Seconds to import the compiled search, and to its first answer (compile or cache)."""
+    """
+    Seconds to import the compiled search and to its first answer, and how it got its code.
+
+    Importing it compiles peak_kernel.peak_speeds for its signature, or loads the cache.
+    """
     start = time.perf_counter()
     search = kin._compiled_peak_search()
     imported = time.perf_counter()
@@ -92,7 +99,7 @@ def first_answer():
                              np.zeros(kin._COMPILED_MIN_CONFIGURATIONS))
     answered = time.perf_counter()
     hits = sum(search.stats.cache_hits.values())
-    return imported - start, answered - imported, 'cache' if hits else 'compiled'
+    return imported - start, answered - imported, 'from the cache' if hits else 'compiled'
 
 
 def main():
@@ -176,8 +183,9 @@ def main():
     if startup is None:
         print('compiled peak search: numba is not installed, the numpy search runs instead')
     else:
-        print(f'compiled peak search before its first answer: import {startup[0]:.2f} s, '
-              f'first call {startup[1]:.2f} s ({startup[2]})')
+        print(f'compiled peak search before its first answer: import {startup[0]:.2f} s '
+              f'(numba, and the machine code {startup[2]}), first call on '
+              f'{kin._COMPILED_MIN_CONFIGURATIONS} configurations {startup[1]:.2f} s')
     print(f'closed-form TR+SR ({counts["closed"]} configurations): '
           f'{spread(rates["closed"], "/s")}')
     print(f'peak speeds and peak SR, grid rows ({counts["peaks"]} configurations): '
