@@ -389,7 +389,7 @@ def test_peaks_that_fewer_samples_missed(crank_ratio, offset_ratio, phase):
                                rtol=1e-12)
 
 
-def test_compiled_search_matches_the_numpy_search_over_many_random_designs():
+def test_compiled_search_matches_the_numpy_search_over_many_random_designs(monkeypatch):
     """10^4 designs (offsets up to 0.999 r1, both running directions): the same peaks."""
     geometry, offsets = random_designs(10_000, 8)
     input_speed = np.where(np.arange(10_000) % 2 == 0, 2.0, -2.0)
@@ -397,12 +397,67 @@ def test_compiled_search_matches_the_numpy_search_over_many_random_designs():
     compiled = peak_kernel.peak_speeds(*flat, *kin._PEAK_SAMPLES, kin._NEWTON_ANGLE_TOLERANCE,
                                        kin._BRACKET_RESOLUTION, kin._NEWTON_MAX_STEPS)
     np.testing.assert_allclose(compiled, kin._peak_speeds_numpy(geometry, offsets), rtol=1e-12)
-    monkeypatch = pytest.MonkeyPatch()
-    with monkeypatch.context() as patch:
-        patch.setattr(kin, '_COMPILED_MIN_CONFIGURATIONS', 1)
-        through_api = kin.peak_ram_speeds(geometry, offsets, input_speed)
-    np.testing.assert_allclose(through_api, kin.peak_ram_speeds(geometry, offsets, input_speed),
+    by_numpy = kin.peak_ram_speeds(geometry, offsets, input_speed)
+    monkeypatch.setattr(kin, '_COMPILED_MIN_CONFIGURATIONS', 1)
+    np.testing.assert_allclose(kin.peak_ram_speeds(geometry, offsets, input_speed), by_numpy,
                                rtol=1e-12)
+
+
+def long_double_peak_speeds(geometry, offset, samples=20_001):
+    """
+    Forward peak speeds in extended precision: v = dx/dphi_c times the paper's eq. (20).
+
+    x = H tan(psi) with tan(psi) = r cos(phi_c) / (h + r sin(phi_c)), differentiated by hand;
+    dense crank-angle samples per stroke, then every local maximum near the best refined by
+    golden-section search, all in numpy's long double (80-bit here).
+    """
+    ld = np.longdouble
+    r1, r, h, height, phase = (ld(getattr(geometry, name)) for name in geometry.field_names())
+    d = ld(offset)
+
+    def speed(angle):
+        sin_c = np.sin(angle)
+        flywheel = angle - phase
+        sin_f, cos_f = np.sin(flywheel), np.cos(flywheel)
+        pin = d * sin_f + np.sqrt(r1 * r1 - (d * cos_f) ** 2)
+        coupling = (r1 * r1 - d * d + d * pin * sin_f) / (pin * pin)
+        return -height * r * (h * sin_c + r) / (h + r * sin_c) ** 2 * coupling
+
+    gap, half_turn = np.arcsin(r / h), ld(math.pi)
+    golden = (np.sqrt(ld(5)) - 1) / 2
+    peaks = []
+    strokes = ((-1, -gap, half_turn + gap), (1, half_turn + gap, 2 * half_turn - gap))
+    for sign, start, end in strokes:
+        angles = start + (end - start) * np.arange(samples, dtype=ld) / (samples - 1)
+        values = sign * speed(angles)
+        best = values.max()
+        inner = np.nonzero((values[1:-1] >= values[:-2]) & (values[1:-1] >= values[2:])
+                           & (values[1:-1] > best * (1 - 1e-3)))[0] + 1
+        for k in inner:
+            low, high = angles[k - 1], angles[k + 1]
+            for _ in range(120):
+                left, right = high - golden * (high - low), low + golden * (high - low)
+                if sign * speed(left) < sign * speed(right):
+                    low = left
+                else:
+                    high = right
+            best = max(best, sign * speed((low + high) / 2))
+        peaks.append(float(best))
+    return peaks
+
+
+@pytest.mark.skipif(np.finfo(np.longdouble).eps > 1e-18, reason='long double is double here')
+@pytest.mark.usefixtures('peak_search')
+def test_peaks_match_an_extended_precision_search():
+    """Designs with offsets of 0.999 r1 and ordinary ones: exact to a few ulps, not 1e-12."""
+    geometry, offsets = random_designs(400, 30)
+    fraction = offsets / geometry.coupling_radius
+    edge = np.nonzero(np.abs(np.abs(fraction) - 0.999) < 1e-9)[0][:20]
+    for index in list(edge) + list(range(10)):
+        single, offset = one_design(geometry, offsets, index)
+        np.testing.assert_allclose(kin.peak_ram_speeds(single, offset),
+                                   long_double_peak_speeds(single, offset), rtol=2e-14,
+                                   err_msg=f'design {index}: {single}, offset {offset}')
 
 
 def test_large_sweeps_take_the_compiled_search(monkeypatch):
