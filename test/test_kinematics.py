@@ -447,17 +447,23 @@ def long_double_peak_speeds(geometry, offset, samples=20_001):
 
 
 @pytest.mark.skipif(np.finfo(np.longdouble).eps > 1e-18, reason='long double is double here')
-@pytest.mark.usefixtures('peak_search')
-def test_peaks_match_an_extended_precision_search():
-    """Designs with offsets of 0.999 r1 and ordinary ones: exact to a few ulps, not 1e-12."""
+def test_peaks_match_an_extended_precision_search(monkeypatch):
+    """
+    Designs with offsets of 0.999 r1 and ordinary ones: exact to a few ulps, not 1e-12.
+
+    Both searches (the threshold moved for the compiled one) against one reference each.
+    """
     geometry, offsets = random_designs(400, 30)
     fraction = offsets / geometry.coupling_radius
     edge = np.nonzero(np.abs(np.abs(fraction) - 0.999) < 1e-9)[0][:20]
     for index in list(edge) + list(range(10)):
         single, offset = one_design(geometry, offsets, index)
-        np.testing.assert_allclose(kin.peak_ram_speeds(single, offset),
-                                   long_double_peak_speeds(single, offset), rtol=2e-14,
-                                   err_msg=f'design {index}: {single}, offset {offset}')
+        expected = long_double_peak_speeds(single, offset)
+        for threshold in (2 ** 62, 1):
+            monkeypatch.setattr(kin, '_COMPILED_MIN_CONFIGURATIONS', threshold)
+            np.testing.assert_allclose(
+                kin.peak_ram_speeds(single, offset), expected, rtol=2e-14,
+                err_msg=f'design {index}: {single}, offset {offset}, threshold {threshold}')
 
 
 def test_large_sweeps_take_the_compiled_search(monkeypatch):
