@@ -448,10 +448,14 @@ def _flat_design(geometry, offset):
 
 
 def _peak_problem(geometry, offset):
-    shape, (r1, r, h, height, phase, offset) = _flat_design(geometry, offset)
-    problem = _PeakProblem(r1, r, h, height, phase, np.cos(phase), np.sin(phase), offset,
-                           (r1 - offset) * (r1 + offset))
-    return shape, problem
+    shape, flat = _flat_design(geometry, offset)
+    return shape, _problem_of(flat)
+
+
+def _problem_of(flat):
+    r1, r, h, height, phase, offset = flat
+    return _PeakProblem(r1, r, h, height, phase, np.cos(phase), np.sin(phase), offset,
+                        (r1 - offset) * (r1 + offset))
 
 
 def _compiled_peak_search():
@@ -474,20 +478,24 @@ def _peak_speeds_forward(geometry, offset):
     search = (_compiled_peak_search() if flat[0].size >= _COMPILED_MIN_CONFIGURATIONS
               else None)
     if search is None:
-        return _peak_speeds_numpy(geometry, offset)
+        return _numpy_peak_search(shape, _problem_of(flat))
     cutting, returning = search(*flat, *_PEAK_SAMPLES, _NEWTON_ANGLE_TOLERANCE,
                                 _BRACKET_RESOLUTION, _NEWTON_MAX_STEPS)
     return cutting.reshape(shape), returning.reshape(shape)
 
 
 def _peak_speeds_numpy(geometry, offset):
+    """Forward peak speeds by the numpy search at any size (the compiled one's reference)."""
+    return _numpy_peak_search(*_peak_problem(geometry, offset))
+
+
+def _numpy_peak_search(shape, problem):
     """
-    Forward peak speeds by the numpy search (kept as a reference of the compiled one).
+    Forward peak speeds of flat configurations by numpy, reshaped to the sweep's shape.
 
     Configurations are taken in blocks small enough for numpy's temporaries to stay in the
     processor cache (several times faster than whole-array passes on large sweeps).
     """
-    shape, problem = _peak_problem(geometry, offset)
     cutting = np.empty(problem.offset.size)
     returning = np.empty(problem.offset.size)
     for first in range(0, problem.offset.size, _PEAK_BLOCK):
