@@ -60,9 +60,10 @@ _NEWTON_MAX_STEPS = 60
 # Configurations per block of the peak search (keeps numpy's temporaries in cache).
 _PEAK_BLOCK = 2048
 # Sweeps of this many configurations or more take the compiled peak search: in a new
-# process, importing numba and loading the cached machine code take 0.5-0.8 s (compiling, if
-# the cache is missing or stale, 3-5 s), as long as numpy's search takes for 1-2 x 10^5
-# configurations. Smaller sweeps (the node, the CLIs' tables and figures) never load it.
+# process, importing numba and loading the cached machine code take 0.3 s (0.5-0.8 s on a
+# busy machine; compiling, if the cache is missing or stale, 2-5 s), as long as numpy's
+# search takes for about 10^5 configurations. Smaller sweeps (the node, the CLIs' tables and
+# figures) never load it.
 _COMPILED_MIN_CONFIGURATIONS = 50_000
 _BRACKET_RESOLUTION = 4.0 * np.finfo(float).eps
 

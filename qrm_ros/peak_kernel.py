@@ -21,9 +21,9 @@ slopes of kinematics._ram_speed_terms) in every bracket where |v| rises then fal
 formulas are those of kinematics, written out for scalars; the tests hold the two to
 agree to 1e-12 (they do to 5e-14). Imported only for sweeps big enough to repay loading it
 (kinematics._COMPILED_MIN_CONFIGURATIONS): importing numba and loading the cached machine
-code take 0.5-0.8 s; the first import compiles (3-5 s), cached beside this file (or in
-numba's user cache) until the file changes. peak_speeds is compiled for its one signature
-on import, so no call can start another compilation.
+code take 0.3 s (0.5-0.8 s on a busy machine); the first import compiles (2 s, 3-5 s busy),
+cached beside this file (or in numba's user cache) until the file changes. peak_speeds is
+compiled for its one signature on import, so no call can start another compilation.
 """
 
 import math
