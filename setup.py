@@ -30,7 +30,8 @@ setup(
         ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
         ('share/' + package_name + '/urdf', glob('urdf/*.urdf')),
     ],
-    install_requires=['setuptools', 'numpy', 'scipy', 'mcap', 'rosbags', 'matplotlib', 'tqdm'],
+    install_requires=['setuptools', 'numpy', 'scipy', 'mcap', 'rosbags', 'matplotlib', 'tqdm',
+                      'numba'],
     extras_require={
         'test': ['pytest', 'flake8', 'pydocstyle', 'mcap-ros2-support', 'pyyaml',
                  'yourdfpy', 'mypy'],

@@ -59,6 +59,12 @@ _NEWTON_ANGLE_TOLERANCE = 1e-7
 _NEWTON_MAX_STEPS = 60
 # Configurations per block of the peak search (keeps numpy's temporaries in cache).
 _PEAK_BLOCK = 2048
+# Sweeps of this many configurations or more take the compiled peak search: in a new
+# process, importing numba and loading the cached machine code take 0.3 s (0.5-0.8 s on a
+# busy machine; compiling, if the cache is missing or stale, 2-5 s), as long as numpy's
+# search takes for about 10^5 configurations. Smaller sweeps (the node, the CLIs' tables and
+# figures) never load it.
+_COMPILED_MIN_CONFIGURATIONS = 50_000
 _BRACKET_RESOLUTION = 4.0 * np.finfo(float).eps
 
 
@@ -433,25 +439,64 @@ def _speed_rise(crank_angle, problem):
             - offset_cos * (np.sqrt(root2) - offset_sin) * lever)
 
 
-def _peak_problem(geometry, offset):
+def _flat_design(geometry, offset):
+    """Broadcast shape, and (r1, r, h, ram height, crank phase, offset) as flat arrays."""
     offset = np.asarray(check_offset(geometry, offset), dtype=float)
-    values = [np.asarray(v, dtype=float) for v in geometry.as_dict().values()]
-    shape = np.broadcast_shapes(offset.shape, *(v.shape for v in values))
-    r1, r, h, height, phase = (np.broadcast_to(v, shape).reshape(-1) for v in values)
-    offset = np.broadcast_to(offset, shape).reshape(-1)
-    problem = _PeakProblem(r1, r, h, height, phase, np.cos(phase), np.sin(phase), offset,
-                           (r1 - offset) * (r1 + offset))
-    return shape, problem
+    values = [np.asarray(v, dtype=float) for v in geometry.as_dict().values()] + [offset]
+    shape = np.broadcast_shapes(*(v.shape for v in values))
+    # Fresh arrays: one type (contiguous, writeable) for the compiled search's signature.
+    return shape, [np.array(np.broadcast_to(v, shape).reshape(-1)) for v in values]
+
+
+def _peak_problem(geometry, offset):
+    shape, flat = _flat_design(geometry, offset)
+    return shape, _problem_of(flat)
+
+
+def _problem_of(flat):
+    r1, r, h, height, phase, offset = flat
+    return _PeakProblem(r1, r, h, height, phase, np.cos(phase), np.sin(phase), offset,
+                        (r1 - offset) * (r1 + offset))
+
+
+def _compiled_peak_search():
+    """Return the compiled peak search, or None without numba (numpy's search then)."""
+    try:
+        from qrm_ros import peak_kernel
+    except ImportError:
+        return None
+    return peak_kernel.peak_speeds
 
 
 def _peak_speeds_forward(geometry, offset):
     """
     Largest |ram velocity| on the cut and on the return, per unit input speed.
 
+    Sweeps of _COMPILED_MIN_CONFIGURATIONS or more take the compiled search
+    (qrm_ros.peak_kernel), smaller ones the same method in numpy (_peak_speeds_numpy).
+    """
+    shape, flat = _flat_design(geometry, offset)
+    search = (_compiled_peak_search() if flat[0].size >= _COMPILED_MIN_CONFIGURATIONS
+              else None)
+    if search is None:
+        return _numpy_peak_search(shape, _problem_of(flat))
+    cutting, returning = search(*flat, *_PEAK_SAMPLES, _NEWTON_ANGLE_TOLERANCE,
+                                _BRACKET_RESOLUTION, _NEWTON_MAX_STEPS)
+    return cutting.reshape(shape), returning.reshape(shape)
+
+
+def _peak_speeds_numpy(geometry, offset):
+    """Forward peak speeds by the numpy search at any size (the compiled one's reference)."""
+    return _numpy_peak_search(*_peak_problem(geometry, offset))
+
+
+def _numpy_peak_search(shape, problem):
+    """
+    Forward peak speeds of flat configurations by numpy, reshaped to the sweep's shape.
+
     Configurations are taken in blocks small enough for numpy's temporaries to stay in the
     processor cache (several times faster than whole-array passes on large sweeps).
     """
-    shape, problem = _peak_problem(geometry, offset)
     cutting = np.empty(problem.offset.size)
     returning = np.empty(problem.offset.size)
     for first in range(0, problem.offset.size, _PEAK_BLOCK):

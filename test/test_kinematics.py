@@ -20,12 +20,14 @@ differences, RK4 integration of the paper's eq. (20), or brute-force dense sampl
 """
 
 import math
+import sys
 
 import numpy as np
 import pytest
 from scipy import optimize
 
 from qrm_ros import kinematics as kin
+from qrm_ros import peak_kernel
 
 PAPER = kin.Geometry.paper()
 OFFSETS = [-0.02, -0.015, -0.0111725663716814, -0.005, 0.0, 0.005, 0.01, 0.015, 0.02]
@@ -220,9 +222,25 @@ def dense_peak_speeds(geometry, offset, input_speed=1.0, samples=400_001):
     return -velocity.min(), velocity.max()
 
 
+@pytest.fixture(params=['numpy', 'compiled'])
+def peak_search(request, monkeypatch):
+    """
+    Run a test through each peak search: the numpy one, and the compiled one at any size.
+
+    peak_ram_speeds takes the compiled search (qrm_ros.peak_kernel) only on sweeps of
+    kin._COMPILED_MIN_CONFIGURATIONS or more; the threshold is moved to pick one.
+    """
+    compiled = request.param == 'compiled'
+    if compiled:
+        assert kin._compiled_peak_search() is not None, 'numba is a pinned dependency'
+    monkeypatch.setattr(kin, '_COMPILED_MIN_CONFIGURATIONS', 1 if compiled else 2 ** 62)
+    return request.param
+
+
 @pytest.mark.parametrize('offset', OFFSETS + [0.0225, -0.0225])
 @pytest.mark.parametrize('geometry', [PAPER, PHASED, kin.Geometry(0.025, 0.02, 0.113)],
                          ids=['paper', 'phased', 'short'])
+@pytest.mark.usefixtures('peak_search')
 def test_peak_speeds_match_dense_sampling(geometry, offset):
     cutting, returning = kin.peak_ram_speeds(geometry, offset, 2.0)
     dense_cut, dense_return = dense_peak_speeds(geometry, offset, 2.0)
@@ -235,11 +253,13 @@ def test_peak_speeds_match_dense_sampling(geometry, offset):
         dense_return / dense_cut, rel=5e-8)
 
 
+@pytest.mark.usefixtures('peak_search')
 def test_peak_speed_ratio_equals_mid_stroke_ratio_without_offset():
     assert kin.peak_speed_ratio(PAPER, 0.0) == pytest.approx(kin.speed_ratio(PAPER, 0.0),
                                                              rel=1e-12)
 
 
+@pytest.mark.usefixtures('peak_search')
 def test_peak_speeds_are_found_exactly_not_on_a_grid():
     """At a speed maximum the ram acceleration is zero (to rounding)."""
     cutting, _ = kin.peak_ram_speeds(PAPER, 0.01, 1.0)
@@ -318,13 +338,14 @@ TWO_PEAKED = kin.Geometry(0.025, 0.07, 0.113)
 
 @pytest.mark.parametrize('start', [0.5 * math.pi, 0.72, 0.9],
                          ids=['on-the-minimum', 'step-leaves-bracket', 'convex'])
-def test_newton_safeguard_finds_the_peak_not_the_minimum_between(start):
+def test_newton_safeguard_finds_the_peak_not_the_minimum_between(start, monkeypatch):
     """
     A bracket holding two peaks and the minimum between, from starts where plain Newton fails.
 
     On the mid-stroke minimum dv/dphi_c is zero, so a plain Newton step stays there; from
     0.72 rad its step leaves the bracket; from 0.9 rad (|v| convex) it heads for the minimum.
-    The safeguard bisects instead, and every start ends on a peak.
+    The safeguard bisects instead, and every start ends on a peak: numpy's Newton and the
+    compiled one (kernel._newton_peak, from the bracket's low end).
     """
     peak, minimum = lever_only_peak_cutting_speed(TWO_PEAKED)
     assert minimum < peak * (1 - 1e-2)
@@ -332,8 +353,20 @@ def test_newton_safeguard_finds_the_peak_not_the_minimum_between(start):
     speed = kin._newton_peaks(problem, -1.0, np.array([start]), np.array([0.2]),
                               np.array([math.pi - 0.2]))
     assert abs(speed[0]) == pytest.approx(peak, rel=1e-14)
-    cutting, _ = kin.peak_ram_speeds(TWO_PEAKED, 0.0)
-    assert cutting == pytest.approx(peak, rel=1e-14)
+    r1, r, h, height = (getattr(TWO_PEAKED, name) for name in (
+        'coupling_radius', 'crank_radius', 'pivot_distance', 'ram_height'))
+    constants = (r1, r, h, height, 1.0, 0.0, 0.0, r1 * r1)
+    _, root = peak_kernel._newton_peak(
+        -1.0, 0.2, math.sin(0.2), math.cos(0.2), start, math.pi - 0.2,
+        kin._NEWTON_ANGLE_TOLERANCE, kin._BRACKET_RESOLUTION, kin._NEWTON_MAX_STEPS,
+        *constants)
+    speed_at_root = peak_kernel._velocity(math.sin(root), math.cos(root), *constants)
+    assert abs(speed_at_root) == pytest.approx(peak, rel=1e-14)
+    for search in ('numpy', 'compiled'):
+        monkeypatch.setattr(kin, '_COMPILED_MIN_CONFIGURATIONS',
+                            1 if search == 'compiled' else 2 ** 62)
+        cutting, _ = kin.peak_ram_speeds(TWO_PEAKED, 0.0)
+        assert cutting == pytest.approx(peak, rel=1e-14), search
 
 
 @pytest.mark.parametrize('crank_ratio, offset_ratio, phase', [
@@ -341,6 +374,7 @@ def test_newton_safeguard_finds_the_peak_not_the_minimum_between(start):
     (0.10835303135629527, 0.7495935937551267, 0.5028187362287926),
     (0.5088495575221239, 0.0, 2.56),  # r/h just above 1/2: twin peaks around a minimum
 ])
+@pytest.mark.usefixtures('peak_search')
 def test_peaks_that_fewer_samples_missed(crank_ratio, offset_ratio, phase):
     """
     Designs where a peak was once missed.
@@ -353,6 +387,123 @@ def test_peaks_that_fewer_samples_missed(crank_ratio, offset_ratio, phase):
     np.testing.assert_allclose(kin.peak_ram_speeds(geometry, offset_ratio * 0.025),
                                refined_dense_peak_speeds(geometry, offset_ratio * 0.025),
                                rtol=1e-12)
+
+
+def test_compiled_search_matches_the_numpy_search_over_many_random_designs(monkeypatch):
+    """10^4 designs (offsets up to 0.999 r1, both running directions): the same peaks."""
+    geometry, offsets = random_designs(10_000, 8)
+    input_speed = np.where(np.arange(10_000) % 2 == 0, 2.0, -2.0)
+    _, flat = kin._flat_design(geometry, offsets)
+    compiled = peak_kernel.peak_speeds(*flat, *kin._PEAK_SAMPLES, kin._NEWTON_ANGLE_TOLERANCE,
+                                       kin._BRACKET_RESOLUTION, kin._NEWTON_MAX_STEPS)
+    np.testing.assert_allclose(compiled, kin._peak_speeds_numpy(geometry, offsets), rtol=1e-12)
+    by_numpy = kin.peak_ram_speeds(geometry, offsets, input_speed)
+    monkeypatch.setattr(kin, '_COMPILED_MIN_CONFIGURATIONS', 1)
+    np.testing.assert_allclose(kin.peak_ram_speeds(geometry, offsets, input_speed), by_numpy,
+                               rtol=1e-12)
+
+
+def long_double_peak_speeds(geometry, offset, samples=20_001):
+    """
+    Forward peak speeds in extended precision: v = dx/dphi_c times the paper's eq. (20).
+
+    x = H tan(psi) with tan(psi) = r cos(phi_c) / (h + r sin(phi_c)), differentiated by hand;
+    dense crank-angle samples per stroke, then every local maximum near the best refined by
+    golden-section search, all in numpy's long double (80-bit here).
+    """
+    ld = np.longdouble
+    r1, r, h, height, phase = (ld(getattr(geometry, name)) for name in geometry.field_names())
+    d = ld(offset)
+
+    def speed(angle):
+        sin_c = np.sin(angle)
+        flywheel = angle - phase
+        sin_f, cos_f = np.sin(flywheel), np.cos(flywheel)
+        pin = d * sin_f + np.sqrt(r1 * r1 - (d * cos_f) ** 2)
+        coupling = (r1 * r1 - d * d + d * pin * sin_f) / (pin * pin)
+        return -height * r * (h * sin_c + r) / (h + r * sin_c) ** 2 * coupling
+
+    gap, half_turn = np.arcsin(r / h), ld(math.pi)
+    golden = (np.sqrt(ld(5)) - 1) / 2
+    peaks = []
+    strokes = ((-1, -gap, half_turn + gap), (1, half_turn + gap, 2 * half_turn - gap))
+    for sign, start, end in strokes:
+        angles = start + (end - start) * np.arange(samples, dtype=ld) / (samples - 1)
+        values = sign * speed(angles)
+        best = values.max()
+        inner = np.nonzero((values[1:-1] >= values[:-2]) & (values[1:-1] >= values[2:])
+                           & (values[1:-1] > best * (1 - 1e-3)))[0] + 1
+        for k in inner:
+            low, high = angles[k - 1], angles[k + 1]
+            for _ in range(120):
+                left, right = high - golden * (high - low), low + golden * (high - low)
+                if sign * speed(left) < sign * speed(right):
+                    low = left
+                else:
+                    high = right
+            best = max(best, sign * speed((low + high) / 2))
+        peaks.append(float(best))
+    return peaks
+
+
+@pytest.mark.skipif(np.finfo(np.longdouble).eps > 1e-18, reason='long double is double here')
+def test_peaks_match_an_extended_precision_search(monkeypatch):
+    """
+    Designs with offsets of 0.999 r1 and ordinary ones: exact to a few ulps, not 1e-12.
+
+    Both searches (the threshold moved for the compiled one) against one reference each.
+    """
+    geometry, offsets = random_designs(400, 30)
+    fraction = offsets / geometry.coupling_radius
+    edge = np.nonzero(np.abs(np.abs(fraction) - 0.999) < 1e-9)[0][:20]
+    for index in list(edge) + list(range(10)):
+        single, offset = one_design(geometry, offsets, index)
+        expected = long_double_peak_speeds(single, offset)
+        for threshold in (2 ** 62, 1):
+            monkeypatch.setattr(kin, '_COMPILED_MIN_CONFIGURATIONS', threshold)
+            np.testing.assert_allclose(
+                kin.peak_ram_speeds(single, offset), expected, rtol=2e-14,
+                err_msg=f'design {index}: {single}, offset {offset}, threshold {threshold}')
+
+
+def test_large_sweeps_take_the_compiled_search(monkeypatch):
+    calls = []
+
+    def spy(*args):
+        calls.append(args[0].size)
+        return peak_kernel.peak_speeds(*args)
+
+    monkeypatch.setattr(kin, '_COMPILED_MIN_CONFIGURATIONS', 300)
+    monkeypatch.setattr(kin, '_compiled_peak_search', lambda: spy)
+    offsets = np.linspace(-0.02, 0.02, 300)
+    numpy_peaks = kin._peak_speeds_numpy(PAPER, offsets)
+    np.testing.assert_allclose(kin.peak_ram_speeds(PAPER, offsets), numpy_peaks, rtol=1e-13)
+    np.testing.assert_allclose(kin.peak_ram_speeds(PAPER, offsets[:-1]),
+                               [p[:-1] for p in numpy_peaks], rtol=1e-13)
+    assert calls == [300]
+
+
+def test_without_numba_large_sweeps_take_the_numpy_search(monkeypatch):
+    import qrm_ros
+    monkeypatch.delattr(qrm_ros, 'peak_kernel', raising=False)
+    monkeypatch.setitem(sys.modules, 'qrm_ros.peak_kernel', None)  # import fails
+    assert kin._compiled_peak_search() is None
+    monkeypatch.setattr(kin, '_COMPILED_MIN_CONFIGURATIONS', 10)
+    offsets = np.linspace(-0.02, 0.02, 20)
+    np.testing.assert_array_equal(kin.peak_ram_speeds(PAPER, offsets),
+                                  kin._peak_speeds_numpy(PAPER, offsets))
+
+
+def test_rotation_series_match_sin_and_cos():
+    """The compiled search's rotations by series and by sin and cos: alike to rounding."""
+    rng = np.random.default_rng(9)
+    edges = [0.0, 0.3, -0.3, 1e-3, -1e-3, 2.0]
+    for delta in np.concatenate([rng.uniform(-0.3, 0.3, 500), rng.uniform(-1e-3, 1e-3, 500),
+                                 rng.uniform(-1e-9, 1e-9, 50), edges]):
+        angle = rng.uniform(-4.0, 7.0)
+        rotated = peak_kernel._rotate(math.sin(angle), math.cos(angle), delta)
+        np.testing.assert_allclose(rotated, (math.sin(angle + delta), math.cos(angle + delta)),
+                                   rtol=0, atol=1e-15, err_msg=f'delta {delta}')
 
 
 def test_speed_rise_has_the_sign_of_the_speed_slope():
@@ -380,22 +531,34 @@ def test_speed_rise_has_the_sign_of_the_speed_slope():
 
 
 @pytest.mark.parametrize('seed', [1, 2])
-def test_peak_speeds_match_refined_dense_sampling_over_random_designs(seed):
-    """Vectorised peaks against refined dense sampling, design by design, both directions."""
+def test_peak_speeds_match_refined_dense_sampling_over_random_designs(seed, monkeypatch):
+    """
+    Vectorised peaks against refined dense sampling, design by design, both directions.
+
+    Both searches (numpy's, and the compiled one the threshold is moved for) against the
+    one dense reference; scalar calls take the numpy search.
+    """
     geometry, offsets = random_designs(40, seed)
     input_speed = np.where(np.arange(40) % 2 == 0, 3.0, -3.0)
     cutting, returning = kin.peak_ram_speeds(geometry, offsets, input_speed)
-    assert cutting.shape == returning.shape == (40,)
+    monkeypatch.setattr(kin, '_COMPILED_MIN_CONFIGURATIONS', 1)
+    compiled = kin.peak_ram_speeds(geometry, offsets, input_speed)
+    monkeypatch.undo()
+    assert cutting.shape == returning.shape == compiled[0].shape == (40,)
     for index in range(40):
         single, offset = one_design(geometry, offsets, index)
         expected = refined_dense_peak_speeds(single, offset, input_speed[index])
+        message = f'design {index}: {single}, offset {offset}'
         np.testing.assert_allclose((cutting[index], returning[index]), expected, rtol=1e-12,
-                                   err_msg=f'design {index}: {single}, offset {offset}')
+                                   err_msg=message)
+        np.testing.assert_allclose((compiled[0][index], compiled[1][index]), expected,
+                                   rtol=1e-12, err_msg=message)
         np.testing.assert_allclose(kin.peak_ram_speeds(single, offset, input_speed[index]),
                                    (cutting[index], returning[index]), rtol=1e-14)
 
 
 @pytest.mark.parametrize('seed', [3, 4])
+@pytest.mark.usefixtures('peak_search')
 def test_peak_speeds_match_the_bracketing_method_within_the_safe_offset(seed):
     """The previous method (48 samples per stroke, Chandrupatla) as the reference."""
     geometry, offsets = random_designs(400, seed)
@@ -407,6 +570,7 @@ def test_peak_speeds_match_the_bracketing_method_within_the_safe_offset(seed):
 
 
 @pytest.mark.parametrize('target', [0.26, 0.3, 0.388, 0.6, 1.5])
+@pytest.mark.usefixtures('peak_search')
 def test_offset_for_cutting_speed_round_trips(target):
     input_speed = 2 * math.pi
     offset = kin.offset_for_cutting_speed(PAPER, input_speed, target)
@@ -431,6 +595,7 @@ def test_inverse_coupling_round_trips(offset):
     np.testing.assert_allclose(np.angle(np.exp(1j * (back - theta))), 0.0, atol=1e-13)
 
 
+@pytest.mark.usefixtures('peak_search')
 def test_vectorised_calls_match_scalar_calls():
     offsets = np.array(OFFSETS)
     for function in (kin.time_ratio, kin.speed_ratio, kin.peak_speed_ratio):
