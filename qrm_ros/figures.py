@@ -211,13 +211,14 @@ def input_torque_figure(analysis):
     """Input torque over one revolution per segment: recorded, theory and its parts."""
     from qrm_ros.analysis import input_torque_parts
     recording = analysis.recording
-    geometry, samples, drive = recording.geometry, recording.samples, recording.drive
+    geometry, samples = recording.geometry, recording.samples
     shown = list(zip(analysis.rows, analysis.segments))[:MAX_TORQUE_PANELS]
     count = max(len(shown), 1)
     figure, panels = plt.subplots(count, 1, figsize=(8, 2.6 * count + 1.0), sharex=True,
                                   squeeze=False)
     theta = _input_angle_grid()
     for axes, (row, segment) in zip(panels[:, 0], shown):
+        drive = segment.drive  # the masses and loads in force there
         axes.set_title(f'δ = {row["offset"] * 1e3:g} mm (δ/h = '
                        f'{row["offset_over_pivot_distance"]:+.4f}), '
                        f'{row["input_speed"]:g} rad/s', fontsize='medium')
