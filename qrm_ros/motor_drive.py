@@ -307,7 +307,6 @@ class MotorStepper:
     def __init__(self, geometry, mass, loads, motor, input_speed, offset,
                  input_acceleration_limit, offset_rate_limit):
         self._geometry = geometry
-        self._geometry_fields = dyn._geometry_fields(geometry)
         self._acceleration_limit = _positive('input_acceleration_limit',
                                              input_acceleration_limit, 'rad/s^2')
         self._offset_rate_limit = _positive('offset_rate_limit', offset_rate_limit, 'm/s')
@@ -319,7 +318,8 @@ class MotorStepper:
 
     def _set_dynamics(self, mass, loads, motor):
         self._mass = mass
-        self._mass_values = mass.scalars()
+        # The chain's fixed arguments: math's functions, the geometry, the masses as floats.
+        self._fixed = (dyn._SCALAR_OPS, *dyn._geometry_fields(self._geometry), mass.scalars())
         self._loads = loads.check_against(self._geometry.ram_stroke)
         loads.scalars()
         self._motor = motor
@@ -328,6 +328,7 @@ class MotorStepper:
 
     def _changed(self, change):
         """Apply change at the present stamp: the state there starts a new segment."""
+        self._acceleration_now = None
         if self._stamp_ns is None:
             change()
             return
@@ -381,6 +382,7 @@ class MotorStepper:
         self._load = 0.0
         self._saturation = 0
         self._piece = (0.0, 0.0, None)
+        self._acceleration_now = None
 
     def restore(self, stamp_ns, input_angle, input_speed, offset, speed_reference=None):
         """
@@ -428,8 +430,8 @@ class MotorStepper:
                      time - self._segment_start)[0]
 
     def _chain(self, offset, angle, speed, offset_rate):
-        return dyn._chain(dyn._SCALAR_OPS, *self._geometry_fields, self._mass_values, offset,
-                          angle, speed, 0.0, offset_rate, 0.0, 0.0)
+        """Evaluate the chain at zero input acceleration; all arguments plain floats."""
+        return dyn._chain(*self._fixed, offset, angle, speed, 0.0, offset_rate, 0.0, 0.0)
 
     def _motor_torque(self, reference, speed, saturation):
         if self._motor is None:
@@ -448,24 +450,34 @@ class MotorStepper:
         return (torque - bias) / chain.generalized_inertia
 
     def _rhs(self, time, y):
-        reference = self._reference_at(time)
+        """Right-hand side for DOP853 (y an array: its values go on as plain floats)."""
+        angle, speed = y.tolist()
+        return [speed, self._acceleration_at(float(time), angle, speed)]
+
+    def _acceleration_at(self, time, angle, speed):
+        """Input acceleration (rad/s^2) from the equation of motion in the present segment."""
+        reference = (self._speed_command if time >= self._reference_end else
+                     self._reference_at(time))
         offset = (self._offset_command if time >= self._offset_end else
                   _ramp(self._segment_offset, self._offset_command, self._offset_rate_limit,
                         time - self._segment_start)[0])
-        chain = self._chain(offset, y[0], y[1], self._offset_rate)
-        torque = self._motor_torque(reference, y[1], self._saturation)
-        return [y[1], self._acceleration(chain, torque, self._load)]
+        chain = self._chain(offset, angle, speed, self._offset_rate)
+        torque = self._motor_torque(reference, speed, self._saturation)
+        return self._acceleration(chain, torque, self._load)
 
     def _switching(self, time, angle, speed):
         """Values that stay > 0 while the segment's mode holds (one per switch kind)."""
-        chain = self._chain(self._offset_at(time), angle, speed, self._offset_rate)
+        offset = self._offset_command if time >= self._offset_end else self._offset_at(time)
+        chain = self._chain(offset, angle, speed, self._offset_rate)
         values = [self._direction * chain.ram_velocity,
                   (self._half_work - abs(chain.ram_position)) * (1 if self._in_work else -1)
                   if self._loads.cutting_force > 0.0 else 1.0]
         if self._motor is None:
             values.append(1.0)
         else:
-            demand = self._motor.speed_stiffness * (self._reference_at(time) - speed)
+            reference = (self._speed_command if time >= self._reference_end else
+                         self._reference_at(time))
+            demand = self._motor.speed_stiffness * (reference - speed)
             limit = self._motor.max_torque
             values.append(limit - abs(demand) if self._saturation == 0
                           else self._saturation * demand - limit)
@@ -486,6 +498,7 @@ class MotorStepper:
 
     def _start(self, time, angle, speed, reference, offset, trigger):
         """Start a segment at time with this state; choose its mode from the state."""
+        self._acceleration_now = None
         old_rate = self._offset_rate
         gap = self._offset_command - offset
         rate = math.copysign(self._offset_rate_limit, gap) if gap else 0.0
@@ -595,16 +608,18 @@ class MotorStepper:
                     self._offset_at(time), kind)
 
     def _first_switch(self, dense, start, end):
-        times = np.linspace(start, end, _ROOT_SAMPLES + 1)
-        states = dense(times)
-        previous = self._switching(times[0], states[0, 0], states[1, 0])
-        for index in range(1, times.size):
-            values = self._switching(times[index], states[0, index], states[1, index])
+        # np.linspace(start, end, _ROOT_SAMPLES + 1), the same numbers without its overhead.
+        step = (end - start) / _ROOT_SAMPLES
+        times = [index * step + start for index in range(_ROOT_SAMPLES)] + [end]
+        angles, speeds = dense(times).tolist()
+        previous = self._switching(times[0], angles[0], speeds[0])
+        for index in range(1, len(times)):
+            values = self._switching(times[index], angles[index], speeds[index])
             found = []
             for kind, (before, after) in enumerate(zip(previous, values)):
                 if before > 0.0 and after <= 0.0:
                     if after == 0.0:
-                        found.append((float(times[index]), kind))
+                        found.append((times[index], kind))
                         continue
 
                     def switching(time, kind=kind):
@@ -636,6 +651,7 @@ class MotorStepper:
         self._stamp_ns = stamp_ns
         time = (stamp_ns - self._base_ns) / _NANOSECONDS
         self._time = time
+        self._acceleration_now = None
         if self._spin == 0:
             # At rest: the reference may have ramped; re-check the stall rule now.
             self._start(time, self._angle, 0.0, self._reference_at(time),
@@ -663,8 +679,8 @@ class MotorStepper:
 
     def efforts(self):
         """``dynamics.Efforts`` at the present stamp (the motor's torque drives the input)."""
-        return dyn.efforts(self._geometry, self._mass, self.offset, self._angle, self._speed,
-                           self.input_acceleration, self.offset_rate, 0.0, self._load)
+        return dyn._chain(*self._fixed, self.offset, self._angle, self._speed,
+                          self.input_acceleration, self.offset_rate, 0.0, self._load).efforts
 
     # State --------------------------------------------------------------------------------
 
@@ -692,7 +708,9 @@ class MotorStepper:
         """Input shaft acceleration at the present stamp from the equation of motion, rad/s^2."""
         if self._spin == 0:
             return 0.0
-        return self._rhs(self._time, (self._angle, self._speed))[1]
+        if self._acceleration_now is None:  # once per stamp: the state and efforts need it
+            self._acceleration_now = self._acceleration_at(self._time, self._angle, self._speed)
+        return self._acceleration_now
 
     @property
     def motor_torque(self):
