@@ -312,6 +312,9 @@ class MotorStepper:
         self._offset_rate_limit = _positive('offset_rate_limit', offset_rate_limit, 'm/s')
         self._set_dynamics(mass, loads, motor)
         self.time_resets = 0
+        # Called with (start, end, dense output) of every piece of trajectory as it is made,
+        # while its segment is still in force (speed_fluctuation's exact extremes).
+        self._observer = None
         self.reset(input_speed, offset)
 
     # Commands -----------------------------------------------------------------------------
@@ -600,9 +603,13 @@ class MotorStepper:
         switch = self._first_switch(dense, start, end)
         if switch is None:
             self._piece = (start, end, dense)
+            if self._observer is not None:
+                self._observer(start, end, dense)
             return
         time, kind = switch
         self._piece = (start, time, dense)
+        if self._observer is not None:
+            self._observer(start, time, dense)
         angle, speed = dense(time)
         self._start(time, float(angle), float(speed), self._reference_at(time),
                     self._offset_at(time), kind)
@@ -809,11 +816,17 @@ def simulate(geometry, mass, loads, motor, offset, input_speed, duration, sample
                       stalled=table[:, 9].astype(bool))
 
 
-# Steady state of speed_fluctuation: samples per revolution, and when a revolution's Cs is
-# taken as periodic (relative change from the previous one).
-_FLUCTUATION_SAMPLES = 400
-_PERIODIC_TOLERANCE = 1e-4
-_MAX_REVOLUTIONS = 400
+# Steady state of speed_fluctuation: when the revolution's start speed is periodic
+# (relative), and at most how many revolutions to try. Stamps per revolution that drive the
+# stepper (the figures come from its dense output, not from these).
+_PERIODIC_TOLERANCE = 1e-10
+_MAX_REVOLUTIONS = 200
+_DRIVE_STAMPS = 50
+# Acceleration samples per piece when looking for the input speed's extremes.
+_EXTREMUM_SAMPLES = 5
+# Gauss-Legendre nodes per piece: the dense output is of degree 7 in time, so the motor's
+# torque times the speed and its square (degree 14) are integrated exactly.
+_PIECE_NODES, _PIECE_WEIGHTS = special.roots_legendre(8)
 
 
 class SpeedFluctuation(NamedTuple):
@@ -824,64 +837,172 @@ class SpeedFluctuation(NamedTuple):
     pair_efforts: PairEfforts
 
 
-def _revolution(stepper, start_ns, step_ns, geometry):
-    """Sample one input revolution from start_ns; return its figures and the end stamp."""
-    start_angle, turned = stepper.input_angle, 0.0
-    previous = start_angle
-    stamp = start_ns
-    rows = []
-    while True:
+class _RevolutionTracker:
+    """
+    Follow a MotorStepper's pieces of trajectory through one input revolution from angle 0.
+
+    The revolution ends where the angle turned reaches 2 pi (brentq on the dense output).
+    The input speed's extremes are at the ends of the pieces (a load switch makes the
+    acceleration jump) or where the acceleration from the equation of motion is zero
+    (brentq on it along the dense output), so max and min are exact to the integration.
+    The motor's work and the integral of its torque squared are Gauss-Legendre sums on each
+    piece, exact for the dense output; the offset force's peak is refined (bounded Brent)
+    around the largest sample of each piece that comes near the peak so far.
+    """
+
+    def __init__(self, stepper):
+        self._stepper = stepper
+        self.turned = self.work = self.torque_square = self.peak_offset_force = 0.0
+        self.end_time = self.end_speed = None
+        self.highest, self.lowest = -math.inf, math.inf
+
+    def _take(self, speed):
+        self.highest, self.lowest = max(self.highest, speed), min(self.lowest, speed)
+
+    def piece(self, start, end, dense):
+        """Take in the piece [start, end] (s) of the segment in force, up to the end."""
+        if self.end_time is not None:
+            return
+        angle_at_start, speed_at_start = (float(value) for value in dense(start))
+        self._take(speed_at_start)
+        angle_at_end = float(dense(end)[0])
+        rest = 2.0 * math.pi - self.turned
+        if angle_at_end - angle_at_start >= rest:
+            end = optimize.brentq(lambda time: float(dense(time)[0]) - angle_at_start - rest,
+                                  start, end, xtol=1e-15, rtol=4 * np.finfo(float).eps)
+            self.end_time = end
+        self.turned += angle_at_end - angle_at_start
+        self._extremes(start, end, dense)
+        self._integrals(start, end, dense)
+
+    def _extremes(self, start, end, dense):
+        step = (end - start) / _EXTREMUM_SAMPLES
+        times = [index * step + start for index in range(_EXTREMUM_SAMPLES)] + [end]
+        angles, speeds = dense(times).tolist()
+        self._take(speeds[-1])
+        if self.end_time is not None:
+            self.end_speed = speeds[-1]
+        acceleration = self._stepper._acceleration_at
+        values = [acceleration(*sample) for sample in zip(times, angles, speeds)]
+        for index in range(1, len(times)):
+            if values[index - 1] * values[index] < 0.0:
+                def rate(time):
+                    angle, speed = dense(time)
+                    return acceleration(time, float(angle), float(speed))
+                root = optimize.brentq(rate, times[index - 1], times[index], xtol=1e-15,
+                                       rtol=4 * np.finfo(float).eps)
+                self._take(float(dense(root)[1]))
+
+    def _offset_force(self, time, angle, speed):
+        stepper = self._stepper
+        acceleration = stepper._acceleration_at(time, angle, speed)
+        return abs(dyn._chain(*stepper._fixed, stepper._offset_at(time), angle, speed,
+                              acceleration, stepper._offset_rate, 0.0,
+                              stepper._load).efforts.offset_force)
+
+    def _integrals(self, start, end, dense):
+        stepper = self._stepper
+        half = 0.5 * (end - start)
+        times = [start, *(0.5 * (start + end) + half * _PIECE_NODES).tolist(), end]
+        angles, speeds = dense(times).tolist()
+        work = square = 0.0
+        forces = []
+        for index, (time, angle, speed) in enumerate(zip(times, angles, speeds)):
+            forces.append(self._offset_force(time, angle, speed))
+            if 0 < index <= _PIECE_NODES.size:
+                torque = stepper._motor_torque(stepper._reference_at(time), speed,
+                                               stepper._saturation)
+                work += _PIECE_WEIGHTS[index - 1] * torque * speed
+                square += _PIECE_WEIGHTS[index - 1] * torque * torque
+        self.work += half * work
+        self.torque_square += half * square
+        best = int(np.argmax(forces))
+        if forces[best] >= (1.0 - _PEAK_CANDIDATE_MARGIN) * self.peak_offset_force:
+            low, high = times[max(best - 1, 0)], times[min(best + 1, len(times) - 1)]
+
+            def force(time):
+                angle, speed = dense(time)
+                return -self._offset_force(time, float(angle), float(speed))
+            refined = optimize.minimize_scalar(force, bounds=(low, high), method='bounded',
+                                               options={'xatol': 1e-12 * (high - low)})
+            forces.append(-float(refined.fun))
+        self.peak_offset_force = max(self.peak_offset_force, *forces)
+
+
+def _revolution(geometry, mass, loads, motor, offset, input_speed, start_speed):
+    """
+    Run one input revolution from angle 0 at start_speed, the motor's reference input_speed.
+
+    Return its SpeedFluctuation and the speed at its end.
+    """
+    stepper = MotorStepper(geometry, mass, loads, motor, start_speed, offset, 1.0, 1.0)
+    stepper.restore(0, 0.0, start_speed, offset, speed_reference=input_speed)
+    tracker = _RevolutionTracker(stepper)
+    stepper._observer = tracker.piece
+    step_ns = max(1, int(round(2.0 * math.pi / input_speed / _DRIVE_STAMPS * _NANOSECONDS)))
+    stamp = 0
+    while tracker.end_time is None:
         stamp += step_ns
         stepper.integrate_to(stamp)
         if stepper.stalled:
             raise dyn.DynamicsError(f'the machine stalls: {stepper.stall_reason}')
-        angle = stepper.input_angle
-        turned += wrap_angle(angle - previous)
-        previous = angle
-        rows.append((stamp, turned, stepper.input_speed, stepper.motor_torque,
-                     stepper.efforts().offset_force))
-        if abs(turned) >= 2.0 * math.pi:
-            break
-    table = np.array(rows)
-    times = (table[:, 0] - start_ns) / _NANOSECONDS
-    # The revolution ends between the last two samples: interpolate its time linearly.
-    over = (abs(table[-1, 1]) - 2.0 * math.pi) / abs(table[-1, 1] - table[-2, 1])
-    period = times[-1] - over * (times[-1] - times[-2])
-    speed, torque = table[:, 2], table[:, 3]
-    energy = float(integrate.trapezoid(torque * speed, times))
-    figures = PairEfforts(
-        peak_input_torque=float(np.max(np.abs(torque))),
-        rms_input_torque=math.sqrt(integrate.trapezoid(torque ** 2, times) / times[-1]),
-        mean_input_power=energy / times[-1], energy_per_pair=energy * period / times[-1],
-        peak_offset_force=float(np.max(np.abs(table[:, 4]))))
-    mean_speed = 2.0 * math.pi / period
-    fluctuation = (np.max(speed) - np.min(speed)) / mean_speed
-    return SpeedFluctuation(float(fluctuation), float(period), figures), int(table[-1, 0])
+    period = tracker.end_time
+    # The motor's torque depends on the speed alone (its law, clipped): its peak is at an
+    # extreme of the speed.
+    peak_torque = max(abs(stepper._motor_torque(input_speed, speed,
+                                                stepper._saturation_of(input_speed, speed)))
+                      for speed in (tracker.highest, tracker.lowest))
+    figures = PairEfforts(peak_input_torque=peak_torque,
+                          rms_input_torque=math.sqrt(tracker.torque_square / period),
+                          mean_input_power=tracker.work / period,
+                          energy_per_pair=tracker.work,
+                          peak_offset_force=tracker.peak_offset_force)
+    fluctuation = (tracker.highest - tracker.lowest) / (2.0 * math.pi / period)
+    return SpeedFluctuation(float(fluctuation), float(period), figures), tracker.end_speed
+
+
+def _steady_revolution(geometry, mass, loads, motor, offset, input_speed, start_speed):
+    """
+    Find the periodic steady state by shooting; return its revolution and start speed.
+
+    The speed one revolution later is a smooth map of the start speed (the system is
+    autonomous and periodic in the angle); its fixed point is found by secant steps, with
+    a plain revolution whenever a secant step does not halve the mismatch.
+    """
+    known = []  # (start speed, mismatch)
+    speed = start_speed
+    for _ in range(_MAX_REVOLUTIONS):
+        result, end_speed = _revolution(geometry, mass, loads, motor, offset, input_speed,
+                                        speed)
+        mismatch = end_speed - speed
+        if abs(mismatch) <= _PERIODIC_TOLERANCE * abs(speed):
+            return result, speed
+        known.append((speed, mismatch))
+        speed = end_speed
+        if len(known) >= 2:
+            (before, miss_before), (last, miss_last) = known[-2:]
+            converging = len(known) == 2 or abs(miss_last) <= 0.5 * abs(miss_before)
+            if converging and miss_last != miss_before:
+                secant = last - miss_last * (last - before) / (miss_last - miss_before)
+                if math.isfinite(secant) and secant > 0.0:
+                    speed = secant
+    raise dyn.DynamicsError(f'no periodic steady state within {_MAX_REVOLUTIONS} '
+                            f'revolutions (start speed still changing: {speed:.6g} rad/s)')
 
 
 def speed_fluctuation(geometry, mass, loads, motor, offset, input_speed):
     """
     Steady-state Cs = (max - min) / mean input speed per revolution under a motor drive.
 
-    The motor's reference is input_speed (rad/s, > 0); the run starts at that speed and goes
-    on until one revolution's Cs differs from the previous one's by less than 1e-4 relative.
-    Speeds are sampled 400 times a revolution (the extremes to about 1e-5 relative); the
-    PairEfforts are of that last revolution, by the trapezoid rule on the samples.
+    The motor's reference is input_speed (rad/s, > 0). The periodic steady state is found by
+    shooting on the speed at angle 0 (to 1e-10 relative); in its revolution the extremes of
+    the speed are located exactly (ends of the integration's pieces and the acceleration's
+    zeros on its dense output), and the revolution's time is exact. The PairEfforts are of
+    that revolution, integrated exactly on the dense output.
     """
     input_speed = _positive('input_speed', input_speed, 'rad/s')
-    stepper = MotorStepper(geometry, mass, loads, motor, input_speed, offset, 1.0, 1.0)
-    step_ns = max(1, int(round(2.0 * math.pi / input_speed / _FLUCTUATION_SAMPLES
-                               * _NANOSECONDS)))
-    stepper.integrate_to(0)
-    stamp, last = 0, None
-    for _ in range(_MAX_REVOLUTIONS):
-        result, stamp = _revolution(stepper, stamp, step_ns, geometry)
-        if last is not None and abs(result.fluctuation - last.fluctuation) <= (
-                _PERIODIC_TOLERANCE * result.fluctuation):
-            return result
-        last = result
-    raise dyn.DynamicsError(f'no steady state within {_MAX_REVOLUTIONS} revolutions (Cs '
-                            f'still changing: {last.fluctuation:.6g})')
+    return _steady_revolution(geometry, mass, loads, motor, offset, input_speed,
+                              input_speed)[0]
 
 
 def _with_input_inertia(mass, input_inertia):
@@ -911,15 +1032,24 @@ def input_inertia_for_speed_fluctuation(geometry, mass, loads, motor, offset, in
     other fields are kept.
 
     Starts from the energy method and solves Cs(input_inertia) = fluctuation by simulation
-    (brentq, to 1e-4 relative in Cs). A target above what the smallest inertia gives, or not
-    > 0, is refused with the reachable range.
+    (brentq on fluctuation / Cs - 1, nearly linear in the inertia since Cs falls about as
+    1 / inertia; to 1e-6 relative in the inertia). Each simulation starts from the periodic
+    speed of the nearest inertia already run. A target above what the smallest inertia
+    gives, or not > 0, is refused with the reachable range.
     """
     fluctuation = _positive('fluctuation', fluctuation, '(1)')
     input_speed = _positive('input_speed', input_speed, 'rad/s')
+    runs = {}  # input_inertia -> (Cs, periodic start speed)
 
     def fluctuation_at(input_inertia):
-        return speed_fluctuation(geometry, _with_input_inertia(mass, input_inertia), loads,
-                                 motor, offset, input_speed).fluctuation
+        if input_inertia not in runs:
+            nearest = min(runs, key=lambda known: abs(known - input_inertia), default=None)
+            start = input_speed if nearest is None else runs[nearest][1]
+            result, speed = _steady_revolution(
+                geometry, _with_input_inertia(mass, input_inertia), loads, motor, offset,
+                input_speed, start)
+            runs[input_inertia] = (result.fluctuation, speed)
+        return runs[input_inertia][0]
 
     smallest = 0.0 if mass.flywheel_inertia > 0.0 else 1e-6
     largest_reachable = fluctuation_at(smallest)
@@ -927,12 +1057,11 @@ def input_inertia_for_speed_fluctuation(geometry, mass, loads, motor, offset, in
         raise dyn.DynamicsError(
             f'fluctuation = {fluctuation:.6g} is out of range: with input_inertia >= '
             f'{smallest:g} kg*m^2 this drive reaches 0 < Cs < {largest_reachable:.6g}')
-    guess = max(_energy_method_inertia(geometry, mass, loads, offset, input_speed,
-                                       fluctuation), 1e-3)
-    high = guess
+    low = smallest
+    high = max(_energy_method_inertia(geometry, mass, loads, offset, input_speed,
+                                      fluctuation), 1e-3)
     while fluctuation_at(high) > fluctuation:
-        high *= 2.0
-    result = optimize.root_scalar(lambda inertia: fluctuation_at(inertia) / fluctuation - 1.0,
-                                  bracket=(smallest, high), method='brentq', rtol=1e-6,
-                                  xtol=1e-9)
+        low, high = high, high * 2.0
+    result = optimize.root_scalar(lambda inertia: fluctuation / fluctuation_at(inertia) - 1.0,
+                                  bracket=(low, high), method='brentq', rtol=1e-6, xtol=1e-9)
     return float(result.root)

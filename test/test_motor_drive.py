@@ -461,3 +461,36 @@ def test_unreachable_fluctuation_names_the_reachable_range():
     with pytest.raises(KinematicsError, match='fluctuation'):
         md.input_inertia_for_speed_fluctuation(GEOMETRY, MASS, LOADS, SOFT_MOTOR, 0.01,
                                                2 * math.pi, -0.1)
+
+
+@pytest.mark.parametrize('motor, offset', [(SOFT_MOTOR, 0.01),
+                                           (dyn.MotorDrive.small_shaper(), -0.015)])
+def test_speed_fluctuation_against_dense_sampling_and_path_work(motor, offset):
+    steady = md.speed_fluctuation(GEOMETRY, MASS, LOADS, motor, offset, 2 * math.pi)
+    # Independent: simulate at 20 kHz from the reference speed until the start transient is
+    # gone (e^-15 of it for the soft motor), then sample the last whole revolution.
+    run = md.simulate(GEOMETRY, MASS, LOADS, motor, offset, 2 * math.pi, 3.5, 20000.0)
+    turns = np.floor(run.input_angle / (2 * math.pi))
+    last = turns == turns[-1] - 1
+    times, speeds = run.time[last], run.input_speed[last]
+    assert steady.revolution_time == pytest.approx(times[-1] - times[0], abs=2 / 20000.0)
+    sampled = np.ptp(speeds) / (2 * math.pi / steady.revolution_time)
+    # Sampled extremes are low by at most about (a step / the speed's time scale)^2.
+    assert sampled <= steady.fluctuation * (1 + 1e-9)
+    assert sampled == pytest.approx(steady.fluctuation, rel=1e-5)
+    # Steady and periodic: the motor's work per revolution is what the loads take on the
+    # ram's path (kinetic and potential energy come back to their values).
+    path_work = (LOADS.cutting_force * LOADS.cutting_length
+                 + LOADS.ram_friction * 2 * GEOMETRY.ram_stroke)
+    figures = steady.pair_efforts
+    assert figures.energy_per_pair == pytest.approx(path_work, rel=1e-9)
+    assert figures.mean_input_power == pytest.approx(path_work / steady.revolution_time,
+                                                     rel=1e-9)
+    torque = run.motor_torque[last]
+    assert figures.peak_input_torque >= np.max(np.abs(torque)) * (1 - 1e-12)
+    assert figures.peak_input_torque == pytest.approx(np.max(np.abs(torque)), rel=1e-5)
+    rms = math.sqrt(np.trapezoid(torque ** 2, times) / (times[-1] - times[0]))
+    assert figures.rms_input_torque == pytest.approx(rms, rel=1e-4)
+    force = run.efforts.offset_force[last]
+    assert figures.peak_offset_force >= np.max(np.abs(force)) * (1 - 1e-12)
+    assert figures.peak_offset_force == pytest.approx(np.max(np.abs(force)), rel=1e-5)
