@@ -822,6 +822,8 @@ def simulate(geometry, mass, loads, motor, offset, input_speed, duration, sample
 _PERIODIC_TOLERANCE = 1e-10
 _MAX_REVOLUTIONS = 200
 _DRIVE_STAMPS = 50
+# A revolution taking this many times its time at the reference speed is refused.
+_SLOWEST_REVOLUTION = 100
 # Acceleration samples per piece when looking for the input speed's extremes.
 _EXTREMUM_SAMPLES = 5
 # Gauss-Legendre nodes per piece: the dense output is of degree 7 in time, so the motor's
@@ -946,6 +948,11 @@ def _revolution(geometry, mass, loads, motor, offset, input_speed, start_speed):
         stepper.integrate_to(stamp)
         if stepper.stalled:
             raise dyn.DynamicsError(f'the machine stalls: {stepper.stall_reason}')
+        if stamp > _SLOWEST_REVOLUTION * _DRIVE_STAMPS * step_ns:
+            raise dyn.DynamicsError(
+                f'no whole revolution in {_SLOWEST_REVOLUTION} times the time of one at '
+                f'input_speed = {input_speed:.6g} rad/s: the drive cannot keep the shaft '
+                'turning forward')
     period = tracker.end_time
     # The motor's torque depends on the speed alone (its law, clipped): its peak is at an
     # extreme of the speed.

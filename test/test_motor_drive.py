@@ -494,3 +494,9 @@ def test_speed_fluctuation_against_dense_sampling_and_path_work(motor, offset):
     force = run.efforts.offset_force[last]
     assert figures.peak_offset_force >= np.max(np.abs(force)) * (1 - 1e-12)
     assert figures.peak_offset_force == pytest.approx(np.max(np.abs(force)), rel=1e-5)
+
+
+def test_speed_fluctuation_refuses_a_drive_that_cannot_turn_the_shaft():
+    weak = dyn.MotorDrive(speed_stiffness=20.0, max_torque=1.0)
+    with pytest.raises(dyn.DynamicsError, match='stalls|no whole revolution'):
+        md.speed_fluctuation(GEOMETRY, MASS, LOADS, weak, 0.01, 2 * math.pi)
