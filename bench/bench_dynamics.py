@@ -104,7 +104,8 @@ def main():
     offsets = np.linspace(-0.02, 0.02, 9)
     seconds = median_seconds(lambda: [pair_efforts(geometry, mass, loads, offset, 2 * math.pi)
                                       for offset in offsets], 3) / offsets.size
-    print(f'pair_efforts: {seconds * 1e3:.2f} ms per call (median over offsets -0.02..0.02 m)')
+    print(f'pair_efforts: {seconds * 1e3:.2f} ms per call (mean over {offsets.size} offsets '
+          '-0.02..0.02 m, median of 3 repeats)')
 
 
 if __name__ == '__main__':

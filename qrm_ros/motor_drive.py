@@ -241,7 +241,8 @@ def pair_efforts(geometry, mass, loads, offset, input_speed):
 
     The revolution is split where the load switches (closed form); each smooth piece is
     integrated by adaptive Gauss-Legendre to round-off and its peaks are refined from dense
-    samples, so the figures are exact to about 1e-13 relative.
+    samples, so the figures are exact to round-off: about 1e-13 relative within the safe
+    offsets, growing as (r1 / (r1 - |offset|))^2 toward the coupling radius.
     """
     offset = float(check_offset(geometry, offset))
     input_speed = _speed(input_speed)
