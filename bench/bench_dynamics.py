@@ -12,12 +12,15 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 """
-Benchmark: vectorised efforts (samples/s) and the per-tick cost of the motor stepper.
+Benchmark: vectorised efforts (samples/s), the per-tick cost of the motor stepper, pair_efforts.
 
-efforts' target is >= 1e6 samples/s; MotorStepper.advance_to at 1 kHz is compared with
-ShaperStepper's, both measured in this run.
+efforts' target is >= 1e6 samples/s. A node tick at 1 kHz is timed as the node spends it:
+the speed drive's ShaperStepper.advance_to plus the efforts of the prescribed motion, the
+motor drive's MotorStepper.advance_to plus its efforts(); advance_to alone is timed too. The
+drives run in turns, each repeat one second of ticks, and the medians of the repeats are
+compared (the machine is shared: only ratios within one run mean much).
 
-    python3 dev.py run python bench/bench_dynamics.py [--samples 1000000] [--ticks 5000]
+    python3 dev.py run python bench/bench_dynamics.py [--samples 1000000] [--ticks 1000]
 """
 
 import argparse
@@ -29,7 +32,7 @@ import numpy as np
 
 from qrm_ros import dynamics as dyn
 from qrm_ros.kinematics import Geometry
-from qrm_ros.motor_drive import MotorStepper
+from qrm_ros.motor_drive import MotorStepper, pair_efforts
 from qrm_ros.stepping import ShaperStepper
 
 
@@ -45,30 +48,64 @@ def median_seconds(function, repeats):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     parser.add_argument('--samples', type=int, default=1_000_000)
-    parser.add_argument('--ticks', type=int, default=5000)
-    parser.add_argument('--repeats', type=int, default=3)
+    parser.add_argument('--ticks', type=int, default=1000)
+    parser.add_argument('--repeats', type=int, default=9)
     args = parser.parse_args()
     geometry = Geometry.paper()
     mass, loads = dyn.MassProperties.small_shaper(), dyn.Loads.small_shaper()
     angles = np.linspace(0.0, 20 * math.pi, args.samples)
     seconds = median_seconds(lambda: dyn.efforts(geometry, mass, 0.01, angles, 2 * math.pi,
-                                                 external_ram_force=100.0), args.repeats)
-    print(f'efforts: {args.samples / seconds:.3g} samples/s (target >= 1e6)')
+                                                 external_ram_force=100.0), 3)
+    print(f'efforts: {seconds / args.samples * 1e9:.0f} ns/sample, '
+          f'{args.samples / seconds:.3g} samples/s (target >= 1e6)')
 
-    def ticks(stepper):
+    def speed_efforts(stepper, motion):
+        load = dyn.ram_load_force(loads, motion.ram_position, motion.ram_velocity,
+                                  geometry.ram_stroke)
+        return dyn.efforts(geometry, mass, stepper.offset, stepper.input_angle,
+                           stepper.input_speed, stepper.input_acceleration,
+                           stepper.offset_rate, 0.0, load)
+
+    def motor_efforts(stepper, motion):
+        return stepper.efforts()
+
+    def ticks(stepper, efforts):
         def run():
             stepper.reset(2 * math.pi, 0.01)
             for tick in range(args.ticks):
-                stepper.advance_to(tick * 1_000_000)
+                motion = stepper.advance_to(tick * 1_000_000)
+                if efforts is not None:
+                    efforts(stepper, motion)
         return run
 
-    speed = median_seconds(ticks(ShaperStepper(geometry, 2 * math.pi, 0.01, 50.0, 0.01)),
-                           args.repeats) / args.ticks
-    motor = median_seconds(ticks(MotorStepper(geometry, mass, loads,
-                                              dyn.MotorDrive.small_shaper(), 2 * math.pi,
-                                              0.01, 50.0, 0.01)), args.repeats) / args.ticks
-    print(f'advance_to at 1 kHz: ShaperStepper {speed * 1e6:.1f} us/tick, MotorStepper '
-          f'{motor * 1e6:.1f} us/tick, ratio {motor / speed:.2f}')
+    runs = {
+        'speed advance_to': ticks(ShaperStepper(geometry, 2 * math.pi, 0.01, 50.0, 0.01),
+                                  None),
+        'motor advance_to': ticks(MotorStepper(geometry, mass, loads,
+                                               dyn.MotorDrive.small_shaper(), 2 * math.pi,
+                                               0.01, 50.0, 0.01), None),
+        'speed tick': ticks(ShaperStepper(geometry, 2 * math.pi, 0.01, 50.0, 0.01),
+                            speed_efforts),
+        'motor tick': ticks(MotorStepper(geometry, mass, loads, dyn.MotorDrive.small_shaper(),
+                                         2 * math.pi, 0.01, 50.0, 0.01), motor_efforts),
+    }
+    timings = {name: [] for name in runs}
+    for _ in range(args.repeats):
+        for name, run in runs.items():
+            start = time.perf_counter()
+            run()
+            timings[name].append((time.perf_counter() - start) / args.ticks * 1e6)
+    median = {name: statistics.median(values) for name, values in timings.items()}
+    for kind in ('advance_to', 'tick'):
+        speed, motor = median[f'speed {kind}'], median[f'motor {kind}']
+        print(f'{kind} at 1 kHz (medians of {args.repeats}): speed drive {speed:.1f} us, '
+              f'motor drive {motor:.1f} us, ratio {motor / speed:.2f}, motor adds '
+              f'{(motor - speed) / 10:.1f} % of a core')
+    offsets = np.linspace(-0.02, 0.02, 9)
+    seconds = median_seconds(lambda: [pair_efforts(geometry, mass, loads, offset, 2 * math.pi)
+                                      for offset in offsets], 3) / offsets.size
+    print(f'pair_efforts: {seconds * 1e3:.2f} ms per call (mean over {offsets.size} offsets '
+          '-0.02..0.02 m, median of 3 repeats)')
 
 
 if __name__ == '__main__':
