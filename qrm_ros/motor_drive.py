@@ -386,6 +386,9 @@ class MotorStepper:
         self._load = 0.0
         self._saturation = 0
         self._piece = (0.0, 0.0, None)
+        # A switch found in the last step, its segment not started yet: (time, angle, speed,
+        # kind) once the stamps pass it.
+        self._pending = None
         self._acceleration_now = None
 
     def restore(self, stamp_ns, input_angle, input_speed, offset, speed_reference=None):
@@ -503,6 +506,7 @@ class MotorStepper:
     def _start(self, time, angle, speed, reference, offset, trigger):
         """Start a segment at time with this state; choose its mode from the state."""
         self._acceleration_now = None
+        self._pending = None  # a command's restart from the present stamp replaces it
         old_rate = self._offset_rate
         gap = self._offset_command - offset
         rate = math.copysign(self._offset_rate_limit, gap) if gap else 0.0
@@ -590,6 +594,13 @@ class MotorStepper:
 
     def _extend(self):
         """Cover the next stretch of time: one solver step, cut at a switch, or a restart."""
+        if self._pending is not None:
+            # The stamps have passed the switch: its segment starts now (not before, so that
+            # a stamp just before it reads the mode it is in: load, saturation, direction).
+            time, angle, speed, kind = self._pending
+            self._start(time, angle, speed, self._reference_at(time), self._offset_at(time),
+                        kind)
+            return
         solver = self._solver
         if solver.status == 'finished':
             reference = self._reference_at(solver.t)
@@ -612,8 +623,7 @@ class MotorStepper:
         if self._observer is not None:
             self._observer(start, time, dense)
         angle, speed = dense(time)
-        self._start(time, float(angle), float(speed), self._reference_at(time),
-                    self._offset_at(time), kind)
+        self._pending = (time, float(angle), float(speed), kind)
 
     def _first_switch(self, dense, start, end):
         # np.linspace(start, end, _ROOT_SAMPLES + 1), the same numbers without its overhead.

@@ -26,13 +26,12 @@ Each log is re-derived from its own content:
     motor log starts at a reset: the first logged sample is where the node's integration
     started (make_golden_logs.py pauses and resets the node before recording);
 (c) a motor log's efforts are the dynamics' at the logged state with the parameters in force
-    (metadata, then /parameter_events: a load change mid-run included), but for a known
-    MotorStepper fault at a few samples just before a load switch (strict xfail); its input
-    torque is the motor law at the logged speed.
+    (metadata, then /parameter_events: a load change mid-run included), at every sample;
+    its input torque is the motor law at the logged speed.
 And the offline analysis of each speed-drive log finds exactly the commanded settings and
 measures TR and SR within the stroke finder's bound of the closed form; of a motor log, it
-measures the efforts of each held setting within the sampling bounds of the motor's steady
-theory (the spans given: finding them itself is a strict xfail).
+finds each held setting (the motor's speed reference, the load change) and measures the
+efforts of each, once settled, within the sampling bounds of the motor's steady theory.
 A change to the physics, the stepping or the analysis that alters their output fails here.
 """
 
@@ -303,33 +302,9 @@ def _disagreeing_samples(log):
             if not _agree(_dynamics_efforts(log, k, parameters), log.effort[k])]
 
 
-def test_motor_log_efforts_are_the_dynamics_at_the_logged_state(motor_log):
-    """
-    The logged efforts from the logged state alone, but for the known MotorStepper fault.
-
-    At a stamp inside the solver step in which a load switch lies (a reversal, a workpiece
-    edge), ahead of that switch, MotorStepper has already started the segment after the
-    switch: its motion is right (the old step's dense output), its efforts use the load
-    after the switch. Those samples (a few per thousand) must be exactly these: the last
-    sample before a change of the logged state's load, agreeing with the dynamics when
-    given the next sample's load. Everywhere else the efforts are the dynamics'.
-    """
-    log = motor_log
-    loads = [dyn.ram_load_force(_dynamics(p)[1], float(log.position[k, 3]),
-                                float(log.velocity[k, 3]), log.geometry.ram_stroke)
-             for k, p in _in_force(log)]
-    disagreeing = _disagreeing_samples(log)
-    assert len(disagreeing) <= 0.01 * len(log.stamps)
-    for k, parameters in _in_force(log):
-        if k in disagreeing:
-            assert k + 1 < len(log.stamps) and loads[k + 1] != loads[k], k
-            assert _agree(_dynamics_efforts(log, k, parameters, at=k + 1), log.effort[k]), k
-
-
-@pytest.mark.xfail(strict=True, reason='MotorStepper.efforts() just before a load switch uses '
-                   'the load after it (see test_motor_log_efforts_are_the_dynamics_...); fixed '
-                   'there, regenerate the motor logs and drop this mark')
 def test_motor_log_efforts_are_the_dynamics_at_every_sample(motor_log):
+    # A stamp just before a load switch (a reversal, a workpiece edge) reads the mode it is
+    # in: MotorStepper starts the next segment only once the stamps pass the switch.
     assert _disagreeing_samples(motor_log) == []
 
 
@@ -501,7 +476,8 @@ def test_analysis_measures_a_motor_logs_efforts_within_sampling(motor_log, reque
     """
     qrm_analyze's measurement of each held setting: the motor's steady theory, to sampling.
 
-    The spans are given (qrm_analyze does not find them yet: the xfail below); each is
+    The settled spans are given here (qrm_analyze's own segments start at the ramp's end,
+    settling included: the test below); each is
     measured by analysis.measure_segment with the drive in force there (the load change
     included), against motor_drive.speed_fluctuation's steady state.
     """
@@ -520,11 +496,9 @@ def test_analysis_measures_a_motor_logs_efforts_within_sampling(motor_log, reque
     assert rows == len(motor_log.events) + 1
 
 
-@pytest.mark.xfail(strict=True, reason='qrm_analyze splits a run where the input speed changes '
-                   'between samples, and a motor\'s speed changes at every sample: a motor run '
-                   'has no segment (and a change of mass or load mid-run keeps the theory of '
-                   'the start)')
 def test_analysis_finds_a_motor_logs_commanded_settings(request, motor_log):
+    # One segment per held setting: the offset, the speed reference (recovered from each
+    # sample's speed and torque, to round-off) and the loads (the 800 N change splits one).
     path = request.node.callspec.params['motor_log']
     result = analysis.analyse(analysis.read_recording(path))
     settings = [(motor_log.parameters['coupling_offset'], motor_log.parameters['input_speed'])]
@@ -532,7 +506,10 @@ def test_analysis_finds_a_motor_logs_commanded_settings(request, motor_log):
         offset, speed = settings[-1]
         settings.append((value, speed) if name == 'coupling_offset' else
                         (offset, value) if name == 'input_speed' else (offset, speed))
-    assert [(row['offset'], row['input_speed']) for row in result.rows] == settings
+    assert [row['offset'] for row in result.rows] == [offset for offset, _ in settings]
+    assert [row['input_speed'] for row in result.rows] == [
+        pytest.approx(speed, rel=1e-13) for _, speed in settings]
+    assert [t['change'] for t in result.transitions][-1] == 'cutting_force 400.0 -> 800.0'
     for row in result.rows:
         assert row['stroke_pairs'] >= 2
         for key in ('energy_per_pair', 'rms_input_torque', 'speed_fluctuation'):
