@@ -87,7 +87,7 @@ def size_flywheel(geometry, mass, loads, motor, offset, input_speed, fluctuation
 
     given = fluctuation_with(mass)
     simulated = fluctuation_with(_with(mass, input_inertia=input_inertia))
-    total = md._energy_method_inertia(geometry, mass, loads, offset, input_speed, fluctuation)
+    total = md.energy_method_inertia(geometry, mass, loads, offset, input_speed, fluctuation)
     chain = revolution_mean_inertia(geometry, mass, offset) - mass.input_inertia
     unit_flywheel = dyn.MassProperties(input_inertia=0.0, flywheel_inertia=1.0,
                                        lever_inertia=0.0, lever_mass=0.0,

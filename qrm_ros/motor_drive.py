@@ -32,8 +32,8 @@ from qrm_ros.kinematics import (check_offset, input_angle_for_flywheel_angle, Ki
 from qrm_ros.stepping import _finite, _positive, _ramp, checked_limits, wrap_angle
 
 __all__ = ['MotorStepper', 'PairEfforts', 'Simulation', 'SpeedFluctuation',
-           'input_inertia_for_speed_fluctuation', 'pair_efforts', 'simulate',
-           'speed_fluctuation']
+           'energy_method_inertia', 'input_inertia_for_speed_fluctuation', 'pair_efforts',
+           'simulate', 'speed_fluctuation']
 
 # Gauss-Legendre rule of each panel, and when the adaptive quadrature keeps a panel: its
 # rule and the rule on its two halves agree to this fraction of the halves' integral of
@@ -1029,7 +1029,7 @@ def _with_input_inertia(mass, input_inertia):
     return type(mass)(**values)
 
 
-def _energy_method_inertia(geometry, mass, loads, offset, input_speed, fluctuation):
+def energy_method_inertia(geometry, mass, loads, offset, input_speed, fluctuation):
     """dynamics.md's energy method: total inertia about Delta E / (Cs w^2)."""
     angles = np.linspace(0.0, 2.0 * math.pi, 4097)
     motion = state(geometry, offset, angles, input_speed)
@@ -1076,8 +1076,8 @@ def input_inertia_for_speed_fluctuation(geometry, mass, loads, motor, offset, in
             f'fluctuation = {fluctuation:.6g} is out of range: with input_inertia >= '
             f'{smallest:g} kg*m^2 this drive reaches 0 < Cs < {largest_reachable:.6g}')
     low = smallest
-    high = max(_energy_method_inertia(geometry, mass, loads, offset, input_speed,
-                                      fluctuation), 1e-3)
+    high = max(energy_method_inertia(geometry, mass, loads, offset, input_speed,
+                                     fluctuation), 1e-3)
     while fluctuation_at(high) > fluctuation:
         low, high = high, high * 2.0
     result = optimize.root_scalar(lambda inertia: fluctuation / fluctuation_at(inertia) - 1.0,
