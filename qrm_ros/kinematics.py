@@ -430,7 +430,16 @@ def _speed_rise(crank_angle, problem):
     numerator with one square root and no division. w'/w = -d cos(phi) (S - d sin(phi)) / S^2.
     """
     r1, r, h, _, _, cos0, sin0, offset, _ = problem
-    sin_c, cos_c = np.sin(crank_angle), np.cos(crank_angle)
+    return speed_rise_of(np.sin(crank_angle), np.cos(crank_angle), r1, r, h, cos0, sin0,
+                         offset)
+
+
+def speed_rise_of(sin_c, cos_c, r1, r, h, cos0, sin0, offset):
+    """
+    Return _speed_rise from the crank angle's sine and cosine (arrays or floats).
+
+    numpy only, so qrm_ros.peak_kernel compiles this same formula for its scalar loop.
+    """
     offset_cos = offset * (cos_c * cos0 + sin_c * sin0)
     offset_sin = offset * (sin_c * cos0 - cos_c * sin0)
     root2 = r1 * r1 - offset_cos * offset_cos

@@ -31,6 +31,8 @@ import math
 import numba
 import numpy as np
 
+from qrm_ros.kinematics import speed_rise_of
+
 _TWO_PI = 2.0 * math.pi
 
 
@@ -47,16 +49,8 @@ def _compiler(signature=None):
 
 
 _jit = _compiler()
-
-
-@_jit
-def _speed_rise(sin_c, cos_c, r1, r, h, cos0, sin0, offset):
-    offset_cos = offset * (cos_c * cos0 + sin_c * sin0)
-    offset_sin = offset * (sin_c * cos0 - cos_c * sin0)
-    root2 = r1 * r1 - offset_cos * offset_cos
-    lever = (h * sin_c + r) * (h + r * sin_c)
-    return (cos_c * ((h * h - 2.0 * r * r) - h * r * sin_c) * root2
-            - offset_cos * (math.sqrt(root2) - offset_sin) * lever)
+# d|v|/dphi_c's division-free numerator, kinematics' formula compiled for scalars.
+_speed_rise = _jit(speed_rise_of)
 
 
 # Taylor coefficients of sin(x)/x and cos(x) in x^2, through x^14: for |x| <= 0.3 the next

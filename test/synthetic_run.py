@@ -118,3 +118,20 @@ def write_run(path, geometry, offsets, with_geometry=True, joint_states_topic='/
                                data=bytes(data), sequence=i)
         writer.finish()
     return len(time)
+
+
+def dense_revolution(geometry, mass, loads, offset, input_speed, samples=400001):
+    """
+    Sample one revolution at a steady speed densely: (times, input torque, offset force).
+
+    The ideal speed drive's efforts at each sample, its load from the sample's own motion:
+    the brute-force reference the exact per-pair figures are checked against.
+    """
+    period = 2 * math.pi / abs(input_speed)
+    times = np.linspace(0.0, period, samples)
+    motion = kin.state(geometry, offset, input_speed * times, input_speed)
+    load = dyn.ram_load_force(loads, motion.ram_position, motion.ram_velocity,
+                              geometry.ram_stroke)
+    result = dyn.efforts(geometry, mass, offset, input_speed * times, input_speed,
+                         external_ram_force=load)
+    return times, result.input_torque, result.offset_force

@@ -38,6 +38,8 @@ from qrm_ros import dynamics as dyn
 from qrm_ros import motor_drive as md
 from qrm_ros.kinematics import Geometry, state
 
+import synthetic_run
+
 GEOMETRY = Geometry.paper()
 MASS = dyn.MassProperties.small_shaper()
 LOADS = dyn.Loads.small_shaper()
@@ -53,15 +55,7 @@ def run_design(argv, capsys):
 
 
 def dense_revolution(offset, input_speed=SPEED, mass=MASS, loads=LOADS, samples=400001):
-    """Input torque and offset force sampled over one revolution, loads from each sample."""
-    period = 2 * math.pi / abs(input_speed)
-    times = np.linspace(0.0, period, samples)
-    motion = state(GEOMETRY, offset, input_speed * times, input_speed)
-    load = dyn.ram_load_force(loads, motion.ram_position, motion.ram_velocity,
-                              GEOMETRY.ram_stroke)
-    result = dyn.efforts(GEOMETRY, mass, offset, input_speed * times, input_speed,
-                         external_ram_force=load)
-    return times, result.input_torque, result.offset_force
+    return synthetic_run.dense_revolution(GEOMETRY, mass, loads, offset, input_speed, samples)
 
 
 def path_work(loads=LOADS):

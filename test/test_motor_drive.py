@@ -31,6 +31,7 @@ from qrm_ros import dynamics as dyn
 from qrm_ros import motor_drive as md
 from qrm_ros.kinematics import (Geometry, input_angle_for_flywheel_angle, KinematicsError,
                                 reversal_flywheel_angles, state)
+from synthetic_run import dense_revolution
 
 GEOMETRY = Geometry.paper()
 MASS = dyn.MassProperties.small_shaper()
@@ -38,15 +39,7 @@ LOADS = dyn.Loads.small_shaper()
 
 
 def _dense_torques(offset, input_speed, samples=400001):
-    """Input torque and offset force sampled over one revolution, loads from each sample."""
-    period = 2 * math.pi / abs(input_speed)
-    times = np.linspace(0.0, period, samples)
-    motion = state(GEOMETRY, offset, input_speed * times, input_speed)
-    load = dyn.ram_load_force(LOADS, motion.ram_position, motion.ram_velocity,
-                              GEOMETRY.ram_stroke)
-    result = dyn.efforts(GEOMETRY, MASS, offset, input_speed * times, input_speed,
-                         external_ram_force=load)
-    return times, result.input_torque, result.offset_force
+    return dense_revolution(GEOMETRY, MASS, LOADS, offset, input_speed, samples)
 
 
 @pytest.mark.parametrize('offset, input_speed', [(0.0, 2 * math.pi), (0.015, 2 * math.pi),
