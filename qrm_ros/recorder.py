@@ -52,7 +52,8 @@ from qrm_ros.mcap_run_file import COMPRESSIONS, ConfigurationError, McapRunFile,
 from qrm_ros.names import (DIAGNOSTICS_TOPIC, GEOMETRY_METADATA, JOINT_STATES_TOPIC,
                            PARAMETERS_METADATA, RAM_TWIST_TOPIC, RECORDER_NODE_NAME,
                            SPEED_COMMAND_TOPIC)
-from qrm_ros.ros_process import (executor_kind, ExecutorChoiceError, init_rclpy, new_executor,
+from qrm_ros.ros_process import (executor_kind, ExecutorChoiceError, init_rclpy,
+                                 MESSAGE_INFO_SIGNATURE, message_and_info, new_executor,
                                  RCLError, rcl_error_text, spin_until_stopped, StopRequest)
 
 NODE_NAME = RECORDER_NODE_NAME
@@ -275,10 +276,11 @@ class Recorder(Node):
         channel_id = self.run_file.add_channel(topic, type_name, offered, type_hash)
         write = self.run_file.add_message
 
-        def on_message(data, info):
-            # Two parameters exactly: rclpy passes the message info only to such callbacks.
+        def on_message(*arguments):
+            data, info = message_and_info(arguments)  # either executor (ros_process)
             received = info.get('received_timestamp') or time.time_ns()
             write(channel_id, received, info.get('source_timestamp') or received, data)
+        on_message.__signature__ = MESSAGE_INFO_SIGNATURE  # so that rclpy passes the info
 
         self._recorded_topics[topic] = self.create_subscription(
             message_class, topic, on_message, qos, raw=True)

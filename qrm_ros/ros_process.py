@@ -28,9 +28,13 @@ EventsExecutor of rclpy 7.1 does, as checked by test_executor.py: timers on simu
 (/clock steps, pauses, jumps both ways), cancel and reset, services, parameter services,
 clients, QoS events; it leaves SIGINT/SIGTERM to Python (so StopRequest works as with the
 other executor). It refuses nodes with guard conditions (RuntimeError "Guard conditions not
-supported"); this package's nodes have none.
+supported"); this package's nodes have none. And it calls a subscription callback that takes
+the message info with one argument, the (message, info) pair, where the other executors pass
+two (a two-parameter callback then fails: "SystemError: null argument to internal routine");
+MESSAGE_INFO_SIGNATURE and message_and_info make a callback that works on both.
 """
 
+import inspect
 import os
 import re
 import signal
@@ -40,9 +44,9 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.signals import SignalHandlerOptions
 
-__all__ = ['EXECUTOR_VARIABLE', 'EXECUTORS', 'ExecutorChoiceError', 'IDLE_WAKEUP', 'RCLError',
-           'StopRequest', 'executor_kind', 'init_rclpy', 'new_executor', 'rcl_error_text',
-           'spin_until_stopped']
+__all__ = ['EXECUTOR_VARIABLE', 'EXECUTORS', 'ExecutorChoiceError', 'IDLE_WAKEUP',
+           'MESSAGE_INFO_SIGNATURE', 'RCLError', 'StopRequest', 'executor_kind', 'init_rclpy',
+           'message_and_info', 'new_executor', 'rcl_error_text', 'spin_until_stopped']
 
 RCLError = _rclpy.RCLError  # rcl failures (bad arguments, invalid context); as rclpy.action
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
@@ -51,6 +55,10 @@ IDLE_WAKEUP = 0.1  # s
 # The environment variable that chooses the executor, and its values (the first: default).
 EXECUTOR_VARIABLE = 'QRM_ROS_EXECUTOR'
 EXECUTORS = ('events', 'single')
+# The signature rclpy reads to pass a subscription callback the message info: set it as the
+# __signature__ of a callback that takes *arguments and unpacks them with message_and_info.
+MESSAGE_INFO_SIGNATURE = inspect.Signature(
+    [inspect.Parameter(name, inspect.Parameter.POSITIONAL_ONLY) for name in ('message', 'info')])
 
 
 class ExecutorChoiceError(ValueError):
@@ -125,3 +133,8 @@ def new_executor(kind=None, context=None):
     if kind == 'single':
         return SingleThreadedExecutor(context=context)
     raise ExecutorChoiceError(f'executor {kind!r}: allowed {", ".join(EXECUTORS)}')
+
+
+def message_and_info(arguments):
+    """Return (message, info) from a MESSAGE_INFO_SIGNATURE callback's arguments, any executor."""
+    return arguments if len(arguments) == 2 else arguments[0]

@@ -26,7 +26,8 @@ import time
 from builtin_interfaces.msg import Time
 import pytest
 from qrm_ros.ros_process import (EXECUTOR_VARIABLE, ExecutorChoiceError, executor_kind,
-                                 init_rclpy, new_executor)
+                                 init_rclpy, MESSAGE_INFO_SIGNATURE, message_and_info,
+                                 new_executor)
 from qrm_ros.shaper_sim import ShaperSimNode
 from rcl_interfaces.srv import DescribeParameters, SetParametersAtomically
 import rclpy
@@ -35,6 +36,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, Trigger
 
 from ros_probe import wait_for
@@ -209,6 +211,44 @@ def test_a_wall_timer_is_cancelled_and_reset(kind):
         while len(ticks) < count + 5 and time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.05)
         assert len(ticks) >= count + 5
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.shutdown(context=context)
+
+
+@pytest.mark.parametrize('raw', [True, False], ids=['raw', 'message'])
+@pytest.mark.parametrize('kind', KINDS)
+def test_a_message_info_callback_gets_the_info_on_either_executor(kind, raw):
+    # rclpy 7.1's EventsExecutor passes (message, info) as one argument; see ros_process.
+    context = Context()
+    init_rclpy(context=context)
+    node = Node('message_info', context=context)
+    executor = new_executor(kind, context=context)
+    try:
+        received = []
+
+        def on_message(*arguments):
+            received.append(message_and_info(arguments))
+        on_message.__signature__ = MESSAGE_INFO_SIGNATURE
+        node.create_subscription(Float64, 'message_info_check', on_message, 10, raw=raw)
+        publisher = node.create_publisher(Float64, 'message_info_check', 10)
+        executor.add_node(node)
+        wait_for(lambda: publisher.get_subscription_count() > 0, 10.0, 'the subscription')
+        before = time.time_ns()
+        for value in (1.0, 2.0, 3.0):
+            publisher.publish(Float64(data=value))
+        deadline = time.monotonic() + 10.0
+        while len(received) < 3 and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        assert len(received) == 3
+        for (message, info), value in zip(received, (1.0, 2.0, 3.0)):
+            if raw:
+                assert isinstance(message, bytes) and len(message) == 12  # CDR header + double
+            else:
+                assert message.data == value
+            assert before <= info['source_timestamp'] <= info['received_timestamp'] <= (
+                time.time_ns())
     finally:
         executor.shutdown()
         node.destroy_node()
