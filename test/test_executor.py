@@ -38,6 +38,7 @@ from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, Trigger
+from visualization_msgs.msg import MarkerArray
 
 from ros_probe import wait_for
 from test_shaper_sim_process import NS, Process, Probe, stamp_ns, wrapped
@@ -217,6 +218,49 @@ def test_a_wall_timer_is_cancelled_and_reset(kind):
         rclpy.shutdown(context=context)
 
 
+@pytest.mark.parametrize('kind', KINDS)
+def test_a_timer_made_and_destroyed_by_a_parameter_change_while_spinning(kind):
+    """marker_rate destroys the markers' timer and makes a new one; the executor follows."""
+    context = Context()
+    init_rclpy(context=context)
+    node = ShaperSimNode(context=context, parameter_overrides=[
+        Parameter('marker_rate', value=50.0)])
+    listener = Node('marker_listener', context=context)
+    executor = new_executor(kind, context=context)
+    arrays = []
+    listener.create_subscription(MarkerArray, 'linkage_markers', arrays.append, 100)
+
+    def spin(seconds):
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            executor.spin_once(timeout_sec=0.01)
+
+    def spin_until(count, what):
+        end = time.monotonic() + 10.0
+        while len(arrays) < count:
+            assert time.monotonic() < end, f'timed out waiting for {what}'
+            executor.spin_once(timeout_sec=0.01)
+    try:
+        executor.add_node(node)
+        executor.add_node(listener)
+        spin_until(5, 'markers at 50 Hz')
+        assert node.set_parameters([Parameter('marker_rate', value=0.0)])[0].successful
+        spin(0.1)  # markers already under way arrive
+        count = len(arrays)
+        spin(0.3)  # 15 periods at the old rate: none may come
+        assert len(arrays) == count
+        assert node.set_parameters([Parameter('marker_rate', value=200.0)])[0].successful
+        started = time.monotonic()
+        spin_until(count + 40, 'markers at 200 Hz')
+        # Faster than the old 50 Hz would give them (0.2 s at 200 Hz, 0.8 s at 50 Hz).
+        assert time.monotonic() - started < 40 / 50, 'markers not at the new rate'
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        listener.destroy_node()
+        rclpy.shutdown(context=context)
+
+
 @pytest.mark.parametrize('raw', [True, False], ids=['raw', 'message'])
 @pytest.mark.parametrize('kind', KINDS)
 def test_a_message_info_callback_gets_the_info_on_either_executor(kind, raw):
@@ -284,10 +328,16 @@ def test_the_events_executor_refuses_guard_conditions_and_the_node_has_none():
 
 # The shaper_sim process over DDS ----------------------------------------------------------
 
+@pytest.fixture
+def probe():
+    made = Probe()
+    yield made
+    made.close()
+
+
 @pytest.mark.parametrize('kind', KINDS)
-def test_the_node_publishes_on_simulated_time(kind):
+def test_the_node_publishes_on_simulated_time(probe, kind):
     """Joint-state stamps are the /clock values; no /clock, no joint states."""
-    probe = Probe()
     clock_publisher = probe.node.create_publisher(Clock, '/clock', 10)
     node = Process('-p', 'use_sim_time:=true', environment={EXECUTOR_VARIABLE: kind})
     sent = []
@@ -323,7 +373,6 @@ def test_the_node_publishes_on_simulated_time(kind):
         messages = list(probe.messages)
     finally:
         code, output = node.stop()
-        probe.close()
     assert code == 0 and 'Traceback' not in output, output
     assert 'node clock went back' in output, output
 
@@ -344,8 +393,7 @@ def test_the_node_publishes_on_simulated_time(kind):
             assert abs(wrapped(after.position[0] - before.position[0] - speed * dt)) < 1e-9
 
 
-def test_services_and_parameter_services_on_the_events_executor():
-    probe = Probe()
+def test_services_and_parameter_services_on_the_events_executor(probe):
     node = Process(environment={EXECUTOR_VARIABLE: 'events'})
     try:
         probe.wait_for(lambda: len(probe.messages) >= 3, what='first joint states')
@@ -387,5 +435,4 @@ def test_services_and_parameter_services_on_the_events_executor():
         assert math.isfinite(first.position[3])
     finally:
         code, output = node.stop()
-        probe.close()
     assert code == 0 and 'Traceback' not in output, output
