@@ -20,26 +20,35 @@ Every publisher runs as its own process; this process subscribes to joint_states
 missed ticks from the stamps (a gap of k periods is k - 1 missed ticks). Variants, measured
 interleaved (each repeat visits every rate and variant, in a rotated order, so slow drifts of
 the machine hit all alike):
-  node         shaper_sim as shipped (SingleThreadedExecutor)
-  bare         a plain rclpy timer publishing one JointState (the baseline)
+  node         shaper_sim as shipped (rclpy's EventsExecutor), default parameters
+  node-single  the same on rclpy's SingleThreadedExecutor (QRM_ROS_EXECUTOR=single)
+  node-cut     as shipped, speed drive, with the main job's default cutting load
+               (dynamics.Loads.small_shaper)
+  node-motor   as shipped, drive:=motor, with that load (issue 9: <= 1.3 x node-cut)
+  bare         a plain rclpy timer publishing one JointState, on the SingleThreadedExecutor
+               (the baseline)
   bare-2pub    the bare timer also publishing a TwistStamped (the node's two messages)
-  node-events  ShaperSimNode spun by rclpy's experimental EventsExecutor
   bare-events  the bare timer on the EventsExecutor
 CPU is the publisher process's on-CPU time from the kernel (/proc/PID/task/*/schedstat,
 nanoseconds, all threads) over the window. A measurement is kept only if the rest of the
 machine was quiet meanwhile (other processes' CPU from /proc/stat below --quiet-limit cores);
 a busy machine is retried, and with no quiet measurement the benchmark refuses to report
 (exit 3) unless --allow-busy. Prints medians and spreads (min..max) over repeats of each
-variant's CPU and of the node/bare ratio of adjacent measurements. Not a test: nothing is
-asserted (targets: CPU at 1 kHz <= 1.2 x bare, max rate >= 0.9 x bare).
+variant's CPU, missed ticks, and the CPU ratios of adjacent measurements: each variant / bare,
+node / node-single, node-motor / node-cut. --profile VARIANT runs that variant once more at
+the first CPU rate under cProfile and prints where its Python time goes. Not a test: nothing
+is asserted (targets: CPU at 1 kHz <= 1.2 x bare, max rate >= 0.9 x bare; motor drive
+<= 1.3 x speed drive, no missed ticks where the speed drive has none).
 """
 
 import argparse
 from array import array
 import os
+import pstats
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 
 from qrm_ros.names import JOINT_NAMES, JOINT_STATES_TOPIC, RAM_TWIST_TOPIC
@@ -47,7 +56,10 @@ from qrm_ros.ros_isolation import isolate_ros_traffic
 
 RATES = [100.0, 1000.0, 2000.0, 3000.0, 5000.0]
 CPU_RATES = (100.0, 1000.0)
-VARIANTS = ('node', 'bare', 'bare-2pub', 'node-events', 'bare-events')
+VARIANTS = ('node', 'node-single', 'node-cut', 'node-motor', 'bare', 'bare-2pub',
+            'bare-events')
+# (variant, baseline) CPU ratios printed besides each variant / bare.
+RATIOS = (('node', 'node-single'), ('node-motor', 'node-cut'))
 SUSTAINED_MISSED_FRACTION = 0.01
 RETRIES = 3
 EXIT_BUSY = 3
@@ -55,32 +67,49 @@ EXIT_BUSY = 3
 
 # Publishers (each run as `bench_node.py --publisher VARIANT RATE`) ------------------------
 
-def _spin(node, events):
-    import rclpy
-    from qrm_ros.ros_process import spin_until_stopped, StopRequest
-    if events:
-        from rclpy.experimental.events_executor import EventsExecutor
-        executor = EventsExecutor()
-    else:
-        executor = rclpy.executors.SingleThreadedExecutor()
-    executor.add_node(node)
-    with StopRequest() as stop:
-        spin_until_stopped(executor, stop)
+def _executor_kind(variant):
+    """Return the executor a variant spins on: the shipped default, or the one named."""
+    if variant.endswith('-single') or variant in ('bare', 'bare-2pub'):
+        return 'single'
+    return 'events'
 
 
-def publisher_main(variant, rate):
+def _node_parameters(variant, rate):
+    from qrm_ros.dynamics import Loads
+    from rclpy.parameter import Parameter
+    parameters = [Parameter('publish_rate', value=rate)]
+    if variant in ('node-cut', 'node-motor'):
+        loads = Loads.small_shaper()  # the main job's default cutting load
+        parameters += [Parameter(name, value=float(getattr(loads, name)))
+                       for name in Loads.field_names()]
+    if variant == 'node-motor':
+        parameters.append(Parameter('drive', value='motor'))
+    return parameters
+
+
+def publisher_main(variant, rate, profile_path=None):
+    import cProfile
     import rclpy
-    from qrm_ros.ros_process import init_rclpy
+    from qrm_ros.ros_process import init_rclpy, new_executor, spin_until_stopped, StopRequest
     init_rclpy()
     if variant.startswith('node'):
         from qrm_ros.shaper_sim import ShaperSimNode
-        from rclpy.parameter import Parameter
-        node = ShaperSimNode(parameter_overrides=[Parameter('publish_rate', value=rate)])
+        node = ShaperSimNode(parameter_overrides=_node_parameters(variant, rate))
     else:
         node = _bare_node(rate, twist=variant == 'bare-2pub')
+    executor = new_executor(_executor_kind(variant))
+    profile = cProfile.Profile() if profile_path else None
     try:
-        _spin(node, events=variant.endswith('events'))
+        executor.add_node(node)
+        with StopRequest() as stop:
+            if profile:
+                profile.enable()  # the spinning only, not the start-up's imports
+            spin_until_stopped(executor, stop)
+        if profile:
+            profile.disable()
+            profile.dump_stats(profile_path)
     finally:
+        executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
 
@@ -162,9 +191,10 @@ class Probe:
             self.executor.spin_once(timeout_sec=0.01)
 
 
-def measure(variant, rate, window, probe, quiet_limit):
+def measure(variant, rate, window, probe, quiet_limit, profile_path=None):
     """(missed fraction, CPU in % of a core, other load in cores) over one window."""
     command = [sys.executable, os.path.abspath(__file__), '--publisher', variant, str(rate)]
+    command += [profile_path] if profile_path else []
     process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         probe.stamps.clear()
@@ -224,10 +254,13 @@ def main():
                         help='largest CPU use of other processes, in cores (default 0.2)')
     parser.add_argument('--allow-busy', action='store_true',
                         help='report even when the machine was busy (marked as such)')
-    parser.add_argument('--publisher', nargs=2, help=argparse.SUPPRESS)
+    parser.add_argument('--profile', choices=VARIANTS,
+                        help='run this variant once more under cProfile and print its profile')
+    parser.add_argument('--publisher', nargs='+', help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.publisher:
-        return publisher_main(args.publisher[0], float(args.publisher[1]))
+        return publisher_main(args.publisher[0], float(args.publisher[1]),
+                              *args.publisher[2:])
     isolate_ros_traffic(os.environ)
     probe = Probe()
     results = {}  # (variant, rate) -> list of (missed, cpu) per repeat
@@ -250,6 +283,15 @@ def main():
                 print(f'  {variant:11s} {rate:6.0f} Hz: missed {100 * found[0]:5.2f} %, '
                       f'CPU {found[1]:5.1f} %', flush=True)
     report(results, args)
+    if args.profile:
+        rate = next((r for r in CPU_RATES if r in args.rates), args.rates[0])
+        with tempfile.TemporaryDirectory() as folder:
+            path = os.path.join(folder, 'publisher.prof')
+            missed, cpu, others = measure(args.profile, rate, args.window, probe,
+                                          args.quiet_limit, path)
+            print(f'\nprofile of {args.profile} at {rate:.0f} Hz (CPU {cpu:.1f} % under '
+                  f'cProfile, other load {others:.2f} cores), Python time by function:')
+            pstats.Stats(path).sort_stats('tottime').print_stats(15)
     return 0
 
 
@@ -259,13 +301,16 @@ def report(results, args):
     for rate in [r for r in CPU_RATES if r in args.rates]:
         for variant in args.variants:
             cpus = [cpu for _, cpu in results[variant, rate]]
-            print(f'CPU at {rate:6.0f} Hz, {variant:11s}: {spread(cpus)} % of a core')
-        bare = [cpu for _, cpu in results['bare', rate]] if 'bare' in args.variants else None
-        for variant in args.variants:
-            if variant == 'bare' or bare is None:
+            missed = [100 * missed for missed, _ in results[variant, rate]]
+            print(f'CPU at {rate:6.0f} Hz, {variant:11s}: {spread(cpus)} % of a core; '
+                  f'missed ticks {spread(missed)} %')
+        pairs = [(variant, 'bare') for variant in args.variants if variant != 'bare']
+        for variant, base in pairs + list(RATIOS):
+            if variant not in args.variants or base not in args.variants:
                 continue
-            ratios = [cpu / base for (_, cpu), base in zip(results[variant, rate], bare)]
-            print(f'CPU at {rate:6.0f} Hz, {variant:11s} / bare: {spread(ratios)}')
+            ratios = [cpu / base_cpu for (_, cpu), (_, base_cpu)
+                      in zip(results[variant, rate], results[base, rate])]
+            print(f'CPU at {rate:6.0f} Hz, {variant:11s} / {base:11s}: {spread(ratios)}')
     for variant in args.variants:
         highest = []
         for index in range(args.repeat):

@@ -15,19 +15,24 @@
 Recorder benchmark: mcap_recorder against the honest floor, a bare rclpy raw subscription.
 
 A publisher process sends JointState and TwistStamped at --rate Hz each (2 kHz aggregate by
-default). Two subscriber processes take both topics at the same time, with the same QoS
-(reliable, depth 1000) and the same spin loop: mcap_recorder, and a bare rclpy node whose
-raw (serialized) subscriptions only count. Both CPU times (user + system of the whole
-process, all threads, from /proc) are taken over the same publishing window, so machine
-load hits both alike; repeats alternate which of the two starts first. Prints per repeat
-and then medians with their spread (min..max): the CPU of each, the ratio recorder / floor
-(target <= 1.2), messages lost by each (target 0), and how busy the machine was.
+default). Subscriber processes take both topics at the same time, with the same QoS
+(reliable, depth 1000) and the same spin loop: mcap_recorder as shipped (rclpy's
+EventsExecutor), bare rclpy nodes whose raw (serialized) subscriptions only count -- `floor`
+on rclpy's SingleThreadedExecutor (the target's baseline) and `floor-events` on the
+EventsExecutor -- and with --single-recorder also mcap_recorder on the SingleThreadedExecutor
+(QRM_ROS_EXECUTOR=single, the previous default). All CPU times (user + system of the whole
+process, all threads, from /proc) are taken over the same publishing window, so machine load
+hits all alike; repeats rotate which starts first. Prints per repeat and then medians with
+their spread (min..max): the CPU of each, the ratios recorder / floor (target <= 1.2),
+recorder / floor-events and the single-threaded recorder / floor, messages lost by each
+(target 0), and how busy the machine was.
 
 Also the write path alone: the recorder's McapRunFile against the raw mcap Writer writing
 the same recorded messages (messages per CPU second, same run). --profile runs the recorder
 of one extra repeat under cProfile and prints where its Python time goes.
 
     python3 dev.py run python bench/bench_recorder.py [--seconds 10] [--repeats 5]
+        [--single-recorder]
 """
 
 import argparse
@@ -94,14 +99,13 @@ def publish(seconds, rate, subscribers):
     rclpy.shutdown()
 
 
-def floor():
+def floor(kind):
     """Child: bare raw subscriptions on the topics, same QoS and spin loop as the recorder."""
     from geometry_msgs.msg import TwistStamped
     import rclpy
-    from rclpy.executors import SingleThreadedExecutor
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import JointState
-    from qrm_ros.ros_process import init_rclpy, spin_until_stopped, StopRequest
+    from qrm_ros.ros_process import init_rclpy, new_executor, spin_until_stopped, StopRequest
     init_rclpy()
     node = rclpy.create_node('bench_floor')
     count = [0]
@@ -112,12 +116,13 @@ def floor():
     qos = QoSProfile(depth=FLOOR_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
     for topic, message_class in zip(TOPICS, (JointState, TwistStamped)):
         node.create_subscription(message_class, topic, take, qos, raw=True)
-    executor = SingleThreadedExecutor()
+    executor = new_executor(kind)
     executor.add_node(node)
     with StopRequest() as stop:
         spin_until_stopped(executor, stop)
     executor.spin_once(timeout_sec=0.2)
     print(f'received {count[0]}', flush=True)
+    executor.shutdown()
     node.destroy_node()
     rclpy.try_shutdown()
 
@@ -130,42 +135,54 @@ def _recorder_command(output, profile_path=None):
                       '-p', f'topics:=[{", ".join(TOPICS)}]', '-p', 'sim_wait_timeout:=60.0']
 
 
-def one_repeat(index, seconds, rate, folder, env, profile_path=None):
+def one_repeat(index, seconds, rate, folder, env, roles, profile_path=None):
+    """Run the publisher and the subscribers `roles` once; return their figures."""
     from qrm_ros.bag_reader import open_run
-    output = os.path.join(folder, f'bench_{index}_{time.time_ns()}.mcap')
-    log = open(os.path.join(folder, f'recorder_{index}.log'), 'w')
-    starters = [
-        lambda: subprocess.Popen(_recorder_command(output, profile_path), stdout=log,
-                                 stderr=log, env=env),
-        lambda: subprocess.Popen([sys.executable, __file__, '--floor'],
-                                 stdout=subprocess.PIPE, text=True, env=env),
-    ]
-    if index % 2:
-        recorder, bare = starters[0](), starters[1]()
-    else:
-        bare, recorder = starters[1](), starters[0]()
+    outputs, logs, processes = {}, {}, {}
+
+    def start(role):
+        if role.startswith('recorder'):
+            outputs[role] = os.path.join(folder, f'bench_{index}_{role}_{time.time_ns()}.mcap')
+            logs[role] = open(os.path.join(folder, f'{role}_{index}.log'), 'w')
+            kind = 'single' if role == 'recorder-single' else 'events'
+            return subprocess.Popen(
+                _recorder_command(outputs[role], profile_path if role == 'recorder' else None),
+                stdout=logs[role], stderr=logs[role],
+                env=dict(env, QRM_ROS_EXECUTOR=kind))
+        kind = 'events' if role == 'floor-events' else 'single'
+        return subprocess.Popen([sys.executable, __file__, '--floor', kind],
+                                stdout=subprocess.PIPE, text=True, env=env)
+
+    shift = index % len(roles)
+    for role in roles[shift:] + roles[:shift]:
+        processes[role] = start(role)
     publisher = subprocess.Popen([sys.executable, __file__, '--publish', str(seconds),
-                                  str(rate)], stdout=subprocess.PIPE, text=True, env=env)
+                                  str(rate), str(len(roles))], stdout=subprocess.PIPE,
+                                 text=True, env=env)
     line = publisher.stdout.readline().strip()
     assert line == 'started', line
-    start = (cpu_seconds(recorder.pid), cpu_seconds(bare.pid), machine_cpu_seconds(),
-             time.monotonic())
+    start_cpu = {role: cpu_seconds(p.pid) for role, p in processes.items()}
+    start_machine, start_wall = machine_cpu_seconds(), time.monotonic()
     offered = int(publisher.stdout.readline().split()[1])
-    end = (cpu_seconds(recorder.pid), cpu_seconds(bare.pid), machine_cpu_seconds(),
-           time.monotonic())
+    end_cpu = {role: cpu_seconds(p.pid) for role, p in processes.items()}
+    end_machine, wall = machine_cpu_seconds(), time.monotonic() - start_wall
     publisher.wait(30)
-    for process in (recorder, bare):
+    for process in processes.values():
         process.send_signal(signal.SIGINT)
-    assert recorder.wait(60) == 0, open(log.name).read()
-    received = int(bare.communicate(timeout=30)[0].split()[-1])
-    wall = end[3] - start[3]
-    machine_busy = (end[2][0] - start[2][0]) / (end[2][1] - start[2][1])
-    messages = list(open_run(output).messages())
-    return {'offered': offered, 'recorded': len(messages), 'floor_received': received,
-            'recorder_cpu': 100.0 * (end[0] - start[0]) / wall,
-            'floor_cpu': 100.0 * (end[1] - start[1]) / wall,
-            'ratio': (end[0] - start[0]) / (end[1] - start[1]),
-            'machine_busy': 100.0 * machine_busy, 'messages': messages, 'output': output}
+    result = {'offered': offered, 'machine_busy': 100.0 * (end_machine[0] - start_machine[0])
+              / (end_machine[1] - start_machine[1])}
+    for role, process in processes.items():
+        if role.startswith('recorder'):
+            assert process.wait(60) == 0, open(logs[role].name).read()
+            messages = list(open_run(outputs[role]).messages())
+            result[role, 'received'] = len(messages)
+            if role == 'recorder':
+                result['messages'] = messages
+        else:
+            result[role, 'received'] = int(process.communicate(timeout=30)[0].split()[-1])
+        result[role, 'cpu_seconds'] = end_cpu[role] - start_cpu[role]
+        result[role, 'cpu'] = 100.0 * result[role, 'cpu_seconds'] / wall
+    return result
 
 
 def _write_raw(messages, path):
@@ -202,6 +219,10 @@ def _spread(values, digits=2):
             f'({min(values):.{digits}f}..{max(values):.{digits}f})')
 
 
+RATIOS = [('recorder', 'floor', ' (target <= 1.2)'), ('recorder', 'floor-events', ''),
+          ('recorder-single', 'floor', ''), ('recorder', 'recorder-single', '')]
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[1])
     parser.add_argument('--seconds', type=float, default=10.0,
@@ -209,48 +230,55 @@ def main():
     parser.add_argument('--repeats', type=int, default=5, help='repeats (default 5)')
     parser.add_argument('--rate', type=float, default=DEFAULT_RATE,
                         help='publish rate per topic [Hz] (default 1000: 2 kHz aggregate)')
+    parser.add_argument('--single-recorder', action='store_true',
+                        help='also run mcap_recorder on the SingleThreadedExecutor')
     parser.add_argument('--profile', action='store_true',
                         help='one more repeat with the recorder under cProfile')
-    parser.add_argument('--publish', nargs=2, type=float, help=argparse.SUPPRESS)
-    parser.add_argument('--floor', action='store_true', help=argparse.SUPPRESS)
+    parser.add_argument('--publish', nargs=3, type=float, help=argparse.SUPPRESS)
+    parser.add_argument('--floor', choices=('single', 'events'), help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.publish is not None:
-        return publish(args.publish[0], args.publish[1], 2)
+        return publish(args.publish[0], args.publish[1], int(args.publish[2]))
     if args.floor:
-        return floor()
+        return floor(args.floor)
     env = dict(os.environ)
     isolate_ros_traffic(env)
+    roles = ['recorder', 'floor', 'floor-events'] + (
+        ['recorder-single'] if args.single_recorder else [])
     results = []
     with tempfile.TemporaryDirectory() as folder:
         for index in range(args.repeats):
-            result = one_repeat(index, args.seconds, args.rate, folder, env)
+            result = one_repeat(index, args.seconds, args.rate, folder, env, roles)
             results.append(result)
-            print(f'repeat {index + 1}: offered {result["offered"]}, recorded '
-                  f'{result["recorded"]}, floor received {result["floor_received"]}; CPU '
-                  f'recorder {result["recorder_cpu"]:.1f} %, floor {result["floor_cpu"]:.1f} % '
-                  f'-> {result["ratio"]:.2f}x; machine busy {result["machine_busy"]:.0f} % of '
-                  f'{os.cpu_count()} cores', flush=True)
+            print(f'repeat {index + 1}: offered {result["offered"]}; '
+                  + '; '.join(f'{role} received {result[role, "received"]}, CPU '
+                              f'{result[role, "cpu"]:.1f} %' for role in roles)
+                  + f'; machine busy {result["machine_busy"]:.0f} % of {os.cpu_count()} cores',
+                  flush=True)
         messages = results[-1]['messages']
         raw = [_write_raw(messages, os.path.join(folder, f'raw{i}.mcap')) for i in range(3)]
         ours = [_write_recorder_path(messages, os.path.join(folder, f'ours{i}.mcap'))
                 for i in range(3)]
         if args.profile:
             profile_path = os.path.join(folder, 'recorder.prof')
-            one_repeat(args.repeats, args.seconds, args.rate, folder, env, profile_path)
+            one_repeat(args.repeats, args.seconds, args.rate, folder, env, ['recorder'],
+                       profile_path)
             print('\nrecorder profile (one repeat, Python time by function, top 20):')
             pstats.Stats(profile_path).sort_stats('tottime').print_stats(20)
 
-    def values(key):
-        return [r[key] for r in results]
-    lost = [r['offered'] - r['recorded'] for r in results]
-    floor_lost = [r['offered'] - r['floor_received'] for r in results]
     print(f'\nmedian (min..max) of {len(results)} repeats, 2 x {args.rate:g} Hz for '
           f'{args.seconds:g} s each:')
-    print(f'  recorder CPU {_spread(values("recorder_cpu"), 1)} % of one core, bare raw '
-          f'subscription {_spread(values("floor_cpu"), 1)} %')
-    print(f'  recorder / floor CPU {_spread(values("ratio"))}x (target <= 1.2)')
-    print(f'  lost: recorder {_spread(lost, 0)}, floor {_spread(floor_lost, 0)} (target 0)')
-    print(f'  machine busy {_spread(values("machine_busy"), 0)} % of {os.cpu_count()} cores')
+    for role in roles:
+        cpu = [r[role, 'cpu'] for r in results]
+        lost = [r['offered'] - r[role, 'received'] for r in results]
+        print(f'  {role:15s} CPU {_spread(cpu, 1)} % of one core; lost {_spread(lost, 0)} '
+              '(target 0)')
+    for role, base, note in RATIOS:
+        if role in roles and base in roles:
+            ratios = [r[role, 'cpu_seconds'] / r[base, 'cpu_seconds'] for r in results]
+            print(f'  {role} / {base} CPU {_spread(ratios)}x{note}')
+    print(f'  machine busy {_spread([r["machine_busy"] for r in results], 0)} % of '
+          f'{os.cpu_count()} cores')
     print(f'  write path alone: McapRunFile {statistics.median(ours):.0f} msg/CPU-s vs raw '
           f'mcap.Writer {statistics.median(raw):.0f} msg/CPU-s '
           f'({statistics.median(ours) / statistics.median(raw):.2f}x, same messages)')

@@ -40,7 +40,6 @@ import time
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.client import Client
 from rclpy.exceptions import NameValidationException, ParameterException
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
@@ -53,8 +52,9 @@ from qrm_ros.mcap_run_file import COMPRESSIONS, ConfigurationError, McapRunFile,
 from qrm_ros.names import (DIAGNOSTICS_TOPIC, GEOMETRY_METADATA, JOINT_STATES_TOPIC,
                            PARAMETER_EVENTS_TOPIC, PARAMETERS_METADATA, RAM_TWIST_TOPIC,
                            RECORDER_NODE_NAME, SPEED_COMMAND_TOPIC)
-from qrm_ros.ros_process import (init_rclpy, RCLError, rcl_error_text, spin_until_stopped,
-                                 StopRequest)
+from qrm_ros.ros_process import (executor_kind, ExecutorChoiceError, init_rclpy,
+                                 MESSAGE_INFO_SIGNATURE, message_and_info, new_executor,
+                                 RCLError, rcl_error_text, spin_until_stopped, StopRequest)
 
 NODE_NAME = RECORDER_NODE_NAME
 DEFAULT_TOPICS = [JOINT_STATES_TOPIC, RAM_TWIST_TOPIC, SPEED_COMMAND_TOPIC, DIAGNOSTICS_TOPIC,
@@ -276,10 +276,11 @@ class Recorder(Node):
         channel_id = self.run_file.add_channel(topic, type_name, offered, type_hash)
         write = self.run_file.add_message
 
-        def on_message(data, info):
-            # Two parameters exactly: rclpy passes the message info only to such callbacks.
+        def on_message(*arguments):
+            data, info = message_and_info(arguments)  # either executor (ros_process)
             received = info.get('received_timestamp') or time.time_ns()
             write(channel_id, received, info.get('source_timestamp') or received, data)
+        on_message.__signature__ = MESSAGE_INFO_SIGNATURE  # so that rclpy passes the info
 
         self._recorded_topics[topic] = self.create_subscription(
             message_class, topic, on_message, qos, raw=True)
@@ -382,22 +383,26 @@ def _record(args):
     except RCLError as error:  # a malformed -p or params file, said by rcl
         _error(rcl_error_text(error))
         return 2
-    recorder = None
+    recorder = executor = None
     try:
         with StopRequest() as stop:
+            kind = executor_kind()  # QRM_ROS_EXECUTOR: events (default) or single
             recorder = Recorder()
-            executor = SingleThreadedExecutor()
+            executor = new_executor(kind)
             executor.add_node(recorder)
             spin_until_stopped(executor, stop)
             recorder.drain(executor)
             recorder.finish()
-    except (ConfigurationError, ParameterException, NameValidationException) as error:
+    except (ConfigurationError, ExecutorChoiceError, ParameterException,
+            NameValidationException) as error:
         _error(error)
         return 2
     except RecorderError as error:
         _error(error)
         return 1
     finally:
+        if executor is not None:
+            executor.shutdown()  # lets go of the node's entities before they are destroyed
         if recorder is not None:
             recorder.destroy_node()
         try_shutdown()

@@ -20,22 +20,49 @@ executor that is between its `context.ok()` check and building its wait set then
 stop in three here). So the processes init rclpy without its handlers, and a signal only
 records a stop request: the spin loop sees it between callbacks, finishes what it is doing,
 and the process shuts rclpy down itself, in order.
+
+Which executor spins them: rclpy's EventsExecutor by default (experimental in Jazzy, but it
+takes half the CPU of the SingleThreadedExecutor at 1 kHz: it does not rebuild a wait set at
+every wake-up). QRM_ROS_EXECUTOR=single falls back to the SingleThreadedExecutor. What the
+EventsExecutor of rclpy 7.1 does, as checked by test_executor.py: timers on simulated time
+(/clock steps, pauses, jumps both ways), cancel and reset, services, parameter services,
+clients, QoS events; it leaves SIGINT/SIGTERM to Python (so StopRequest works as with the
+other executor). It refuses nodes with guard conditions (RuntimeError "Guard conditions not
+supported"); this package's nodes have none. And it calls a subscription callback that takes
+the message info with one argument, the (message, info) pair, where the other executors pass
+two (a two-parameter callback then fails: "SystemError: null argument to internal routine");
+MESSAGE_INFO_SIGNATURE and message_and_info make a callback that works on both.
 """
 
+import inspect
+import os
 import re
 import signal
 
 import rclpy
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.signals import SignalHandlerOptions
 
-__all__ = ['IDLE_WAKEUP', 'RCLError', 'StopRequest', 'init_rclpy', 'rcl_error_text',
-           'spin_until_stopped']
+__all__ = ['EXECUTOR_VARIABLE', 'EXECUTORS', 'ExecutorChoiceError', 'IDLE_WAKEUP',
+           'MESSAGE_INFO_SIGNATURE', 'RCLError', 'StopRequest', 'executor_kind', 'init_rclpy',
+           'message_and_info', 'new_executor', 'rcl_error_text', 'spin_until_stopped']
 
 RCLError = _rclpy.RCLError  # rcl failures (bad arguments, invalid context); as rclpy.action
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 # Longest wait for a stop request when no callback is due (e.g. use_sim_time, no /clock).
 IDLE_WAKEUP = 0.1  # s
+# The environment variable that chooses the executor, and its values (the first: default).
+EXECUTOR_VARIABLE = 'QRM_ROS_EXECUTOR'
+EXECUTORS = ('events', 'single')
+# The signature rclpy reads to pass a subscription callback the message info: set it as the
+# __signature__ of a callback that takes *arguments and unpacks them with message_and_info.
+MESSAGE_INFO_SIGNATURE = inspect.Signature(
+    [inspect.Parameter(name, inspect.Parameter.POSITIONAL_ONLY) for name in ('message', 'info')])
+
+
+class ExecutorChoiceError(ValueError):
+    """QRM_ROS_EXECUTOR names no executor of this package."""
 
 
 def init_rclpy(args=None, context=None):
@@ -84,3 +111,30 @@ def spin_until_stopped(executor, stop, idle_wakeup=IDLE_WAKEUP):
     """Run the executor's callbacks until the stop request (or the context) ends it."""
     while not stop and executor.context.ok():
         executor.spin_once(timeout_sec=idle_wakeup)
+
+
+def executor_kind(environ=None):
+    """Return the executor QRM_ROS_EXECUTOR asks for ('events' when unset or empty)."""
+    environ = os.environ if environ is None else environ
+    kind = environ.get(EXECUTOR_VARIABLE, '').strip().lower() or EXECUTORS[0]
+    if kind not in EXECUTORS:
+        raise ExecutorChoiceError(
+            f'{EXECUTOR_VARIABLE}={environ[EXECUTOR_VARIABLE]!r} is not an executor: allowed '
+            f'{", ".join(EXECUTORS)} (unset: {EXECUTORS[0]})')
+    return kind
+
+
+def new_executor(kind=None, context=None):
+    """Make the executor `kind` ('events' or 'single'; None: as QRM_ROS_EXECUTOR says)."""
+    kind = executor_kind() if kind is None else kind
+    if kind == 'events':
+        from rclpy.experimental.events_executor import EventsExecutor
+        return EventsExecutor(context=context)
+    if kind == 'single':
+        return SingleThreadedExecutor(context=context)
+    raise ExecutorChoiceError(f'executor {kind!r}: allowed {", ".join(EXECUTORS)}')
+
+
+def message_and_info(arguments):
+    """Return (message, info) from a MESSAGE_INFO_SIGNATURE callback's arguments, any executor."""
+    return arguments if len(arguments) == 2 else arguments[0]

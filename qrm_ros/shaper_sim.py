@@ -39,8 +39,8 @@ from qrm_ros.names import (CUTTING_SPEED_STATUS, DIAGNOSTICS_TOPIC, DRIVE_STATUS
                            JOINT_NAMES, JOINT_STATES_TOPIC, LINKAGE_MARKERS_TOPIC,
                            RAM_TWIST_TOPIC, SIM_NODE_NAME, SPEED_COMMAND_TOPIC,
                            STROKE_PAIR_STATUS)
-from qrm_ros.ros_process import (init_rclpy, RCLError, rcl_error_text, spin_until_stopped,
-                                 StopRequest)
+from qrm_ros.ros_process import (executor_kind, init_rclpy, new_executor, RCLError,
+                                 rcl_error_text, spin_until_stopped, StopRequest)
 from qrm_ros.shaper_parameters import (allowed_text, default_values, GEOMETRY_NAMES,
                                        MOTOR_PREFIX, PARAMETERS, refusal_reason, shown, View)
 from qrm_ros.stepping import ShaperStepper, wrap_angle
@@ -49,7 +49,6 @@ from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParam
 from rcl_interfaces.srv import SetParameters, SetParametersAtomically
 import rclpy
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import qos_profile_parameters
@@ -622,19 +621,22 @@ def main(args=None):
     except RCLError as error:  # a malformed -p or params file, said by rcl
         print(f'{SIM_NODE_NAME}: cannot start: {rcl_error_text(error)}', file=sys.stderr)
         return 2
-    node = None
+    node = executor = None
     try:
         with StopRequest() as stop:
             try:
+                kind = executor_kind()  # QRM_ROS_EXECUTOR: events (default) or single
                 node = ShaperSimNode()
             except ValueError as error:
                 # Say which start-up value and why, no traceback (KinematicsError included).
                 print(f'{SIM_NODE_NAME}: cannot start: {error}', file=sys.stderr)
                 return 2
-            executor = SingleThreadedExecutor()
+            executor = new_executor(kind)
             executor.add_node(node)
             spin_until_stopped(executor, stop)
     finally:
+        if executor is not None:
+            executor.shutdown()  # lets go of the node's entities before they are destroyed
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()

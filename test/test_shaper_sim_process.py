@@ -60,13 +60,14 @@ def executable():
 class Process:
     """shaper_sim started from its installed parameter file, output kept in files."""
 
-    def __init__(self, *arguments):
+    def __init__(self, *arguments, environment=None):
         self.output = tempfile.TemporaryFile(mode='w+')
         parameters = os.path.join(get_package_share_directory('qrm_ros'), 'config',
                                   'shaper.yaml')
         self.process = subprocess.Popen(
             [executable(), '--ros-args', '--params-file', parameters, *arguments],
-            stdout=self.output, stderr=subprocess.STDOUT, text=True)
+            stdout=self.output, stderr=subprocess.STDOUT, text=True,
+            env=None if environment is None else dict(os.environ, **environment))
 
     def stop(self, signal_number=signal.SIGINT, timeout=10.0):
         """Send signal_number (None: just wait) and return (exit code, output)."""
@@ -232,10 +233,11 @@ def test_process_publishes_a_continuous_exact_state_and_refuses_bad_values(probe
             abs=1e-15)
 
 
+@pytest.mark.parametrize('executor', ['events', 'single'])
 @pytest.mark.parametrize('signal_number', [signal.SIGINT, signal.SIGTERM],
                          ids=['SIGINT', 'SIGTERM'])
-def test_process_stops_cleanly(probe, signal_number):
-    node = Process()
+def test_process_stops_cleanly(probe, signal_number, executor):
+    node = Process(environment={'QRM_ROS_EXECUTOR': executor})
     try:
         probe.wait_for(lambda: len(probe.messages) >= 3, what='first joint states')
     finally:
