@@ -23,12 +23,16 @@ worker process and the node picks it up once it is there: no tick waits for it.
 
 import contextlib
 import math
-import multiprocessing
-import multiprocessing.pool
 import os
+import pickle
+import queue
 import signal
+import subprocess
+import sys
+import threading
+import time
 import warnings
-from typing import Dict, NamedTuple, Optional
+from typing import BinaryIO, Dict, NamedTuple, Optional
 
 from scipy import integrate
 
@@ -105,10 +109,23 @@ def steady_effort_theory(setting: Setting) -> Dict[str, Optional[float]]:
 WORKER_NICENESS = 10
 
 
-def _start_worker():
-    # Ctrl-C in a terminal reaches the whole process group: the node stops the worker.
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    os.nice(WORKER_NICENESS)
+def _answer(key, setting):
+    """Return the worker's reply to one request: (key, theory or None, problem or None)."""
+    try:
+        return key, steady_effort_theory(setting), None
+    except Exception as error:  # noqa: B902 a theory failing must not stop the worker
+        return key, None, f'{type(error).__name__}: {error}'
+
+
+def serve(requests: BinaryIO, replies: BinaryIO) -> None:
+    """Answer pickled (key, Setting) requests with pickled replies until the input ends."""
+    while True:
+        try:
+            key, setting = pickle.load(requests)
+        except EOFError:  # the caller closed the pipe, or died
+            return
+        pickle.dump(_answer(key, setting), replies)
+        replies.flush()
 
 
 class BackgroundTheory:
@@ -116,16 +133,22 @@ class BackgroundTheory:
     Steady effort theory per setting, worked out in one worker process and kept.
 
     ``lookup`` never waits: it returns the theory once it is known, else None, and starts the
-    work if it is not under way. The worker is spawned (not forked: the caller may hold DDS
-    threads) on the first lookup, so a process that never asks pays nothing.
+    work if it is not under way. The worker is a fresh interpreter running this module
+    (``python -m qrm_ros.effort_theory``), started on the first lookup, at low priority and
+    in a session of its own (a terminal's Ctrl-C is the caller's to handle): not a fork of a
+    process that may hold DDS threads, and not multiprocessing's spawn, which would run the
+    caller's main script again in the worker. Requests and replies are pickled over its
+    standard input and output; a thread reads the replies. It ends when the caller closes
+    the pipe (close(), or the caller's exit, however it happens).
     """
 
     def __init__(self, limit: int = 64):
         self._limit = limit
         self._known: Dict[tuple, Dict[str, Optional[float]]] = {}
         self._problems: Dict[tuple, str] = {}
-        self._pending: Dict[tuple, multiprocessing.pool.AsyncResult] = {}
-        self._pool: Optional[multiprocessing.pool.Pool] = None
+        self._pending: set = set()
+        self._replies: queue.Queue = queue.Queue()
+        self._worker: Optional[subprocess.Popen] = None
 
     def lookup(self, setting: Setting):
         """Return (theory or None, problem or None): None, None while it is being worked out."""
@@ -139,33 +162,72 @@ class BackgroundTheory:
             if len(self._known) + len(self._problems) >= self._limit:
                 self._known.clear()
                 self._problems.clear()
-            if self._pool is None:
-                self._pool = multiprocessing.get_context('spawn').Pool(
-                    1, initializer=_start_worker)
-            self._pending[key] = self._pool.apply_async(steady_effort_theory, (setting,))
+            self._ask(key, setting)
         return None, None
 
-    def wait(self, setting: Setting, timeout: Optional[float] = None):
+    def wait(self, setting: Setting, timeout: float = 60.0):
         """Start the work if needed and wait for it (for tests and tools, not for ticks)."""
-        self.lookup(setting)
-        result = self._pending.get(setting.key())
-        if result is not None:
-            result.wait(timeout)
-        return self.lookup(setting)
+        deadline = time.monotonic() + timeout
+        answer = self.lookup(setting)
+        while answer == (None, None) and time.monotonic() < deadline:
+            with contextlib.suppress(queue.Empty):
+                self._keep(self._replies.get(timeout=max(0.0, deadline - time.monotonic())))
+            answer = self.lookup(setting)
+        return answer
+
+    def _ask(self, key, setting):
+        if self._worker is None or self._worker.poll() is not None:
+            environment = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+            self._worker = subprocess.Popen(
+                [sys.executable, '-m', __name__], stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE, env=environment, start_new_session=True)
+            threading.Thread(target=self._read, args=(self._worker,), daemon=True).start()
+            self._pending.clear()  # asked of a worker that is gone: asked again when looked up
+        try:
+            pickle.dump((key, setting), self._worker.stdin)
+            self._worker.stdin.flush()
+            self._pending.add(key)
+        except OSError as error:  # the worker is gone: say so for this setting
+            self._problems[key] = f'the theory worker is gone: {error}'
+
+    def _read(self, worker):
+        """Queue the worker's replies until it ends (a thread of its own)."""
+        while True:
+            try:
+                self._replies.put(pickle.load(worker.stdout))
+            except (EOFError, OSError, pickle.UnpicklingError):
+                return
+
+    def _keep(self, reply):
+        key, theory, problem = reply
+        self._pending.discard(key)
+        if theory is not None:
+            self._known[key] = theory
+        else:
+            self._problems[key] = problem
 
     def _collect(self):
-        for key, result in list(self._pending.items()):
-            if not result.ready():
-                continue
-            del self._pending[key]
+        while True:
             try:
-                self._known[key] = result.get()
-            except Exception as error:  # noqa: B902 a theory failing must not stop the caller
-                self._problems[key] = f'{type(error).__name__}: {error}'
+                self._keep(self._replies.get_nowait())
+            except queue.Empty:
+                return
 
     def close(self):
         """Stop the worker at once, work under way included (a stop must not wait)."""
-        if self._pool is not None:
-            self._pool.terminate()
-            self._pool = None
+        if self._worker is not None:
+            self._worker.kill()
+            self._worker.wait()
+            for stream in (self._worker.stdin, self._worker.stdout):
+                with contextlib.suppress(OSError):
+                    stream.close()
+            self._worker = None
         self._pending.clear()
+
+
+if __name__ == '__main__':
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the caller stops the worker
+    os.nice(WORKER_NICENESS)
+    replies = os.fdopen(os.dup(sys.stdout.fileno()), 'wb')
+    os.dup2(sys.stderr.fileno(), sys.stdout.fileno())  # a stray print must not corrupt them
+    serve(sys.stdin.buffer, replies)
