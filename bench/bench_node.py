@@ -51,7 +51,8 @@ import sys
 import tempfile
 import time
 
-from qrm_ros.names import JOINT_NAMES, JOINT_STATES_TOPIC, RAM_TWIST_TOPIC
+from qrm_ros.names import (DIAGNOSTICS_TOPIC, JOINT_NAMES, JOINT_STATES_TOPIC, RAM_TWIST_TOPIC,
+                           STROKE_PAIR_STATUS)
 from qrm_ros.ros_isolation import isolate_ros_traffic
 
 RATES = [100.0, 1000.0, 2000.0, 3000.0, 5000.0]
@@ -167,10 +168,17 @@ def machine_busy_ns():
 
 
 class Probe:
-    """Counts the stamps of the joint states it receives (reliable, deep queue)."""
+    """
+    Counts the stamps of the joint states it receives (reliable, deep queue).
+
+    It also notes where the node's effort theory stands (its stroke-pair diagnostics): the
+    node works it out once per setting in a worker process, a one-off that is not the
+    steady cost of a tick, so a node is measured once that is done.
+    """
 
     def __init__(self):
         import rclpy
+        from diagnostic_msgs.msg import DiagnosticArray
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.qos import QoSProfile
         from sensor_msgs.msg import JointState
@@ -178,12 +186,23 @@ class Probe:
         rclpy.init()
         self.node = rclpy.create_node('bench_probe')
         self.stamps = []
+        self.theory_settled = False
         self.node.create_subscription(
             JointState, JOINT_STATES_TOPIC,
             lambda m: self.stamps.append(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec),
             QoSProfile(depth=10000))
+        self.node.create_subscription(DiagnosticArray, DIAGNOSTICS_TOPIC, self._on_diagnostics,
+                                      QoSProfile(depth=100))
         self.executor = SingleThreadedExecutor()
         self.executor.add_node(self.node)
+
+    def _on_diagnostics(self, message):
+        for status in message.status:
+            values = {item.key: item.value for item in status.values}
+            # Worked out (its values there), or known to have none at this setting.
+            if status.name == STROKE_PAIR_STATUS and values.get('effort_theory', '').startswith(
+                    ('steady setting', 'unavailable', 'none: no steady')):
+                self.theory_settled = True
 
     def spin_for(self, seconds):
         end = time.monotonic() + seconds
@@ -203,6 +222,11 @@ def measure(variant, rate, window, probe, quiet_limit, profile_path=None):
             probe.spin_for(0.01)
             if time.monotonic() > deadline:
                 raise RuntimeError(f'no joint states from {variant}')
+        probe.theory_settled = not variant.startswith('node')
+        while not probe.theory_settled:  # past the effort theory's one-off work
+            probe.spin_for(0.05)
+            if time.monotonic() > deadline + 30.0:
+                raise RuntimeError(f'{variant}: no stroke pair with its effort theory')
         probe.spin_for(0.2)  # past start-up
         probe.stamps.clear()
         own = os.getpid()
