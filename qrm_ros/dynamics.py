@@ -24,6 +24,7 @@ time derivative for any prescribed offset motion (offset_rate and offset_acceler
 """
 
 from dataclasses import dataclass, fields
+import functools
 import math
 from types import SimpleNamespace
 from typing import ClassVar, NamedTuple
@@ -66,6 +67,12 @@ def _checked(name, value, unit, minimum=None, strict=False):
     return float(array) if array.ndim == 0 else array
 
 
+@functools.cache
+def _field_names(kind):
+    # Once per class: the node asks at every tick (the efforts' one-sample path).
+    return tuple(field.name for field in fields(kind))
+
+
 class _Validated:
     """Field validation shared by the three parameter sets."""
 
@@ -80,7 +87,7 @@ class _Validated:
     @classmethod
     def field_names(cls):
         """Names of the fields, in order: node parameter names and metadata keys."""
-        return tuple(field.name for field in fields(cls))
+        return _field_names(cls)
 
     @classmethod
     def units(cls):
@@ -196,7 +203,9 @@ class Loads(_Validated):
 
     def check_against(self, stroke):
         """Refuse a workpiece longer than the ram stroke (m); return self."""
-        if np.any(np.asarray(self.cutting_length) > stroke):
+        length = self.cutting_length  # a float but in vectorised use; this runs every tick
+        if (length > stroke if type(length) is float
+                else np.any(np.asarray(length) > stroke)):
             raise DynamicsError(f'cutting_length = {self.cutting_length!r} m is out of range: '
                                 f'allowed 0 to the ram stroke, {stroke:.6g} m')
         return self
