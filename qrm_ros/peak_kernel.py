@@ -155,6 +155,19 @@ def _newton_peak(stroke_sign, low, sin_c, cos_c, start, high, tolerance, resolut
 
 
 @_jit
+def _keep_peak(best, best_angle, stroke_sign, angle, growth, sin_c, cos_c, end, end_growth,
+               tolerance, resolution, max_steps, args):
+    """Return the larger of (best, its angle) and the peak of |v| turning in [angle, end]."""
+    if growth >= 0.0 and end_growth <= 0.0 and growth != end_growth:
+        start = angle + (end - angle) * (growth / (growth - end_growth))
+        speed, at = _newton_peak(stroke_sign, angle, sin_c, cos_c, start, end, tolerance,
+                                 resolution, max_steps, *args)
+        if speed > best:
+            return speed, at
+    return best, best_angle
+
+
+@_jit
 def _stroke_peak(stroke_sign, arc_start, arc_end, sin_end, cos_start, cos_end, samples,
                  tolerance, resolution, max_steps, phase, r1, r, h, height, cos0, sin0,
                  offset, clearance):
@@ -195,21 +208,15 @@ def _stroke_peak(stroke_sign, arc_start, arc_end, sin_end, cos_start, cos_end, s
             if cross > angle:
                 cross_growth = -stroke_sign * _speed_rise(cross_sin, cross_cos, r1, r, h, cos0,
                                                           sin0, offset)
-                if growth >= 0.0 and cross_growth <= 0.0 and growth != cross_growth:
-                    start = angle + (cross - angle) * (growth / (growth - cross_growth))
-                    speed, at = _newton_peak(stroke_sign, angle, sin_c, cos_c, start, cross,
-                                             tolerance, resolution, max_steps, *args)
-                    if speed > best:
-                        best, best_angle = speed, at
+                best, best_angle = _keep_peak(best, best_angle, stroke_sign, angle, growth,
+                                              sin_c, cos_c, cross, cross_growth, tolerance,
+                                              resolution, max_steps, args)
                 angle, growth, sin_c, cos_c = cross, cross_growth, cross_sin, cross_cos
             cross, cross_sin, cross_cos = other, -cross_sin, -cross_cos
             other = math.inf
-        if growth >= 0.0 and following_growth <= 0.0 and growth != following_growth:
-            start = angle + (following - angle) * (growth / (growth - following_growth))
-            speed, at = _newton_peak(stroke_sign, angle, sin_c, cos_c, start, following,
-                                     tolerance, resolution, max_steps, *args)
-            if speed > best:
-                best, best_angle = speed, at
+        best, best_angle = _keep_peak(best, best_angle, stroke_sign, angle, growth, sin_c,
+                                      cos_c, following, following_growth, tolerance, resolution,
+                                      max_steps, args)
         angle, growth, sin_c, cos_c = following, following_growth, next_sin, next_cos
     if best == 0.0:
         return 0.0
