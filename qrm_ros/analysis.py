@@ -55,17 +55,15 @@ from qrm_ros.design_table import add_geometry_arguments
 from qrm_ros.effort_theory import (EFFORT_FIGURES, Setting, steady_effort_theory,
                                    THEORY_FIGURES, ZERO_CAN_BE_EXACT)
 from qrm_ros.names import (absolute_topic, GEOMETRY_METADATA, JOINT_NAMES, JOINT_STATE_TYPE,
-                           MOTOR_DRIVE, MOTOR_PREFIX, PARAMETER_EVENTS_TOPIC,
-                           PARAMETERS_METADATA, SIM_NODE_NAME,
-                           SPEED_DRIVE)
+                           MOTOR_DRIVE, PARAMETER_EVENTS_TOPIC, PARAMETERS_METADATA,
+                           SIM_NODE_NAME, SPEED_DRIVE)
 from qrm_ros.strokes import find_stroke_pairs, measure_pair_efforts
 
 JOINT_STATES_TOPIC = absolute_topic(names.JOINT_STATES_TOPIC)
 PARAMETER_STRING = 4  # rcl_interfaces/msg/ParameterType.PARAMETER_STRING
 # The node's parameters that make the drive (Drive): its masses, loads and motor, and which.
 DRIVE_PARAMETERS = frozenset(
-    ['drive', *dyn.MassProperties.field_names(), *dyn.Loads.field_names(),
-     *(MOTOR_PREFIX + name for name in dyn.MotorDrive.field_names())])
+    ['drive', *(name for kind in dyn.PARAMETER_PREFIXES for name in dyn.parameter_names(kind))])
 GEOMETRY_FIELDS = kin.Geometry.field_names()
 # Samples whose offset and input speed differ by less than this (relative) are one setting.
 STEADY_TOLERANCE = 1e-12
@@ -742,10 +740,8 @@ def _drive_of_values(values: Dict[str, Any],
                      geometry: kin.Geometry) -> Tuple[Optional[Drive], Optional[str]]:
     """Make the mass properties, loads and drive of parameter values; or None and why not."""
     drive = values.get('drive', SPEED_DRIVE)
-    prefixes: Dict[Any, str] = {dyn.MassProperties: '', dyn.Loads: '',
-                                dyn.MotorDrive: MOTOR_PREFIX}
-    wanted = {kind: {name: prefix + name for name in kind.field_names()}
-              for kind, prefix in prefixes.items()}
+    wanted = {kind: dict(zip(kind.field_names(), dyn.parameter_names(kind)))
+              for kind in dyn.PARAMETER_PREFIXES}
     if drive not in (SPEED_DRIVE, MOTOR_DRIVE):
         return None, f'the recorded drive {drive!r} is unknown (expected speed or motor)'
     kinds = [dyn.MassProperties, dyn.Loads] + ([dyn.MotorDrive] if drive == MOTOR_DRIVE
@@ -859,11 +855,9 @@ def _drive_values(drive: Optional[Drive]) -> Dict[str, Any]:
     if drive is None:
         return {}
     values: Dict[str, Any] = {'drive': SPEED_DRIVE if drive.motor is None else MOTOR_DRIVE}
-    values.update(drive.mass.as_dict())
-    values.update(drive.loads.as_dict())
-    if drive.motor is not None:
-        values.update((MOTOR_PREFIX + name, value)
-                      for name, value in drive.motor.as_dict().items())
+    for part in (drive.mass, drive.loads, drive.motor):
+        if part is not None:
+            values.update(zip(dyn.parameter_names(type(part)), part.as_dict().values()))
     return values
 
 

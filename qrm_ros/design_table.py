@@ -26,17 +26,14 @@ import argparse
 import json
 import math
 import sys
-import warnings
 
 import numpy as np
-from scipy import integrate
 
 from qrm_ros import dynamics as dyn
 from qrm_ros import flywheel_design
 from qrm_ros import gearbox
 from qrm_ros import kinematics as kin
 from qrm_ros import motor_drive as md
-from qrm_ros.names import MOTOR_PREFIX
 
 DEFAULT_OFFSETS_MM = np.arange(-20.0, 20.0 + 1e-9, 2.5)
 
@@ -59,11 +56,7 @@ def drive_rows(geometry, mass, loads, motor, offsets, input_speed):
     """
     rows = []
     for offset in offsets:
-        with warnings.catch_warnings():
-            # quad is asked for 1e-12 relative and may say it got a little less; the table
-            # prints five digits, and the tests hold its figures to dense sampling.
-            warnings.simplefilter('ignore', integrate.IntegrationWarning)
-            figures = md.pair_efforts(geometry, mass, loads, float(offset), input_speed)
+        figures = md.pair_efforts(geometry, mass, loads, float(offset), input_speed)
         row = dict(figures._asdict())
         if motor is not None:
             try:
@@ -179,7 +172,7 @@ def format_drive_rows(data):
     if motor is None:
         lines.append('  Cs (speed fluctuation under the motor drive): add --speed-fluctuation '
                      '(a simulation per')
-        lines.append('  offset, 0.3 s near offset 0 to 40 s at 20 mm)')
+        lines.append('  offset, about 0.35 s each)')
     else:
         lines.append(f'  Cs = (max - min) / mean input speed, steady, under the motor drive with '
                      f'reference {data["input_speed"]:g} rad/s')
@@ -221,11 +214,11 @@ def geometry_from_arguments(args):
                         args.ram_height, args.crank_phase)
 
 
-# The parameter sets a drive needs, as (kind, option prefix, group title); the motor's
-# options carry the node's parameter names (motor_speed_stiffness, ...).
-DRIVE_PARAMETER_SETS = ((dyn.MassProperties, '', 'mass properties'),
-                        (dyn.Loads, '', 'loads on the ram'),
-                        (dyn.MotorDrive, MOTOR_PREFIX, 'motor'))
+# The parameter sets a drive needs, as (kind, option prefix, group title); the options carry
+# the node's parameter names (dynamics.PARAMETER_PREFIXES: motor_speed_stiffness, ...).
+DRIVE_PARAMETER_SETS = tuple((kind, dyn.PARAMETER_PREFIXES[kind], title) for kind, title in (
+    (dyn.MassProperties, 'mass properties'), (dyn.Loads, 'loads on the ram'),
+    (dyn.MotorDrive, 'motor')))
 
 
 def add_drive_arguments(parser):
@@ -436,7 +429,7 @@ def main(argv=None):
                         help='offsets to tabulate [mm] (default: -20 to 20 in 2.5 mm steps)')
     parser.add_argument('--speed-fluctuation', action='store_true',
                         help='add the column Cs under the motor drive: a simulation per offset, '
-                             'about 0.3 s near offset 0 and up to 40 s at 20 mm (off by default)')
+                             'about 0.35 s each (off by default)')
     parser.add_argument('--json', action='store_true',
                         help='print the table as JSON (SI units) instead of text')
     add_drive_arguments(parser)

@@ -32,6 +32,7 @@ from typing import ClassVar, NamedTuple
 import numpy as np
 
 from qrm_ros.kinematics import check_offset, KinematicsError
+from qrm_ros.names import MOTOR_PREFIX
 
 __all__ = [
     'DynamicsError', 'Efforts', 'Loads', 'MassProperties', 'MotorDrive', 'efforts',
@@ -239,6 +240,17 @@ class MotorDrive(_Validated):
         max_torque 250 N m: about 2.1 times rated, below a typical pull-out torque.
         """
         return cls(speed_stiffness=360.0, max_torque=250.0)
+
+
+# Each parameter set's node parameters (shaper_sim, the recorded metadata, qrm_design's
+# options): its field names behind this prefix.
+PARAMETER_PREFIXES: dict[type[_Validated], str] = {
+    MassProperties: '', Loads: '', MotorDrive: MOTOR_PREFIX}
+
+
+def parameter_names(kind):
+    """Return the node's names of a parameter set's fields (motor_speed_stiffness, ...)."""
+    return tuple(PARAMETER_PREFIXES[kind] + name for name in kind.field_names())
 
 
 class Efforts(NamedTuple):

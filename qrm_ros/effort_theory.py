@@ -31,10 +31,7 @@ import subprocess
 import sys
 import threading
 import time
-import warnings
 from typing import BinaryIO, Dict, NamedTuple, Optional
-
-from scipy import integrate
 
 from qrm_ros import dynamics as dyn
 from qrm_ros import kinematics as kin
@@ -86,9 +83,7 @@ def steady_effort_theory(setting: Setting) -> Dict[str, Optional[float]]:
     if setting.input_speed == 0.0:
         return theory
     geometry, mass, loads = setting.geometry, setting.mass, setting.loads
-    with contextlib.suppress(kin.KinematicsError), warnings.catch_warnings():
-        # quad warns of roundoff when its 1e-12 goal is met to within roundoff already.
-        warnings.simplefilter('ignore', integrate.IntegrationWarning)
+    with contextlib.suppress(kin.KinematicsError):
         if setting.motor is None:  # the ideal speed drive holds the speed: no fluctuation
             figures = motor_drive.pair_efforts(geometry, mass, loads, setting.offset,
                                                setting.input_speed)

@@ -21,13 +21,11 @@ Every axis is labelled with its unit so a figure reads without the table.
 
 import math
 import os
-import warnings
 
 import matplotlib
 matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from scipy.integrate import IntegrationWarning  # noqa: E402
 
 from qrm_ros import kinematics as kin  # noqa: E402
 
@@ -278,10 +276,8 @@ def offset_cost_figure(analysis):
         offsets = np.linspace(-geometry.max_safe_offset, geometry.max_safe_offset,
                               COST_CURVE_POINTS)
         for index, speed in enumerate(_cost_speeds(analysis)[:4]):
-            with warnings.catch_warnings():  # quad's roundoff notes (see analysis)
-                warnings.simplefilter('ignore', IntegrationWarning)
-                peaks = [pair_efforts(geometry, drive.mass, drive.loads, offset, speed
-                                      ).peak_input_torque for offset in offsets]
+            peaks = [pair_efforts(geometry, drive.mass, drive.loads, offset, speed
+                                  ).peak_input_torque for offset in offsets]
             top.plot(offsets / h, peaks, '-', color=f'C{index}', gid=THEORY,
                      label=f'theory (ideal speed drive), {speed:g} rad/s')
     else:

@@ -29,6 +29,7 @@ are the same machine; with an offset the flywheel's own speed swings every revol
 equivalent is only an estimate, and its Cs is simulated and reported beside it.
 """
 
+import dataclasses
 import math
 from typing import NamedTuple, Optional
 
@@ -66,10 +67,6 @@ def revolution_mean_inertia(geometry, mass, offset):
     return float(np.mean(dyn.generalized_inertia(geometry, mass, offset, angles)))
 
 
-def _with(mass, **changes):
-    return dyn.MassProperties(**{**mass.as_dict(), **changes})
-
-
 def size_flywheel(geometry, mass, loads, motor, offset, input_speed, fluctuation):
     """
     Size the input side for a steady Cs under the motor; return a ``FlywheelSizing``.
@@ -86,7 +83,7 @@ def size_flywheel(geometry, mass, loads, motor, offset, input_speed, fluctuation
                                     input_speed).fluctuation
 
     given = fluctuation_with(mass)
-    simulated = fluctuation_with(_with(mass, input_inertia=input_inertia))
+    simulated = fluctuation_with(dataclasses.replace(mass, input_inertia=input_inertia))
     total = md.energy_method_inertia(geometry, mass, loads, offset, input_speed, fluctuation)
     chain = revolution_mean_inertia(geometry, mass, offset) - mass.input_inertia
     unit_flywheel = dyn.MassProperties(input_inertia=0.0, flywheel_inertia=1.0,
@@ -98,7 +95,8 @@ def size_flywheel(geometry, mass, loads, motor, offset, input_speed, fluctuation
     equivalent = equivalent_fluctuation = None
     if flywheel >= 0.0 and mass.input_inertia + flywheel > 0.0:
         equivalent = flywheel
-        equivalent_fluctuation = fluctuation_with(_with(mass, flywheel_inertia=flywheel))
+        equivalent_fluctuation = fluctuation_with(
+            dataclasses.replace(mass, flywheel_inertia=flywheel))
     return FlywheelSizing(
         speed_fluctuation=float(fluctuation), given_speed_fluctuation=given,
         input_inertia=input_inertia, added_input_inertia=added,

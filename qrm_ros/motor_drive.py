@@ -20,6 +20,7 @@ each revolution is split there and every smooth piece is integrated and searched
 peaks on its own; that is what makes the per-pair figures exact to quadrature accuracy.
 """
 
+import dataclasses
 import math
 from typing import NamedTuple
 
@@ -1023,12 +1024,6 @@ def speed_fluctuation(geometry, mass, loads, motor, offset, input_speed):
                               input_speed)[0]
 
 
-def _with_input_inertia(mass, input_inertia):
-    values = mass.as_dict()
-    values['input_inertia'] = input_inertia
-    return type(mass)(**values)
-
-
 def energy_method_inertia(geometry, mass, loads, offset, input_speed, fluctuation):
     """dynamics.md's energy method: total inertia about Delta E / (Cs w^2)."""
     angles = np.linspace(0.0, 2.0 * math.pi, 4097)
@@ -1064,8 +1059,8 @@ def input_inertia_for_speed_fluctuation(geometry, mass, loads, motor, offset, in
             nearest = min(runs, key=lambda known: abs(known - input_inertia), default=None)
             start = input_speed if nearest is None else runs[nearest][1]
             result, speed = _steady_revolution(
-                geometry, _with_input_inertia(mass, input_inertia), loads, motor, offset,
-                input_speed, start)
+                geometry, dataclasses.replace(mass, input_inertia=input_inertia), loads, motor,
+                offset, input_speed, start)
             runs[input_inertia] = (result.fluctuation, speed)
         return runs[input_inertia][0]
 

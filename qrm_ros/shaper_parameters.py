@@ -24,7 +24,7 @@ import math
 from typing import Callable, NamedTuple, Optional, Tuple
 
 from qrm_ros.cutting_speed_hold import CUTTING_SPEED_DEFINITIONS, unreachable_reason
-from qrm_ros.dynamics import Loads, MassProperties, MotorDrive
+from qrm_ros.dynamics import Loads, MassProperties, MotorDrive, parameter_names
 from qrm_ros.kinematics import Geometry, KinematicsError
 from qrm_ros.names import DRIVES, MOTOR_PREFIX
 
@@ -347,13 +347,13 @@ _EXTRA_CHECKS = {'cutting_length': (_cutting_length_within_stroke,),
 def _dynamics_parameters():
     """Declare the mass properties and the loads (all live) from the dynamics' own fields."""
     specs = {}
-    for kind, defaults, meanings, prefix in (
-            (MassProperties, MassProperties.small_shaper(), _MASS_MEANINGS, ''),
-            (Loads, Loads.none(), _LOAD_MEANINGS, ''),
-            (MotorDrive, MotorDrive.small_shaper(), _MOTOR_MEANINGS, MOTOR_PREFIX)):
+    for kind, defaults, meanings in (
+            (MassProperties, MassProperties.small_shaper(), _MASS_MEANINGS),
+            (Loads, Loads.none(), _LOAD_MEANINGS),
+            (MotorDrive, MotorDrive.small_shaper(), _MOTOR_MEANINGS)):
         units, limits = kind.units(), kind.lower_limits()
-        for name in kind.field_names():
-            specs[prefix + name] = ParameterSpec(
+        for name, parameter in zip(kind.field_names(), parameter_names(kind)):
+            specs[parameter] = ParameterSpec(
                 float(getattr(defaults, name)), units[name],
                 f'{meanings[name]}. Live: the efforts follow at once.', False,
                 AtLeast(*limits[name]), _EXTRA_CHECKS.get(name, ()),

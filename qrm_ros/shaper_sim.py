@@ -30,7 +30,8 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import TwistStamped
 from qrm_ros.cutting_speed_hold import CUTTING_SPEED_FIGURES, hold_offset
-from qrm_ros.dynamics import efforts, Loads, MassProperties, MotorDrive, ram_load_force
+from qrm_ros.dynamics import (efforts, Loads, MassProperties, MotorDrive, parameter_names,
+                              ram_load_force)
 from qrm_ros.effort_theory import BackgroundTheory, Setting, THEORY_FIGURES
 from qrm_ros.motor_drive import MotorStepper
 from qrm_ros.kinematics import Geometry
@@ -42,7 +43,7 @@ from qrm_ros.names import (CUTTING_SPEED_STATUS, DIAGNOSTICS_TOPIC, DRIVE_STATUS
 from qrm_ros.ros_process import (executor_kind, init_rclpy, new_executor, RCLError,
                                  rcl_error_text, spin_until_stopped, StopRequest)
 from qrm_ros.shaper_parameters import (allowed_text, default_values, GEOMETRY_NAMES,
-                                       MOTOR_PREFIX, PARAMETERS, refusal_reason, shown, View)
+                                       PARAMETERS, refusal_reason, shown, View)
 from qrm_ros.stepping import ShaperStepper, wrap_angle
 from qrm_ros.stroke_monitor import StrokeMonitor
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
@@ -480,10 +481,10 @@ class ShaperSimNode(Node):
     def update_dynamics(self):
         """Take the mass, load and motor parameters in force (checked by their rules)."""
         values = self._values
-        self._mass = MassProperties(**{n: values[n] for n in MassProperties.field_names()})
-        self._loads = Loads(**{n: values[n] for n in Loads.field_names()})
-        self._motor = MotorDrive(**{n: values[MOTOR_PREFIX + n]
-                                    for n in MotorDrive.field_names()})
+        self._mass, self._loads, self._motor = (
+            kind(**{field: values[name]
+                    for field, name in zip(kind.field_names(), parameter_names(kind))})
+            for kind in (MassProperties, Loads, MotorDrive))
         if isinstance(self._stepper, MotorStepper):
             self._stepper.set_dynamics(self._mass, self._loads, self._motor)
 
