@@ -186,12 +186,13 @@ class BackgroundTheory:
             self._problems[key] = f'the theory worker is gone: {error}'
 
     def _read(self, worker):
-        """Queue the worker's replies until it ends (a thread of its own)."""
-        while True:
-            try:
-                self._replies.put(pickle.load(worker.stdout))
-            except (EOFError, OSError, pickle.UnpicklingError):
-                return
+        """Queue the worker's replies until it ends (a thread of its own, owning the pipe)."""
+        with worker.stdout:
+            while True:
+                try:
+                    self._replies.put(pickle.load(worker.stdout))
+                except (EOFError, OSError, pickle.UnpicklingError):
+                    return
 
     def _keep(self, reply):
         key, theory, problem = reply
@@ -212,10 +213,9 @@ class BackgroundTheory:
         """Stop the worker at once, work under way included (a stop must not wait)."""
         if self._worker is not None:
             self._worker.kill()
-            self._worker.wait()
-            for stream in (self._worker.stdin, self._worker.stdout):
-                with contextlib.suppress(OSError):
-                    stream.close()
+            self._worker.wait()  # its replies' pipe ends too: the reading thread closes it
+            with contextlib.suppress(OSError):
+                self._worker.stdin.close()
             self._worker = None
         self._pending.clear()
 
