@@ -368,10 +368,10 @@ def efforts(geometry, mass, offset, input_angle, input_speed, input_acceleration
     """
     arguments = (offset, input_angle, input_speed, input_acceleration, offset_rate,
                  offset_acceleration, external_ram_force)
-    if _one_sample(geometry, mass, arguments):
+    fixed = _scalar_set_up(geometry, mass)
+    if fixed is not None and _one_sample(fixed[1], arguments):
         # One sample of floats (the node, every tick): math's functions, no array checks.
-        return _chain(_SCALAR_OPS, *_geometry_fields(geometry), mass.as_dict(),
-                      *arguments).efforts
+        return _chain(*fixed, *arguments).efforts
     chain = _array_chain(geometry, mass, *arguments)
     return _scalar_result(chain.efforts, Efforts)
 
@@ -381,11 +381,26 @@ def _geometry_fields(geometry):
             geometry.ram_height, geometry.crank_phase)
 
 
-def _one_sample(geometry, mass, arguments):
+@functools.lru_cache(maxsize=16)
+def _scalar_set_up(geometry, mass):
+    """
+    Return the chain's fixed arguments for one-sample calls, or None if any is not a float.
+
+    Both are frozen and hash by identity, so this runs once per pair of objects (the node
+    keeps them between changes), not at every tick.
+    """
+    fields = _geometry_fields(geometry)
+    masses = mass.as_dict()
+    if all(type(value) is float and math.isfinite(value)
+           for value in (*fields, *masses.values())):
+        return (_SCALAR_OPS, *fields, masses)
+    return None
+
+
+def _one_sample(coupling_radius, arguments):
     """Say whether all are finite floats and the offset one the coupling turns with."""
-    values = (*arguments, *_geometry_fields(geometry), *mass.as_dict().values())
-    return (all(type(value) is float and math.isfinite(value) for value in values)
-            and abs(arguments[0]) < geometry.coupling_radius)
+    return (all(type(value) is float and math.isfinite(value) for value in arguments)
+            and abs(arguments[0]) < coupling_radius)
 
 
 def generalized_inertia(geometry, mass, offset, input_angle):
