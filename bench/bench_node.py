@@ -16,10 +16,11 @@ Benchmark: shaper_sim against a bare rclpy timer publishing a JointState of the 
 
     python3 dev.py run python bench/bench_node.py [--repeat 5] [--window 2] [--allow-busy]
 
-Every publisher runs as its own process; this process subscribes to joint_states and counts
-missed ticks from the stamps (a gap of k periods is k - 1 missed ticks). Variants, measured
-interleaved (each repeat visits every rate and variant, in a rotated order, so slow drifts of
-the machine hit all alike):
+Every publisher runs as its own process; this process subscribes to joint_states and counts,
+from the stamps, missed ticks (due but never published) and late ones (a gap of k periods
+between two stamps is k - 1 late ticks: what this benchmark called missed until 2026-11-24).
+Variants, measured interleaved (each repeat visits every rate and variant, in a rotated
+order, so slow drifts of the machine hit all alike):
   node         shaper_sim as shipped (rclpy's EventsExecutor), default parameters
   node-single  the same on rclpy's SingleThreadedExecutor (QRM_ROS_EXECUTOR=single)
   node-cut     as shipped, speed drive, with the main job's default cutting load
@@ -211,7 +212,7 @@ class Probe:
 
 
 def measure(variant, rate, window, probe, quiet_limit, profile_path=None):
-    """(missed fraction, CPU in % of a core, other load in cores) over one window."""
+    """(missed and late fractions, CPU in % of a core, other load in cores) over a window."""
     command = [sys.executable, os.path.abspath(__file__), '--publisher', variant, str(rate)]
     command += [profile_path] if profile_path else []
     process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -245,21 +246,35 @@ def measure(variant, rate, window, probe, quiet_limit, profile_path=None):
         except subprocess.TimeoutExpired:
             process.kill()
             process.wait()
-    period = 1e9 / rate
-    missed = sum(max(0, round((b - a) / period) - 1) for a, b in zip(stamps, stamps[1:]))
-    expected = max(1, round((stamps[-1] - stamps[0]) / period) + 1) if stamps else 1
-    return missed / expected, 100.0 * cpu / (wall * 1e9), others / (wall * 1e9)
+    missed, late = tick_misses(stamps, 1e9 / rate)
+    return missed, late, 100.0 * cpu / (wall * 1e9), others / (wall * 1e9)
+
+
+def tick_misses(stamps, period):
+    """
+    Return (missed, late) fractions of the ticks due between the first and last stamp.
+
+    Missed: due but never published (rcl's timer skips a period only when its callback comes
+    a whole period late). Late: published over half a period after the previous one's due
+    time (the stamp is the clock when the callback ran), which the gap between two stamps
+    rounds up to one more period.
+    """
+    if len(stamps) < 2:
+        return 1.0, 0.0
+    expected = round((stamps[-1] - stamps[0]) / period) + 1
+    late = sum(max(0, round((b - a) / period) - 1) for a, b in zip(stamps, stamps[1:]))
+    return max(0, expected - len(stamps)) / expected, late / expected
 
 
 def quiet_measurement(variant, rate, window, probe, quiet_limit, allow_busy):
     for attempt in range(RETRIES):
-        missed, cpu, others = measure(variant, rate, window, probe, quiet_limit)
+        missed, late, cpu, others = measure(variant, rate, window, probe, quiet_limit)
         if others <= quiet_limit:
-            return missed, cpu
+            return missed, late, cpu
         print(f'    (machine busy: other processes used {others:.2f} cores during '
               f'{variant} {rate:.0f} Hz; retry {attempt + 1}/{RETRIES})', flush=True)
     if allow_busy:
-        return missed, cpu
+        return missed, late, cpu
     return None
 
 
@@ -305,14 +320,14 @@ def main():
                     return EXIT_BUSY
                 results.setdefault((variant, rate), []).append(found)
                 print(f'  {variant:11s} {rate:6.0f} Hz: missed {100 * found[0]:5.2f} %, '
-                      f'CPU {found[1]:5.1f} %', flush=True)
+                      f'late {100 * found[1]:5.2f} %, CPU {found[2]:5.1f} %', flush=True)
     report(results, args)
     if args.profile:
         rate = next((r for r in CPU_RATES if r in args.rates), args.rates[0])
         with tempfile.TemporaryDirectory() as folder:
             path = os.path.join(folder, 'publisher.prof')
-            missed, cpu, others = measure(args.profile, rate, args.window, probe,
-                                          args.quiet_limit, path)
+            _, _, cpu, others = measure(args.profile, rate, args.window, probe,
+                                        args.quiet_limit, path)
             print(f'\nprofile of {args.profile} at {rate:.0f} Hz (CPU {cpu:.1f} % under '
                   f'cProfile, other load {others:.2f} cores), Python time by function:')
             pstats.Stats(path).sort_stats('tottime').print_stats(15)
@@ -324,27 +339,29 @@ def report(results, args):
           + (' (busy machine allowed)' if args.allow_busy else ''))
     for rate in [r for r in CPU_RATES if r in args.rates]:
         for variant in args.variants:
-            cpus = [cpu for _, cpu in results[variant, rate]]
-            missed = [100 * missed for missed, _ in results[variant, rate]]
+            cpus = [cpu for _, _, cpu in results[variant, rate]]
+            missed = [100 * missed for missed, _, _ in results[variant, rate]]
+            late = [100 * late for _, late, _ in results[variant, rate]]
             print(f'CPU at {rate:6.0f} Hz, {variant:11s}: {spread(cpus)} % of a core; '
-                  f'missed ticks {spread(missed)} %')
+                  f'missed ticks {spread(missed)} %, late {spread(late)} %')
         pairs = [(variant, 'bare') for variant in args.variants if variant != 'bare']
         for variant, base in pairs + list(RATIOS):
             if variant not in args.variants or base not in args.variants:
                 continue
-            ratios = [cpu / base_cpu for (_, cpu), (_, base_cpu)
+            ratios = [cpu / base_cpu for (_, _, cpu), (_, _, base_cpu)
                       in zip(results[variant, rate], results[base, rate])]
             print(f'CPU at {rate:6.0f} Hz, {variant:11s} / {base:11s}: {spread(ratios)}')
-    for variant in args.variants:
-        highest = []
-        for index in range(args.repeat):
-            top = 0.0
-            for rate in sorted(args.rates):
-                if results[variant, rate][index][0] > SUSTAINED_MISSED_FRACTION:
-                    break
-                top = rate
-            highest.append(top)
-        print(f'highest rate with <= 1 % missed ticks, {variant:11s}: {spread(highest)} Hz')
+    for column, what in enumerate(('missed', 'late')):
+        for variant in args.variants:
+            highest = []
+            for index in range(args.repeat):
+                top = 0.0
+                for rate in sorted(args.rates):
+                    if results[variant, rate][index][column] > SUSTAINED_MISSED_FRACTION:
+                        break
+                    top = rate
+                highest.append(top)
+            print(f'highest rate with <= 1 % {what} ticks, {variant:11s}: {spread(highest)} Hz')
 
 
 if __name__ == '__main__':
