@@ -34,6 +34,7 @@ two (a two-parameter callback then fails: "SystemError: null argument to interna
 MESSAGE_INFO_SIGNATURE and message_and_info make a callback that works on both.
 """
 
+import gc
 import inspect
 import os
 import re
@@ -108,7 +109,15 @@ class StopRequest:
 
 
 def spin_until_stopped(executor, stop, idle_wakeup=IDLE_WAKEUP):
-    """Run the executor's callbacks until the stop request (or the context) ends it."""
+    """
+    Run the executor's callbacks until the stop request (or the context) ends it.
+
+    What exists before the spinning (modules, nodes) lives till the end: gc.freeze() takes
+    it out of the garbage collector's view, so a full collection scans only what the run
+    allocated (with numpy, scipy and rclpy loaded one took 18-29 ms inside a node's tick).
+    """
+    gc.collect()
+    gc.freeze()
     while not stop and executor.context.ok():
         executor.spin_once(timeout_sec=idle_wakeup)
 
