@@ -16,12 +16,14 @@ The shaper_sim node: the mechanism stepped in time, published as joint states.
 
 A thin adapter: ShaperStepper (qrm_ros.stepping) integrates the input angle and moves the
 offset; the kinematics core gives every other state in closed form; StrokeMonitor
-(qrm_ros.stroke_monitor) measures each completed stroke pair for /diagnostics; the
+(qrm_ros.stroke_monitor) measures each completed stroke pair for /diagnostics, on a thread
+of its own so that no tick waits for it; the
 parameters, their rules and effects are data (qrm_ros.shaper_parameters). This module only
 turns parameters into descriptors, commands into stepper calls and states into messages.
 """
 
 from array import array
+from concurrent.futures import ThreadPoolExecutor
 import difflib
 import math
 import sys
@@ -61,6 +63,8 @@ from visualization_msgs.msg import MarkerArray
 __all__ = ['JOINT_NAMES', 'PARAMETERS', 'ShaperSimNode', 'main', 'refusal_reason']
 
 _WARNING_PERIOD = 1.0  # s, throttle for repeated warnings
+# s: the longest the pair thread may hold the GIL while a tick waits for it.
+PAIR_THREAD_SWITCH_INTERVAL = 1e-4
 _STALL_REPEAT_NS = 1_000_000_000  # a stall's ERROR status is repeated this often
 # Publisher history, in seconds of messages at the publish rate: a reliable subscriber that
 # keeps up on average (the recorder) but stalls for a moment (a loaded machine) is resent
@@ -93,6 +97,13 @@ class ShaperSimNode(Node):
     def __init__(self, **node_options):
         super().__init__(SIM_NODE_NAME, **node_options)
         self._theory = BackgroundTheory()
+        # Completed stroke pairs are measured and reported here, off the timer's thread:
+        # a pair of thousands of samples takes milliseconds, which a tick must not wait for.
+        self._pair_thread = ThreadPoolExecutor(max_workers=1, thread_name_prefix='pairs')
+        # A Python thread keeps the GIL for up to the switch interval (5 ms by default)
+        # while the timer's callback waits for it; a short one bounds that wait.
+        if sys.getswitchinterval() > PAIR_THREAD_SWITCH_INTERVAL:
+            sys.setswitchinterval(PAIR_THREAD_SWITCH_INTERVAL)
         try:
             self._set_up()
         except Exception:
@@ -436,12 +447,26 @@ class ShaperSimNode(Node):
         twist.twist.linear.x = sample.ram_velocity
         self._twist_publisher.publish(twist)
         self._note_setting(stepper, stamp_ns)
-        for report in self._monitor.add(stamp_ns, sample.ram_position, sample.ram_velocity,
-                                        stepper.offset, stepper.offset_rate,
-                                        stepper.input_speed, joint_efforts[0],
-                                        joint_efforts[-1]):
-            self._publish_pair(report)
+        completed = self._monitor.collect(stamp_ns, sample.ram_position, sample.ram_velocity,
+                                          stepper.offset, stepper.offset_rate,
+                                          stepper.input_speed, joint_efforts[0],
+                                          joint_efforts[-1])
+        if completed is not None:
+            # What the report depends on is taken now, as it stands at the pair's end.
+            self._pair_thread.submit(self._report_pairs, completed, self._setting,
+                                     self._setting_since_ns,
+                                     self._values['cutting_speed_target'],
+                                     self._values['cutting_speed_definition'])
         return True
+
+    def _report_pairs(self, completed, setting, setting_since_ns, target, definition):
+        """Measure and publish completed stroke pairs (on the pair thread)."""
+        try:
+            for report in self._monitor.measure(completed):
+                self._publish_pair(report, setting, setting_since_ns, target, definition)
+        except Exception as error:  # noqa: B902 said, not lost in the thread's future
+            self.get_logger().error(f'stroke pair at {completed.stamp_ns} ns not reported: '
+                                    f'{type(error).__name__}: {error}')
 
     def _note_setting(self, stepper, stamp_ns):
         # The parameter sets compare by identity: any change of them makes new ones.
@@ -457,11 +482,11 @@ class ShaperSimNode(Node):
             return stepper.speed_reference
         return stepper.input_speed
 
-    def _effort_theory(self, report):
+    def _effort_theory(self, report, setting, setting_since_ns):
         """Return the pair's effort theory as key-values, and a word on where it stands."""
-        if report.pair_start * 1e9 < self._setting_since_ns:
+        if report.pair_start * 1e9 < setting_since_ns:
             return [], 'none: the setting changed during the pair'
-        stepper, mass, loads, motor, offset, speed = self._setting
+        stepper, mass, loads, motor, offset, speed = setting
         theory, problem = self._theory.lookup(Setting(
             self._geometry, mass, loads, motor if isinstance(stepper, MotorStepper) else None,
             offset, speed))
@@ -475,6 +500,7 @@ class ShaperSimNode(Node):
                         'none: no steady running at this setting (stopped or stalled)')
 
     def destroy_node(self):
+        self._pair_thread.shutdown(wait=True)  # its reports go out before the publisher does
         self._theory.close()
         return super().destroy_node()
 
@@ -583,18 +609,17 @@ class ShaperSimNode(Node):
         message.header.stamp = self.get_clock().now().to_msg()
         self._diagnostics_publisher.publish(message)
 
-    def _publish_pair(self, report):
+    def _publish_pair(self, report, setting, setting_since_ns, target, definition):
         key_values = [KeyValue(key=key, value=repr(value))
                       for key, value in report.values().items() if math.isfinite(value)]
         key_values.append(KeyValue(key='offset_steady', value=str(report.offset_steady).lower()))
         key_values.append(KeyValue(key='input_speed_steady',
                                    value=str(report.input_speed_steady).lower()))
-        effort_theory, effort_theory_state = self._effort_theory(report)
+        effort_theory, effort_theory_state = self._effort_theory(report, setting,
+                                                                 setting_since_ns)
         key_values += effort_theory
         key_values.append(KeyValue(key='effort_theory', value=effort_theory_state))
-        target = self._values['cutting_speed_target']
         if target:
-            definition = self._values['cutting_speed_definition']
             measured_speed = report.measured[CUTTING_SPEED_FIGURES[definition]]
             key_values += [
                 KeyValue(key='cutting_speed_target', value=repr(target)),

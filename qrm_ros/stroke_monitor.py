@@ -17,7 +17,10 @@ Live per-stroke-pair measurement for the node's diagnostics, free of ROS.
 The node feeds every published sample; when a cutting stroke begins, the pair before it is
 complete and is measured with the same method as the offline analysis
 (strokes.find_stroke_pairs) and compared with the core's theory for the offset and speed in
-force. The node only wraps the returned reports in DiagnosticStatus messages.
+force. The node only wraps the returned reports in DiagnosticStatus messages. ``collect``
+and ``measure`` split ``add`` in two, so a caller on a timer can hand the measurement (about
+a millisecond at a thousand samples a pair) to another thread: ``collect`` only copies the
+completed samples.
 """
 
 from array import array
@@ -27,7 +30,8 @@ from typing import Dict, List, NamedTuple, Optional
 from qrm_ros.kinematics import Geometry, steady_theory, SteadyTheory
 from qrm_ros.strokes import find_stroke_pairs, measure_pair_efforts, PairEffortsMeasured
 
-__all__ = ['BUFFER_LIMIT', 'MEASURED_FIGURES', 'PairReport', 'StrokeMonitor']
+__all__ = ['BUFFER_LIMIT', 'CompletedSamples', 'MEASURED_FIGURES', 'PairReport',
+           'StrokeMonitor']
 
 # At most this many samples wait for a stroke pair to end (at 100 Hz, 43 minutes; a shaft
 # slower than one turn in that time gets no reports).
@@ -41,6 +45,14 @@ _SAMPLE_FIELDS = ('ram_position', 'ram_velocity', 'offset', 'offset_rate', 'inpu
                   'input_torque', 'offset_force')
 _THEORY_CACHE_LIMIT = 64
 _NANOSECONDS = 1e9
+
+
+class CompletedSamples(NamedTuple):
+    """The samples of one or more completed stroke pairs, copied out of the buffer."""
+
+    stamp_ns: int                 # the sample that completed the pair
+    sample_stamps_ns: List[int]
+    columns: Dict[str, array]     # _SAMPLE_FIELDS -> values, one per stamp
 
 
 class PairReport(NamedTuple):
@@ -105,6 +117,14 @@ class StrokeMonitor:
             offset_rate: float, input_speed: float, input_torque: float,
             offset_force: float) -> List[PairReport]:
         """Take one sample; return the pairs it completed (usually none, at most a few)."""
+        completed = self.collect(stamp_ns, ram_position, ram_velocity, offset, offset_rate,
+                                 input_speed, input_torque, offset_force)
+        return [] if completed is None else self.measure(completed)
+
+    def collect(self, stamp_ns: int, ram_position: float, ram_velocity: float, offset: float,
+                offset_rate: float, input_speed: float, input_torque: float,
+                offset_force: float) -> Optional[CompletedSamples]:
+        """Take one sample; return the samples of the pairs it completed, to ``measure``."""
         self._stamp_ns.append(stamp_ns)
         for name, value in zip(_SAMPLE_FIELDS, (ram_position, ram_velocity, offset,
                                                 offset_rate, input_speed, input_torque,
@@ -114,34 +134,42 @@ class StrokeMonitor:
             self._keep_from(len(self._stamp_ns) - BUFFER_LIMIT // 2)
         positive = ram_velocity >= 0.0
         # A cutting stroke beginning ends the pair before it: measure only then.
-        reports: List[PairReport] = []
+        completed = None
         if self._last_velocity_positive and not positive:
-            reports = self._measure(stamp_ns)
+            completed = CompletedSamples(stamp_ns, list(self._stamp_ns),
+                                         {name: array('d', column)
+                                          for name, column in self._columns.items()})
+            # Keep the two samples around the reversal just found: the next pair starts
+            # there.
+            self._keep_from(len(self._stamp_ns) - 2)
         self._last_velocity_positive = positive
-        return reports
+        return completed
 
     def _keep_from(self, index):
         del self._stamp_ns[:index]
         for column in self._columns.values():
             del column[:index]
 
-    def _measure(self, stamp_ns):
-        origin = self._stamp_ns[0]
-        time = [(ns - origin) / _NANOSECONDS for ns in self._stamp_ns]
-        columns = self._columns
+    def measure(self, completed: CompletedSamples) -> List[PairReport]:
+        """
+        Measure the pairs in samples from ``collect`` and compare them with the theory.
+
+        Touches no buffer, only the theory cache: one thread may measure while another
+        collects (the node's timer collects, its pair thread measures).
+        """
+        origin = completed.sample_stamps_ns[0]
+        time = [(ns - origin) / _NANOSECONDS for ns in completed.sample_stamps_ns]
+        columns = completed.columns
         pairs = find_stroke_pairs(time, columns['ram_position'], columns['ram_velocity'])
         pair_efforts = measure_pair_efforts(time, columns['input_speed'],
                                             columns['input_torque'], columns['offset_force'],
                                             pairs)
         figures = {**pairs._asdict(), **pair_efforts._asdict()}
-        reports = [self._report(stamp_ns, origin, pairs, figures, index)
-                   for index in range(len(pairs.cutting_time))]
-        # Keep the two samples around the reversal just found: the next pair starts there.
-        self._keep_from(len(self._stamp_ns) - 2)
-        return reports
+        return [self._report(completed, origin, pairs, figures, index)
+                for index in range(len(pairs.cutting_time))]
 
-    def _report(self, stamp_ns, origin, pairs, figures, index):
-        columns = self._columns
+    def _report(self, completed, origin, pairs, figures, index):
+        stamp_ns, columns = completed.stamp_ns, completed.columns
         first, last = int(pairs.first_sample[index]), int(pairs.last_sample[index])
         offsets = columns['offset'][first:last + 1]
         speeds = columns['input_speed'][first:last + 1]

@@ -20,6 +20,7 @@ services, pause and simulated time go through a spinning executor.
 """
 
 import math
+import threading
 import time
 
 import pytest
@@ -240,6 +241,25 @@ def test_diagnostics_match_the_closed_form_for_a_steady_offset(harness, offset, 
                 1.0 / time_ratio(geometry, offset, -speed), rel=RATIO_TOLERANCE)
         assert values['cutting_time'] == pytest.approx(values['time_ratio']
                                                        * values['return_time'])
+
+
+def test_a_tick_does_not_wait_for_the_stroke_pair_measurement(harness):
+    """A pair is measured on the node's pair thread; the tick that completed it goes on."""
+    h = harness(spin_shaper=False)
+    release, measured = threading.Event(), []
+    measure = h.shaper._monitor.measure
+
+    def held_measure(completed):
+        assert release.wait(10.0), 'the ticks did not finish while a measurement was held'
+        measured.append(completed.stamp_ns)
+        return measure(completed)
+
+    h.shaper._monitor.measure = held_measure
+    run_ticks(h.shaper, 5000 * NS, 3.5)  # two pairs completed, both measurements held
+    assert not measured and not h.diagnostics
+    release.set()
+    h.wait_for(lambda: len(h.diagnostics) >= 2, what='the held pairs reported')
+    assert len(measured) >= 2
 
 
 def test_a_moving_offset_is_flagged_and_nothing_is_ever_non_finite(harness):

@@ -66,3 +66,22 @@ def test_clear_forgets_a_partial_pair_and_a_moving_offset_is_flagged():
                    offsets=lambda index: 1e-6 * index)
     assert reports and not any(r.offset_steady for r in reports)
     assert all(r.input_speed_steady for r in reports)
+
+
+def test_collect_then_measure_reports_as_add_does_and_owns_its_samples():
+    """The node's split (collect on the timer, measure on its pair thread) changes nothing."""
+    whole = feed(StrokeMonitor(GEOMETRY), 0.012, 2 * math.pi, 3.5)
+    monitor = StrokeMonitor(GEOMETRY)
+    completed = []
+    for index in range(3500):
+        stamp = NS + index * NS // 1000
+        sample = state(GEOMETRY, 0.012, 2 * math.pi * (stamp - NS) / NS, 2 * math.pi)
+        found = monitor.collect(stamp, float(sample.ram_position), float(sample.ram_velocity),
+                                0.012, 0.0, 2 * math.pi, 0.0, 0.0)
+        if found is not None:
+            completed.append(found)
+    # Measured only now, after the monitor's buffer moved on: the copies are the pairs'.
+    split = [report for found in completed for report in monitor.measure(found)]
+    assert len(split) == len(whole) >= 2
+    for one, other in zip(split, whole):
+        assert one == other
