@@ -261,14 +261,15 @@ def pair_efforts(geometry, mass, loads, offset, input_speed):
                        peak_offset_force=peak_force)
 
 
-# peak_input_torque's search (qrm_ros.torque_kernel): even crank-angle samples per
-# revolution (besides the load switches and the coupling's two crossings), and when a secant
-# step on d(torque)/d(phi_c) is small enough to stop (rad; the angle's error is then far
-# smaller, and the peak value's error of the order of its square).
-_TORQUE_SAMPLES = 48
-_TORQUE_ANGLE_TOLERANCE = 1e-7
-_TORQUE_MAX_STEPS = 60
-_TORQUE_RESOLUTION = 4.0 * np.finfo(float).eps
+# peak_input_torque's search (qrm_ros.torque_kernel): even crank-angle samples on the cut and
+# on the return (more on the return as r/h -> 1; besides the load switches and the coupling's
+# two crossings). Against 400 and 400 on 10^5 random designs (r/h to 0.97, offsets to
+# 0.99 r1): 16 and 8 lost no peak, 16 and 12 one (by 8e-4), 24 and 16 none. The bracket
+# (rad) within which Brent's method has found the root of d(torque)/d(phi_c): the peak value's
+# error is of the order of its square.
+_TORQUE_SAMPLES = (24, 16)
+_TORQUE_ANGLE_TOLERANCE = 1e-9
+_TORQUE_MAX_STEPS = 100
 
 
 def peak_input_torque(geometry, mass, loads, offset, input_speed):
@@ -305,7 +306,7 @@ def peak_input_torque(geometry, mass, loads, offset, input_speed):
             *flat, masses['flywheel_inertia'], masses['lever_inertia'], masses['ram_mass'],
             masses['lever_mass'] * masses['gravity'] * masses['lever_com_distance'],
             load['cutting_force'], load['ram_friction'], load['cutting_length'],
-            _TORQUE_SAMPLES, _TORQUE_ANGLE_TOLERANCE, _TORQUE_RESOLUTION, _TORQUE_MAX_STEPS)
+            *_TORQUE_SAMPLES, _TORQUE_ANGLE_TOLERANCE, _TORQUE_MAX_STEPS)
     return float(peaks[0]) if shape == () else peaks.reshape(shape)
 
 

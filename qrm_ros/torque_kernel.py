@@ -38,57 +38,85 @@ from qrm_ros.dynamics import speed_drive_torque_of
 from qrm_ros.peak_kernel import _compiler, _rotate
 
 _TWO_PI = 2.0 * math.pi
+# Return-stroke samples grow as sqrt(h / (h - r)) times this, once above the base count.
+_RETURN_DENSITY = 0.6
+_EPSILON = float(np.finfo(np.float64).eps)
 
 _jit = _compiler()
 _torque = _jit(speed_drive_torque_of)
 
 
 @_jit
-def _refine(low, high, low_slope, high_slope, force, best, tolerance, resolution, max_steps,
-            geometry, inertia):
-    """Return max(best, |torque| at the slope's root in [low, high]), by safeguarded secant."""
+def _refine(low, high, low_slope, high_slope, force, best, tolerance, max_steps, geometry,
+            inertia):
+    """
+    Return max(best, |torque| at the slope's root in [low, high]): Brent's method (zeroin).
+
+    Inverse quadratic and secant steps where they stay well inside the bracket, bisection
+    otherwise; stops once the bracket is within tolerance (rad). Every point evaluated is
+    a true torque of the piece, so the largest |torque| seen is kept.
+    """
     r1, r, h, height, cos0, sin0, offset, clearance, speed = geometry
-    angle = low + (high - low) * (low_slope / (low_slope - high_slope))
-    last, last_slope = low, low_slope
+    a, fa, b, fb = low, low_slope, high, high_slope
+    c, fc = a, fa
+    d = e = b - a
     for _ in range(max_steps):
-        torque, slope = _torque(math.sin(angle), math.cos(angle), r1, r, h, height, cos0, sin0,
-                                offset, clearance, speed, force, *inertia)
-        best = max(best, abs(torque))
-        if slope == 0.0 or high - low <= resolution * max(abs(angle), 1.0):
+        if (fb > 0.0) == (fc > 0.0):
+            c, fc = a, fa
+            d = e = b - a
+        if abs(fc) < abs(fb):
+            a, b, c = b, c, b
+            fa, fb, fc = fb, fc, fb
+        tol = 2.0 * _EPSILON * abs(b) + 0.5 * tolerance
+        m = 0.5 * (c - b)
+        if abs(m) <= tol or fb == 0.0:
             break
-        if (slope > 0.0) == (low_slope > 0.0):
-            low, low_slope = angle, slope
+        if abs(e) >= tol and abs(fa) > abs(fb):
+            s = fb / fa
+            if a == c:
+                p = 2.0 * m * s
+                q = 1.0 - s
+            else:
+                q = fa / fc
+                t = fb / fc
+                p = s * (2.0 * m * q * (q - t) - (b - a) * (t - 1.0))
+                q = (q - 1.0) * (t - 1.0) * (s - 1.0)
+            if p > 0.0:
+                q = -q
+            else:
+                p = -p
+            if 2.0 * p < min(3.0 * m * q - abs(tol * q), abs(e * q)):
+                e, d = d, p / q
+            else:
+                d = e = m
         else:
-            high, high_slope = angle, slope
-        following = angle - slope * (angle - last) / (slope - last_slope)
-        if not (following > low and following < high):
-            following = 0.5 * (low + high)
-        done = abs(following - angle) <= tolerance
-        last, last_slope, angle = angle, slope, following
-        if done:
-            torque, slope = _torque(math.sin(angle), math.cos(angle), r1, r, h, height, cos0,
-                                    sin0, offset, clearance, speed, force, *inertia)
-            return max(best, abs(torque))
+            d = e = m
+        a, fa = b, fb
+        b += d if abs(d) > tol else (tol if m > 0.0 else -tol)
+        torque, fb = _torque(math.sin(b), math.cos(b), r1, r, h, height, cos0, sin0, offset,
+                             clearance, speed, force, *inertia)
+        best = max(best, abs(torque))
     return best
 
 
 @_compiler('float64[::1](float64[::1], float64[::1], float64[::1], float64[::1], '
            'float64[::1], float64[::1], float64[::1], float64, float64, float64, float64, '
-           'float64, float64, float64, int64, float64, float64, int64)')
+           'float64, float64, float64, int64, int64, float64, int64)')
 def peak_torques(r1, r, h, height, phase, offset, speed, flywheel_inertia, lever_inertia,
                  ram_mass, gravity_moment, cutting_force, ram_friction, cutting_length,
-                 samples, tolerance, resolution, max_steps):
-    """Peak |input torque| (N m) of flat configuration arrays; samples per revolution."""
+                 cut_samples, return_samples, tolerance, max_steps):
+    """Peak |input torque| (N m) of flat configuration arrays; samples per stroke."""
     size = offset.size
     result = np.empty(size)
     inertia = (flywheel_inertia, lever_inertia, ram_mass, gravity_moment)
     bounds = np.empty(8)
     # Brackets kept from the samples: low, high, low slope, high slope, force, bound.
-    kept = np.empty((samples + 16, 6))
+    kept = np.empty((cut_samples + return_samples + 16, 6))
     for i in range(size):
         cos0, sin0 = math.cos(phase[i]), math.sin(phase[i])
         ri, hi, heighti = r[i], h[i], height[i]
         half_gap = math.asin(ri / hi)
+        return_density = max(1.0, _RETURN_DENSITY * math.sqrt(hi / (hi - ri)))
         start = -half_gap
         turn = math.pi + half_gap
         bounds[0], bounds[1], bounds[2] = start, turn, start + _TWO_PI
@@ -123,7 +151,13 @@ def peak_torques(r1, r, h, height, phase, offset, speed, flywheel_inertia, lever
             position = heighti * ri * math.cos(middle) / (hi + ri * math.sin(middle))
             cutting = velocity_sign < 0.0 and abs(position) <= 0.5 * cutting_length
             force = (cutting_force if cutting else 0.0) - ram_friction * velocity_sign
-            intervals = max(1, int(math.ceil(samples * width / _TWO_PI)))
+            # Each stroke its own count: the return's arc narrows as sqrt(1 - r/h) when
+            # r/h -> 1, the torque's features there (the lever's quick swing) as 1 - r/h.
+            if middle < turn:
+                intervals = max(1, int(math.ceil(cut_samples * width / (turn - start))))
+            else:
+                intervals = max(1, int(math.ceil(return_samples * return_density * width
+                                                 / (start + _TWO_PI - turn))))
             spacing = width / intervals
             step_sin, step_cos = _rotate(0.0, 1.0, spacing)
             sin_c, cos_c = math.sin(low), math.cos(low)
@@ -154,11 +188,11 @@ def peak_torques(r1, r, h, height, phase, offset, speed, flywheel_inertia, lever
                 next_torque, next_slope = _torque(next_sin, next_cos, *geometry, force,
                                                   *inertia)
                 best = max(best, abs(next_torque))
-                gap = following - angle
-                if slope > 0.0 and next_slope < 0.0:  # a maximum of the torque
-                    bound = min(torque + slope * gap, next_torque - next_slope * gap)
-                elif slope < 0.0 and next_slope > 0.0:  # a minimum
-                    bound = min(-torque - slope * gap, -next_torque + next_slope * gap)
+                if (slope > 0.0 and next_slope < 0.0) or (slope < 0.0 and next_slope > 0.0):
+                    # |torque| can exceed the larger end by about half a slope times the gap
+                    # between them (a parabola's rise); twice that is kept as the margin.
+                    bound = (max(abs(torque), abs(next_torque))
+                             + max(abs(slope), abs(next_slope)) * (following - angle))
                 else:
                     bound = -1.0
                 if bound > best and brackets < kept.shape[0]:
@@ -171,6 +205,6 @@ def peak_torques(r1, r, h, height, phase, offset, speed, flywheel_inertia, lever
         for b in range(brackets):
             if kept[b, 5] > best:
                 best = _refine(kept[b, 0], kept[b, 1], kept[b, 2], kept[b, 3], kept[b, 4],
-                               best, tolerance, resolution, max_steps, geometry, inertia)
+                               best, tolerance, max_steps, geometry, inertia)
         result[i] = best
     return result
