@@ -384,7 +384,7 @@ def speed_drive_torque_of(sin_c, cos_c, r1, r, h, height, cos0, sin0, offset, cl
     x_c = scale * rise
     x_cc = scale * inverse_below * cos_c * bracket
     x_ccc = scale * inverse_below * ((-sin_c * bracket - h * r * cos2)
-                                      - 3.0 * r * cos2 * bracket * inverse_below)
+                                     - 3.0 * r * cos2 * bracket * inverse_below)
     inverse_m = 1.0 / (r * r + h * h + 2.0 * r * h * sin_c)
     spread = r * h * (h * h - r * r) * inverse_m * inverse_m
     psi_c = -r * rise * inverse_m

@@ -31,7 +31,6 @@ signature), a few tenths of a second to load.
 
 import math
 
-import numba
 import numpy as np
 
 from qrm_ros.dynamics import speed_drive_torque_of
