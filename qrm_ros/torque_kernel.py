@@ -129,7 +129,13 @@ def peak_torques(r1, r, h, height, phase, offset, speed, flywheel_inertia, lever
                     for edge in (spread, -spread):
                         bounds[count] = start + (edge - math.atan(tangent) - start) % _TWO_PI
                         count += 1
-        bounds[:count].sort()
+        for j in range(3, count):  # insertion sort: at most four edges
+            value = bounds[j]
+            k = j
+            while bounds[k - 1] > value:
+                bounds[k] = bounds[k - 1]
+                k -= 1
+            bounds[k] = value
         geometry = (r1[i], ri, hi, heighti, cos0, sin0, offset[i],
                     (r1[i] - offset[i]) * (r1[i] + offset[i]), speed[i])
         direction = 1.0 if speed[i] > 0.0 else -1.0
