@@ -38,7 +38,9 @@ from qrm_ros.peak_kernel import _compiler, _rotate
 
 _TWO_PI = 2.0 * math.pi
 # Return-stroke samples grow as sqrt(h / (h - r)) times this, once above the base count.
-_RETURN_DENSITY = 0.6
+_RETURN_DENSITY = 1.0
+# Halvings of a sample interval that hides a minimum and a maximum, to find them.
+_SPLIT_DEPTH = 20
 _EPSILON = float(np.finfo(np.float64).eps)
 
 _jit = _compiler()
@@ -46,26 +48,29 @@ _torque = _jit(speed_drive_torque_of)
 
 
 @_jit
-def _refine(low, high, low_slope, high_slope, force, best, tolerance, max_steps, geometry,
-            inertia):
+def _refine(low, high, low_slope, high_slope, low_sin, low_cos, high_sin, high_cos, force,
+            best, tolerance, max_steps, geometry, inertia):
     """
     Return max(best, |torque| at the slope's root in [low, high]): Brent's method (zeroin).
 
     Inverse quadratic and secant steps where they stay well inside the bracket, bisection
     otherwise; stops once the bracket is within tolerance (rad). Every point evaluated is
-    a true torque of the piece, so the largest |torque| seen is kept.
+    a true torque of the piece, so the largest |torque| seen is kept. Each point's sin and
+    cos come from rotating the previous point's by the step (no sin or cos calls once the
+    steps are below 0.3 rad).
     """
-    r1, r, h, height, cos0, sin0, offset, clearance, speed = geometry
-    a, fa, b, fb = low, low_slope, high, high_slope
-    c, fc = a, fa
+    a, fa, sin_a, cos_a = low, low_slope, low_sin, low_cos
+    b, fb, sin_b, cos_b = high, high_slope, high_sin, high_cos
+    c, fc, sin_c, cos_c = a, fa, sin_a, cos_a
     d = e = b - a
     for _ in range(max_steps):
         if (fb > 0.0) == (fc > 0.0):
-            c, fc = a, fa
+            c, fc, sin_c, cos_c = a, fa, sin_a, cos_a
             d = e = b - a
         if abs(fc) < abs(fb):
-            a, b, c = b, c, b
-            fa, fb, fc = fb, fc, fb
+            a, fa, sin_a, cos_a = b, fb, sin_b, cos_b
+            b, fb, sin_b, cos_b = c, fc, sin_c, cos_c
+            c, fc, sin_c, cos_c = a, fa, sin_a, cos_a
         tol = 2.0 * _EPSILON * abs(b) + 0.5 * tolerance
         m = 0.5 * (c - b)
         if abs(m) <= tol or fb == 0.0:
@@ -90,12 +95,36 @@ def _refine(low, high, low_slope, high_slope, force, best, tolerance, max_steps,
                 d = e = m
         else:
             d = e = m
-        a, fa = b, fb
-        b += d if abs(d) > tol else (tol if m > 0.0 else -tol)
-        torque, fb = _torque(math.sin(b), math.cos(b), r1, r, h, height, cos0, sin0, offset,
-                             clearance, speed, force, *inertia)
+        a, fa, sin_a, cos_a = b, fb, sin_b, cos_b
+        step = d if abs(d) > tol else (tol if m > 0.0 else -tol)
+        b += step
+        sin_b, cos_b = _rotate(sin_b, cos_b, step)
+        norm = 1.5 - 0.5 * (sin_b * sin_b + cos_b * cos_b)  # back onto the circle
+        sin_b *= norm
+        cos_b *= norm
+        torque, fb = _torque(sin_b, cos_b, *geometry, force, *inertia)
         best = max(best, abs(torque))
     return best
+
+
+@_jit
+def _keep(kept, brackets, best, force, low, low_torque, low_slope, low_sin, low_cos, high,
+          high_torque, high_slope, high_sin, high_cos):
+    """Record [low, high] if the slope changes sign there and |torque| may beat best."""
+    if (low_slope > 0.0 and high_slope < 0.0) or (low_slope < 0.0 and high_slope > 0.0):
+        # |torque| can exceed the larger end by about half a slope times the gap between
+        # them (a parabola's rise); twice that is the bound. (A parabola's peak from the
+        # two ends plus 0.1 % and their difference lost peaks near |offset| = r1.)
+        bound = (max(abs(low_torque), abs(high_torque))
+                 + max(abs(low_slope), abs(high_slope)) * (high - low))
+        if bound > best:
+            kept[brackets, 0], kept[brackets, 1] = low, high
+            kept[brackets, 2], kept[brackets, 3] = low_slope, high_slope
+            kept[brackets, 4], kept[brackets, 5] = force, bound
+            kept[brackets, 6], kept[brackets, 7] = low_sin, low_cos
+            kept[brackets, 8], kept[brackets, 9] = high_sin, high_cos
+            return brackets + 1
+    return brackets
 
 
 @_compiler('float64[::1](float64[::1], float64[::1], float64[::1], float64[::1], '
@@ -109,13 +138,16 @@ def peak_torques(r1, r, h, height, phase, offset, speed, flywheel_inertia, lever
     result = np.empty(size)
     inertia = (flywheel_inertia, lever_inertia, ram_mass, gravity_moment)
     bounds = np.empty(8)
-    # Brackets kept from the samples: low, high, low slope, high slope, force, bound.
-    kept = np.empty((cut_samples + return_samples + 16, 6))
+    # Brackets kept from the samples: low, high, their slopes, force, bound, their sin, cos.
+    kept = np.empty((cut_samples + return_samples + 32, 10))
     for i in range(size):
         cos0, sin0 = math.cos(phase[i]), math.sin(phase[i])
         ri, hi, heighti = r[i], h[i], height[i]
         half_gap = math.asin(ri / hi)
         return_density = max(1.0, _RETURN_DENSITY * math.sqrt(hi / (hi - ri)))
+        needed = cut_samples + int(math.ceil(return_samples * return_density)) + 32
+        if needed > kept.shape[0]:
+            kept = np.empty((needed, 10))
         start = -half_gap
         turn = math.pi + half_gap
         bounds[0], bounds[1], bounds[2] = start, turn, start + _TWO_PI
@@ -188,28 +220,56 @@ def peak_torques(r1, r, h, height, phase, offset, speed, flywheel_inertia, lever
                     following = low + spacing * k
                     even_sin, even_cos = (even_sin * step_cos + even_cos * step_sin,
                                           even_cos * step_cos - even_sin * step_sin)
+                    # Back onto the unit circle (one Newton step for 1 / sqrt): rotations
+                    # drift off it by k eps, and where h + r sin(phi_c) is small (r/h -> 1) a
+                    # point off the circle gives a torque 1e-11 off any true value.
+                    norm = 1.5 - 0.5 * (even_sin * even_sin + even_cos * even_cos)
+                    even_sin *= norm
+                    even_cos *= norm
                     next_sin, next_cos = even_sin, even_cos
                     k += 1
                 next_torque, next_slope = _torque(next_sin, next_cos, *geometry, force,
                                                   *inertia)
                 best = max(best, abs(next_torque))
-                if (slope > 0.0 and next_slope < 0.0) or (slope < 0.0 and next_slope > 0.0):
-                    # |torque| can exceed the larger end by about half a slope times the gap
-                    # between them (a parabola's rise); twice that is kept as the margin.
-                    bound = (max(abs(torque), abs(next_torque))
-                             + max(abs(slope), abs(next_slope)) * (following - angle))
+                if (slope > 0.0) == (next_slope > 0.0) and (next_torque - torque) * slope < 0.0:
+                    # Both slopes of one sign but the torque moved the other way: a minimum
+                    # and a maximum hide between the samples (mean value theorem). Halve
+                    # towards them until a sample's slope shows the change.
+                    low_angle, low_torque, low_slope = angle, torque, slope
+                    high_angle, high_torque, high_slope = following, next_torque, next_slope
+                    low_sin, low_cos, high_sin, high_cos = sin_c, cos_c, next_sin, next_cos
+                    for _ in range(_SPLIT_DEPTH):
+                        half = 0.5 * (low_angle + high_angle)
+                        half_sin, half_cos = math.sin(half), math.cos(half)
+                        half_torque, half_slope = _torque(half_sin, half_cos, *geometry, force,
+                                                          *inertia)
+                        best = max(best, abs(half_torque))
+                        if half_slope == 0.0:
+                            break
+                        if (half_slope > 0.0) != (low_slope > 0.0):
+                            brackets = _keep(kept, brackets, best, force, low_angle,
+                                             low_torque, low_slope, low_sin, low_cos, half,
+                                             half_torque, half_slope, half_sin, half_cos)
+                            brackets = _keep(kept, brackets, best, force, half, half_torque,
+                                             half_slope, half_sin, half_cos, high_angle,
+                                             high_torque, high_slope, high_sin, high_cos)
+                            break
+                        if (half_torque - low_torque) * low_slope < 0.0:
+                            high_angle, high_torque, high_slope = half, half_torque, half_slope
+                            high_sin, high_cos = half_sin, half_cos
+                        else:
+                            low_angle, low_torque, low_slope = half, half_torque, half_slope
+                            low_sin, low_cos = half_sin, half_cos
                 else:
-                    bound = -1.0
-                if bound > best and brackets < kept.shape[0]:
-                    kept[brackets, 0], kept[brackets, 1] = angle, following
-                    kept[brackets, 2], kept[brackets, 3] = slope, next_slope
-                    kept[brackets, 4], kept[brackets, 5] = force, bound
-                    brackets += 1
+                    brackets = _keep(kept, brackets, best, force, angle, torque, slope, sin_c,
+                                     cos_c, following, next_torque, next_slope, next_sin,
+                                     next_cos)
                 angle, sin_c, cos_c = following, next_sin, next_cos
                 torque, slope = next_torque, next_slope
         for b in range(brackets):
             if kept[b, 5] > best:
-                best = _refine(kept[b, 0], kept[b, 1], kept[b, 2], kept[b, 3], kept[b, 4],
-                               best, tolerance, max_steps, geometry, inertia)
+                best = _refine(kept[b, 0], kept[b, 1], kept[b, 2], kept[b, 3], kept[b, 6],
+                               kept[b, 7], kept[b, 8], kept[b, 9], kept[b, 4], best,
+                               tolerance, max_steps, geometry, inertia)
         result[i] = best
     return result
