@@ -137,7 +137,8 @@ def peak_torques(r1, r, h, height, phase, offset, speed, flywheel_inertia, lever
     size = offset.size
     result = np.empty(size)
     inertia = (flywheel_inertia, lever_inertia, ram_mass, gravity_moment)
-    bounds = np.empty(8)
+    # Load switches in order, with their sin and cos (closed form, no sin or cos calls).
+    bounds = np.empty((8, 3))
     # Brackets kept from the samples: low, high, their slopes, force, bound, their sin, cos.
     kept = np.empty((cut_samples + return_samples + 32, 10))
     for i in range(size):
@@ -150,44 +151,53 @@ def peak_torques(r1, r, h, height, phase, offset, speed, flywheel_inertia, lever
             kept = np.empty((needed, 10))
         start = -half_gap
         turn = math.pi + half_gap
-        bounds[0], bounds[1], bounds[2] = start, turn, start + _TWO_PI
+        ratio = ri / hi
+        cos_gap = math.sqrt((1.0 - ratio) * (1.0 + ratio))
+        # At both reversals sin(phi_c) = -r/h; cos(phi_c) = +-sqrt(1 - (r/h)^2).
+        bounds[0, 0], bounds[0, 1], bounds[0, 2] = start, -ratio, cos_gap
+        bounds[1, 0], bounds[1, 1], bounds[1, 2] = turn, -ratio, -cos_gap
+        bounds[2, 0], bounds[2, 1], bounds[2, 2] = start + _TWO_PI, -ratio, cos_gap
         count = 3
         if cutting_length > 0.0:
             for side in (1.0, -1.0):
                 tangent = side * 0.5 * cutting_length / heighti
-                cosine = tangent * hi / (ri * math.sqrt(1.0 + tangent * tangent))
+                secant = math.sqrt(1.0 + tangent * tangent)
+                cosine = tangent * hi / (ri * secant)
                 if abs(cosine) <= 1.0:
                     spread = math.acos(cosine)
-                    for edge in (spread, -spread):
-                        bounds[count] = start + (edge - math.atan(tangent) - start) % _TWO_PI
+                    sine = math.sqrt((1.0 - cosine) * (1.0 + cosine))
+                    shift = math.atan(tangent)
+                    for turn_sign in (1.0, -1.0):
+                        # phi_c = +-spread - atan(tangent), by the angle-difference formulas.
+                        bounds[count, 0] = start + (turn_sign * spread - shift - start) % _TWO_PI
+                        bounds[count, 1] = (turn_sign * sine - cosine * tangent) / secant
+                        bounds[count, 2] = (cosine + turn_sign * sine * tangent) / secant
                         count += 1
         for j in range(3, count):  # insertion sort: at most four edges
-            value = bounds[j]
+            value, value_sin, value_cos = bounds[j, 0], bounds[j, 1], bounds[j, 2]
             k = j
-            while bounds[k - 1] > value:
-                bounds[k] = bounds[k - 1]
+            while bounds[k - 1, 0] > value:
+                bounds[k, 0], bounds[k, 1], bounds[k, 2] = (bounds[k - 1, 0], bounds[k - 1, 1],
+                                                            bounds[k - 1, 2])
                 k -= 1
-            bounds[k] = value
+            bounds[k, 0], bounds[k, 1], bounds[k, 2] = value, value_sin, value_cos
         geometry = (r1[i], ri, hi, heighti, cos0, sin0, offset[i],
                     (r1[i] - offset[i]) * (r1[i] + offset[i]), speed[i])
         direction = 1.0 if speed[i] > 0.0 else -1.0
-        crossings = (start + (phase[i] - start) % _TWO_PI,
-                     start + (phase[i] + math.pi - start) % _TWO_PI)
-        first_cross = min(crossings[0], crossings[1])
-        second_cross = max(crossings[0], crossings[1])
+        # Crank angles where the flywheel angle is 0 or pi: there sin_c, cos_c = +-(sin0, cos0).
+        first_cross = start + (phase[i] - start) % _TWO_PI
+        second_cross = start + (phase[i] + math.pi - start) % _TWO_PI
+        first_sign = 1.0
+        if second_cross < first_cross:
+            first_cross, second_cross, first_sign = second_cross, first_cross, -1.0
         best = 0.0
         brackets = 0
         for piece in range(count - 1):
-            low, high = bounds[piece], bounds[piece + 1]
+            low, high = bounds[piece, 0], bounds[piece + 1, 0]
             width = high - low
             if width <= 0.0:
                 continue
             middle = 0.5 * (low + high)
-            # The ram velocity's sign: x_c < 0 from the cut's start to its end reversal.
-            velocity_sign = -direction if middle < turn else direction
-            position = heighti * ri * math.cos(middle) / (hi + ri * math.sin(middle))
-            cutting = velocity_sign < 0.0 and abs(position) <= 0.5 * cutting_length
-            force = (cutting_force if cutting else 0.0) - ram_friction * velocity_sign
             # Each stroke its own count: the return's arc narrows as sqrt(1 - r/h) when
             # r/h -> 1, the torque's features there (the lever's quick swing) as 1 - r/h.
             if middle < turn:
@@ -197,36 +207,52 @@ def peak_torques(r1, r, h, height, phase, offset, speed, flywheel_inertia, lever
                                                  / (start + _TWO_PI - turn))))
             spacing = width / intervals
             step_sin, step_cos = _rotate(0.0, 1.0, spacing)
-            sin_c, cos_c = math.sin(low), math.cos(low)
-            # sin and cos of the even samples: rotated from the previous even sample's.
-            even_sin, even_cos = sin_c, cos_c
+            sin_c, cos_c = bounds[piece, 1], bounds[piece, 2]
+            # The next even sample's sin and cos, rotated from the previous one's and put
+            # back onto the unit circle (one Newton step for 1 / sqrt): rotations drift off
+            # it by k eps, and where h + r sin(phi_c) is small (r/h -> 1) a point off the
+            # circle gives a torque 1e-11 off any true value.
+            even_sin = sin_c * step_cos + cos_c * step_sin
+            even_cos = cos_c * step_cos - sin_c * step_sin
+            # The piece's load, from a point inside it: the first even sample, or the middle.
+            if intervals > 1:
+                inside_sin, inside_cos = even_sin, even_cos
+            else:
+                inside_sin, inside_cos = math.sin(middle), math.cos(middle)
+            # The ram velocity's sign: x_c < 0 from the cut's start to its end reversal.
+            velocity_sign = -direction if middle < turn else direction
+            position = heighti * ri * inside_cos / (hi + ri * inside_sin)
+            cutting = velocity_sign < 0.0 and abs(position) <= 0.5 * cutting_length
+            force = (cutting_force if cutting else 0.0) - ram_friction * velocity_sign
             angle = low
             torque, slope = _torque(sin_c, cos_c, *geometry, force, *inertia)
             best = max(best, abs(torque))
-            cross = first_cross
+            cross, cross_sign = first_cross, first_sign
             if cross <= low:
-                cross = second_cross if second_cross > low else math.inf
+                cross, cross_sign = second_cross, -first_sign
+                if cross <= low:
+                    cross = math.inf
             k = 1
             while k <= intervals:
                 if cross < high and cross < low + spacing * k:
                     following = cross
-                    next_sin, next_cos = math.sin(cross), math.cos(cross)
-                    cross = second_cross if cross < second_cross else math.inf
+                    next_sin, next_cos = cross_sign * sin0, cross_sign * cos0
+                    if cross < second_cross:
+                        cross, cross_sign = second_cross, -cross_sign
+                    else:
+                        cross = math.inf
                 elif k == intervals:
                     following = high
-                    next_sin, next_cos = math.sin(high), math.cos(high)
+                    next_sin, next_cos = bounds[piece + 1, 1], bounds[piece + 1, 2]
                     k += 1
                 else:
                     following = low + spacing * k
+                    next_sin, next_cos = even_sin, even_cos
                     even_sin, even_cos = (even_sin * step_cos + even_cos * step_sin,
                                           even_cos * step_cos - even_sin * step_sin)
-                    # Back onto the unit circle (one Newton step for 1 / sqrt): rotations
-                    # drift off it by k eps, and where h + r sin(phi_c) is small (r/h -> 1) a
-                    # point off the circle gives a torque 1e-11 off any true value.
                     norm = 1.5 - 0.5 * (even_sin * even_sin + even_cos * even_cos)
                     even_sin *= norm
                     even_cos *= norm
-                    next_sin, next_cos = even_sin, even_cos
                     k += 1
                 next_torque, next_slope = _torque(next_sin, next_cos, *geometry, force,
                                                   *inertia)
