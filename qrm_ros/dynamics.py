@@ -389,7 +389,8 @@ def speed_drive_torque_of(sin_c, cos_c, r1, r, h, height, cos0, sin0, offset, cl
     spread = r * h * (h * h - r * r) * inverse_m * inverse_m
     psi_c = -r * rise * inverse_m
     psi_cc = -spread * cos_c
-    psi_ccc = spread * inverse_m * (sin_c / inverse_m + 4.0 * r * h * cos2)
+    psi_ccc = spread * inverse_m * (sin_c * (r * r + h * h + 2.0 * r * h * sin_c)
+                                    + 4.0 * r * h * cos2)
     # g_c = -K r^2 (h sin + r) cos m^(-3/2), K = gravity_moment.
     root_m = np.sqrt(inverse_m)
     lever_weight = -gravity_moment * r * r * inverse_m * root_m

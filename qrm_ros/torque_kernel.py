@@ -292,10 +292,17 @@ def peak_torques(r1, r, h, height, phase, offset, speed, flywheel_inertia, lever
                                      next_cos)
                 angle, sin_c, cos_c = following, next_sin, next_cos
                 torque, slope = next_torque, next_slope
-        for b in range(brackets):
-            if kept[b, 5] > best:
-                best = _refine(kept[b, 0], kept[b, 1], kept[b, 2], kept[b, 3], kept[b, 6],
-                               kept[b, 7], kept[b, 8], kept[b, 9], kept[b, 4], best,
-                               tolerance, max_steps, geometry, inertia)
+        # Largest bound first: once the highest peak is refined, most others fall below it.
+        for _ in range(brackets):
+            b = 0
+            for j in range(1, brackets):
+                if kept[j, 5] > kept[b, 5]:
+                    b = j
+            if kept[b, 5] <= best:
+                break
+            kept[b, 5] = -1.0
+            best = _refine(kept[b, 0], kept[b, 1], kept[b, 2], kept[b, 3], kept[b, 6],
+                           kept[b, 7], kept[b, 8], kept[b, 9], kept[b, 4], best, tolerance,
+                           max_steps, geometry, inertia)
         result[i] = best
     return result
