@@ -31,6 +31,7 @@ signature), a few tenths of a second to load.
 
 import math
 
+import numba
 import numpy as np
 
 from qrm_ros.dynamics import speed_drive_torque_of
@@ -41,6 +42,8 @@ _TWO_PI = 2.0 * math.pi
 _RETURN_DENSITY = 1.0
 # Halvings of a sample interval that hides a minimum and a maximum, to find them.
 _SPLIT_DEPTH = 20
+# Configurations per block handed to a thread.
+_BLOCK = 4096
 _EPSILON = float(np.finfo(np.float64).eps)
 
 _jit = _compiler()
@@ -127,21 +130,18 @@ def _keep(kept, brackets, best, force, low, low_torque, low_slope, low_sin, low_
     return brackets
 
 
-@_compiler('float64[::1](float64[::1], float64[::1], float64[::1], float64[::1], '
-           'float64[::1], float64[::1], float64[::1], float64, float64, float64, float64, '
-           'float64, float64, float64, int64, int64, float64, int64)')
-def peak_torques(r1, r, h, height, phase, offset, speed, flywheel_inertia, lever_inertia,
-                 ram_mass, gravity_moment, cutting_force, ram_friction, cutting_length,
-                 cut_samples, return_samples, tolerance, max_steps):
-    """Peak |input torque| (N m) of flat configuration arrays; samples per stroke."""
-    size = offset.size
-    result = np.empty(size)
+@_jit
+def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
+                flywheel_inertia, lever_inertia, ram_mass, gravity_moment, cutting_force,
+                ram_friction, cutting_length, cut_samples, return_samples, tolerance,
+                max_steps):
+    """Peak |input torque| (N m) of configurations first to last - 1, into result."""
     inertia = (flywheel_inertia, lever_inertia, ram_mass, gravity_moment)
     # Load switches in order, with their sin and cos (closed form, no sin or cos calls).
     bounds = np.empty((8, 3))
     # Brackets kept from the samples: low, high, their slopes, force, bound, their sin, cos.
     kept = np.empty((cut_samples + return_samples + 32, 10))
-    for i in range(size):
+    for i in range(first, last):
         cos0, sin0 = math.cos(phase[i]), math.sin(phase[i])
         ri, hi, heighti = r[i], h[i], height[i]
         half_gap = math.asin(ri / hi)
@@ -305,4 +305,26 @@ def peak_torques(r1, r, h, height, phase, offset, speed, flywheel_inertia, lever
                            kept[b, 7], kept[b, 8], kept[b, 9], kept[b, 4], best, tolerance,
                            max_steps, geometry, inertia)
         result[i] = best
+
+
+@numba.njit('float64[::1](float64[::1], float64[::1], float64[::1], float64[::1], '
+            'float64[::1], float64[::1], float64[::1], float64, float64, float64, float64, '
+            'float64, float64, float64, int64, int64, float64, int64)', cache=True,
+            nogil=True, parallel=True, error_model='numpy', fastmath={'contract'})
+def peak_torques(r1, r, h, height, phase, offset, speed, flywheel_inertia, lever_inertia,
+                 ram_mass, gravity_moment, cutting_force, ram_friction, cutting_length,
+                 cut_samples, return_samples, tolerance, max_steps):
+    """
+    Peak |input torque| (N m) of flat configuration arrays; samples per stroke.
+
+    Blocks of configurations are shared among numba's threads (numba.set_num_threads).
+    """
+    size = offset.size
+    result = np.empty(size)
+    blocks = (size + _BLOCK - 1) // _BLOCK
+    for block in numba.prange(blocks):
+        _peak_block(result, block * _BLOCK, min(size, (block + 1) * _BLOCK), r1, r, h, height,
+                    phase, offset, speed, flywheel_inertia, lever_inertia, ram_mass,
+                    gravity_moment, cutting_force, ram_friction, cutting_length, cut_samples,
+                    return_samples, tolerance, max_steps)
     return result
