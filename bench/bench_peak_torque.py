@@ -18,7 +18,8 @@ On a 1000 x 1000 (offset, crank radius) grid of the paper design and on random d
 (offsets to 0.99 r1, random phases, crank radii and pivots, both speed signs), with the
 small shaper's masses and loads. Baselines timed in the same run: pair_efforts' loop over
 a subsample, and dense efforts (the revolution sampled at --dense points) on a subsample.
-Medians of --repeats; the largest disagreement with pair_efforts on the subsample.
+Medians of --repeats, on one thread and on all of numba's; the largest disagreement with
+pair_efforts on the subsample.
 
     python3 dev.py run python bench/bench_peak_torque.py [--repeats 3] [--subsample 300]
 """
@@ -28,6 +29,7 @@ import math
 import statistics
 import time
 
+import numba
 import numpy as np
 
 from qrm_ros import dynamics as dyn
@@ -86,9 +88,14 @@ def main():
              ('random', designs, offset, speed, loads, args.random))
     for name, geometry, offsets, speeds, case_loads, count in cases:
         peaks = np.ravel(peak_input_torque(geometry, mass, case_loads, offsets, speeds))
-        seconds = median_seconds(lambda: peak_input_torque(geometry, mass, case_loads,
-                                                           offsets, speeds), args.repeats)
-        rate = count / seconds
+        rates = {}
+        for threads in (1, numba.config.NUMBA_NUM_THREADS):
+            numba.set_num_threads(threads)
+            seconds = median_seconds(lambda: peak_input_torque(geometry, mass, case_loads,
+                                                               offsets, speeds), args.repeats)
+            rates[threads] = count / seconds
+        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+        rate = rates[1]
         flat_offset = np.ravel(np.broadcast_to(offsets, np.broadcast_shapes(
             np.shape(offsets), np.shape(crank) if name == 'grid' else ())))
         flat_speed = np.ravel(np.broadcast_to(speeds, flat_offset.shape))
@@ -119,11 +126,12 @@ def main():
         safe = np.abs(flat_offset[pick]) <= 0.9 * np.array(
             [design.coupling_radius for design in designs_of])
         error = np.abs(peaks[pick] / reference - 1.0)
-        print(f'{name}: peak_input_torque {rate:.3g} configurations/s ({count} configurations, '
-              f'{seconds:.2f} s); pair_efforts {pair_rate:.3g}/s: ratio {rate / pair_rate:.0f}x; '
-              f'dense efforts ({args.dense} samples) {dense_rate:.3g}/s: ratio '
-              f'{rate / dense_rate:.0f}x; largest disagreement with pair_efforts '
-              f'{np.max(error):.2g} ({np.max(error[safe]):.2g} within 0.9 r1)')
+        threads = numba.config.NUMBA_NUM_THREADS
+        print(f'{name} ({count} configurations): peak_input_torque {rates[threads]:.3g}/s on '
+              f'{threads} threads, {rate:.3g}/s on one; pair_efforts {pair_rate:.3g}/s: ratio '
+              f'{rate / pair_rate:.0f}x on one thread; dense efforts ({args.dense} samples) '
+              f'{dense_rate:.3g}/s: ratio {rate / dense_rate:.0f}x; largest disagreement with '
+              f'pair_efforts {np.max(error):.2g} ({np.max(error[safe]):.2g} within 0.9 r1)')
 
 
 if __name__ == '__main__':

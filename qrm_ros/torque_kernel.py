@@ -16,17 +16,19 @@ Compiled (numba) search of the peak input torque under the ideal speed drive.
 
 motor_drive.peak_input_torque's loop, one configuration at a time, in the crank angle
 phi_c (no coupling atan2). The revolution is split where the ram load switches (the two
-reversals and the workpiece's edges, closed form as motor_drive._load_switch_angles); each
-smooth piece carries its own constant ram force. The torque and its slope
-(dynamics.speed_drive_torque_of, compiled here) are sampled on each piece at evenly spread
-crank angles and the coupling's two crossings (flywheel angle 0 or pi, where the speed ratio
-changes fastest near |offset| = r1); piece ends are taken with the piece's own force (the
-one-sided limits at a workpiece edge). Wherever the slope changes sign towards a peak of
-|torque| a bracket is kept, with a bound on its peak from the end values and slopes (the
-slope taken as monotonic between two samples); a bracket whose bound can beat the best value
-found is solved by safeguarded secant steps on the slope. Loading is as for
-qrm_ros.peak_kernel: cached machine code (compiled on the first import, for its one
-signature), a few tenths of a second to load.
+reversals and the workpiece's edges, in closed form as motor_drive._load_switch_angles,
+their sin and cos too); each smooth piece carries its own constant ram force, taken at a
+point inside it. The torque and its slope (dynamics.speed_drive_torque_of, compiled here)
+are sampled on each piece at evenly spread crank angles (sin and cos by rotation, put back
+onto the unit circle) and at the coupling's two crossings (flywheel angle 0 or pi, where the
+speed ratio changes fastest near |offset| = r1); piece ends are taken with the piece's own
+force (the one-sided limits at a workpiece edge). Where the slope changes sign a bracket is
+kept if the ends and slopes allow a peak of |torque| above the best value so far; where
+both slopes agree but the torque moved against them (a minimum and a maximum hide there)
+the interval is halved until the change shows. The brackets are solved, largest bound
+first, by Brent's method on the slope. Blocks of configurations run on numba's threads.
+Loading is as for qrm_ros.peak_kernel: machine code compiled on the first import for its
+one signature (about 5 s, with peak_kernel's) and cached, then 0.3 s to load.
 """
 
 import math

@@ -20,6 +20,7 @@ slope to finite differences.
 
 import math
 
+import numba
 import numpy as np
 import pytest
 
@@ -192,3 +193,16 @@ def test_refuses_bad_input():
     heavy = dyn.MassProperties(1.2, 0.08, 0.15, 5.0, 0.15, np.array([20.0, 30.0]))
     with pytest.raises(dyn.DynamicsError, match='ram_mass must be a single number'):
         md.peak_input_torque(PAPER, heavy, loads, 0.01, 1.0)
+
+
+def test_thread_count_does_not_change_results():
+    geometry, offset, speed = random_designs(20_000, 21)
+    loads = dyn.Loads(400.0, 20.0, 0.8 * float(np.min(geometry.ram_stroke)))
+    threads = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        alone = md.peak_input_torque(geometry, MASS, loads, offset, speed)
+    finally:
+        numba.set_num_threads(threads)
+    shared = md.peak_input_torque(geometry, MASS, loads, offset, speed)
+    np.testing.assert_array_equal(alone, shared)
