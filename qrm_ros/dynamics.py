@@ -338,6 +338,81 @@ def _chain(ops, coupling_radius, crank_radius, pivot_distance, ram_height, crank
                           offset_force), inertia, ram_lever_arm, phi_t * phi_d * downstream)
 
 
+def speed_drive_torque_of(sin_c, cos_c, r1, r, h, height, cos0, sin0, offset, clearance,
+                          input_speed, ram_force, flywheel_inertia, lever_inertia, ram_mass,
+                          gravity_moment):
+    """
+    Return _chain's input torque and its slope d/d(phi_c) at a constant speed and offset.
+
+    The ideal speed drive's case of ``_chain`` (input and offset accelerations and offset rate
+    zero) written in the crank angle phi_c (sin_c, cos_c) for one ram force F (N): with the
+    coupling's speed ratio w = d(phi)/d(theta) = S / r2 in the flywheel angle (kinematics
+    ._ram_speed_terms), x_c = dx/d(phi_c), psi_c = d(psi)/d(phi_c), the reduced inertia
+    D = I_f + I_l psi_c^2 + m_ram x_c^2 (so M = I_in + w^2 D) and the gravity term
+    g_c = psi_c m_l g l_com sin(psi),
+
+        torque = speed^2 w^2 (w_c D + w D_c / 2) - w (g_c + F x_c),
+
+    the chain's ``phi_t * flywheel_torque`` regrouped (d(M/2)/d(theta) speed^2 for the
+    inertia). numpy only: qrm_ros.torque_kernel compiles it for floats, and numpy runs it on
+    arrays (the tests hold it to ``efforts``). clearance is (r1 - offset)(r1 + offset),
+    gravity_moment m_l g l_com (N m), cos0 and sin0 those of the crank phase.
+    """
+    sin_f = sin_c * cos0 - cos_c * sin0  # flywheel angle phi = phi_c - crank phase
+    cos_f = cos_c * cos0 + sin_c * sin0
+    offset_cos = offset * cos_f
+    root = np.sqrt(r1 * r1 - offset_cos * offset_cos)
+    lift = offset * sin_f
+    # 1 / r2 without cancellation: r2 = lift + S = clearance / (S - lift), so with
+    # a = S + |lift| it is 1 / a for lift >= 0 and a / clearance below (no branch, so that
+    # compiled for floats it stays a select).
+    pin_sum = root + np.abs(lift)
+    above = lift >= 0.0
+    inverse_pin = above * (1.0 / pin_sum) + (1.0 - above) * (pin_sum / clearance)
+    inverse_root = 1.0 / root
+    ratio = root * inverse_pin
+    factor = offset * clearance * inverse_root * inverse_pin * inverse_pin
+    ratio1 = -factor * cos_f
+    ratio2 = factor * (sin_f * (1.0 + (offset_cos * inverse_root) ** 2)
+                       + 2.0 * offset_cos * cos_f * inverse_root)
+    # Lever stage: x = H r cos / (h + r sin), psi_c = -r (r + h sin) / m.
+    inverse_below = 1.0 / (h + r * sin_c)
+    rise = h * sin_c + r
+    bracket = h * h - 2.0 * r * r - h * r * sin_c
+    scale = -height * r * inverse_below * inverse_below
+    cos2 = cos_c * cos_c
+    x_c = scale * rise
+    x_cc = scale * inverse_below * cos_c * bracket
+    x_ccc = scale * inverse_below * ((-sin_c * bracket - h * r * cos2)
+                                     - 3.0 * r * cos2 * bracket * inverse_below)
+    inverse_m = 1.0 / (r * r + h * h + 2.0 * r * h * sin_c)
+    spread = r * h * (h * h - r * r) * inverse_m * inverse_m
+    psi_c = -r * rise * inverse_m
+    psi_cc = -spread * cos_c
+    psi_ccc = spread * inverse_m * (sin_c * (r * r + h * h + 2.0 * r * h * sin_c)
+                                    + 4.0 * r * h * cos2)
+    # g_c = -K r^2 (h sin + r) cos m^(-3/2), K = gravity_moment.
+    root_m = np.sqrt(inverse_m)
+    lever_weight = -gravity_moment * r * r * inverse_m * root_m
+    gravity_c = lever_weight * rise * cos_c
+    gravity_cc = lever_weight * ((h * cos2 - rise * sin_c)
+                                 - 3.0 * r * h * rise * cos2 * inverse_m)
+    inertia = flywheel_inertia + lever_inertia * psi_c * psi_c + ram_mass * x_c * x_c
+    inertia_c = 2.0 * (lever_inertia * psi_c * psi_cc + ram_mass * x_c * x_cc)
+    inertia_cc = 2.0 * (lever_inertia * (psi_cc * psi_cc + psi_c * psi_ccc)
+                        + ram_mass * (x_cc * x_cc + x_c * x_ccc))
+    speed2 = input_speed * input_speed
+    load = gravity_c + ram_force * x_c
+    load_c = gravity_cc + ram_force * x_cc
+    torque = (speed2 * ratio * ratio * (ratio1 * inertia + 0.5 * ratio * inertia_c)
+              - ratio * load)
+    slope = (speed2 * ratio * (2.0 * ratio1 * ratio1 * inertia
+                               + ratio * (ratio2 * inertia + 2.5 * ratio1 * inertia_c
+                                          + 0.5 * ratio * inertia_cc))
+             - ratio1 * load - ratio * load_c)
+    return torque, slope
+
+
 def _array_chain(geometry, mass, offset, input_angle, input_speed=0.0, input_acceleration=0.0,
                  offset_rate=0.0, offset_acceleration=0.0, external_ram_force=0.0):
     offset = check_offset(geometry, offset)

@@ -1,0 +1,332 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+Compiled (numba) search of the peak input torque under the ideal speed drive.
+
+motor_drive.peak_input_torque's loop, one configuration at a time, in the crank angle
+phi_c (no coupling atan2). The revolution is split where the ram load switches (the two
+reversals and the workpiece's edges, in closed form as motor_drive._load_switch_angles,
+their sin and cos too); each smooth piece carries its own constant ram force, taken at a
+point inside it. The torque and its slope (dynamics.speed_drive_torque_of, compiled here)
+are sampled on each piece at evenly spread crank angles (sin and cos by rotation, put back
+onto the unit circle) and at the coupling's two crossings (flywheel angle 0 or pi, where the
+speed ratio changes fastest near |offset| = r1); piece ends are taken with the piece's own
+force (the one-sided limits at a workpiece edge). Where the slope changes sign a bracket is
+kept if the ends and slopes allow a peak of |torque| above the best value so far; where
+both slopes agree but the torque moved against them (a minimum and a maximum hide there)
+the interval is halved until the change shows. The brackets are solved, largest bound
+first, by Brent's method on the slope. Blocks of configurations run on numba's threads.
+Loading is as for qrm_ros.peak_kernel: machine code compiled on the first import for its
+one signature (about 5 s, with peak_kernel's) and cached, then 0.3 s to load.
+"""
+
+import math
+
+import numba
+import numpy as np
+
+from qrm_ros.dynamics import speed_drive_torque_of
+from qrm_ros.peak_kernel import _compiler, _rotate
+
+_TWO_PI = 2.0 * math.pi
+# Return-stroke samples grow as sqrt(h / (h - r)) times this, once above the base count.
+_RETURN_DENSITY = 1.0
+# Halvings of a sample interval that hides a minimum and a maximum, to find them.
+_SPLIT_DEPTH = 20
+# Configurations per block handed to a thread.
+_BLOCK = 4096
+_EPSILON = float(np.finfo(np.float64).eps)
+
+_jit = _compiler()
+_torque = _jit(speed_drive_torque_of)
+
+
+@_jit
+def _refine(low, high, low_slope, high_slope, low_sin, low_cos, high_sin, high_cos, force,
+            best, tolerance, max_steps, geometry, inertia):
+    """
+    Return max(best, |torque| at the slope's root in [low, high]): Brent's method (zeroin).
+
+    Inverse quadratic and secant steps where they stay well inside the bracket, bisection
+    otherwise; stops once the bracket is within tolerance (rad). Every point evaluated is
+    a true torque of the piece, so the largest |torque| seen is kept. Each point's sin and
+    cos come from rotating the previous point's by the step (no sin or cos calls once the
+    steps are below 0.3 rad).
+    """
+    a, fa, sin_a, cos_a = low, low_slope, low_sin, low_cos
+    b, fb, sin_b, cos_b = high, high_slope, high_sin, high_cos
+    c, fc, sin_c, cos_c = a, fa, sin_a, cos_a
+    d = e = b - a
+    for _ in range(max_steps):
+        if (fb > 0.0) == (fc > 0.0):
+            c, fc, sin_c, cos_c = a, fa, sin_a, cos_a
+            d = e = b - a
+        if abs(fc) < abs(fb):
+            a, fa, sin_a, cos_a = b, fb, sin_b, cos_b
+            b, fb, sin_b, cos_b = c, fc, sin_c, cos_c
+            c, fc, sin_c, cos_c = a, fa, sin_a, cos_a
+        tol = 2.0 * _EPSILON * abs(b) + 0.5 * tolerance
+        m = 0.5 * (c - b)
+        if abs(m) <= tol or fb == 0.0:
+            break
+        if abs(e) >= tol and abs(fa) > abs(fb):
+            s = fb / fa
+            if a == c:
+                p = 2.0 * m * s
+                q = 1.0 - s
+            else:
+                q = fa / fc
+                t = fb / fc
+                p = s * (2.0 * m * q * (q - t) - (b - a) * (t - 1.0))
+                q = (q - 1.0) * (t - 1.0) * (s - 1.0)
+            if p > 0.0:
+                q = -q
+            else:
+                p = -p
+            if 2.0 * p < min(3.0 * m * q - abs(tol * q), abs(e * q)):
+                e, d = d, p / q
+            else:
+                d = e = m
+        else:
+            d = e = m
+        a, fa, sin_a, cos_a = b, fb, sin_b, cos_b
+        step = d if abs(d) > tol else (tol if m > 0.0 else -tol)
+        b += step
+        sin_b, cos_b = _rotate(sin_b, cos_b, step)
+        norm = 1.5 - 0.5 * (sin_b * sin_b + cos_b * cos_b)  # back onto the circle
+        sin_b *= norm
+        cos_b *= norm
+        torque, fb = _torque(sin_b, cos_b, *geometry, force, *inertia)
+        best = max(best, abs(torque))
+    return best
+
+
+@_jit
+def _keep(kept, brackets, best, force, low, low_torque, low_slope, low_sin, low_cos, high,
+          high_torque, high_slope, high_sin, high_cos):
+    """Record [low, high] if the slope changes sign there and |torque| may beat best."""
+    if (low_slope > 0.0 and high_slope < 0.0) or (low_slope < 0.0 and high_slope > 0.0):
+        # |torque| can exceed the larger end by about half a slope times the gap between
+        # them (a parabola's rise); twice that is the bound. (A parabola's peak from the
+        # two ends plus 0.1 % and their difference lost peaks near |offset| = r1.)
+        bound = (max(abs(low_torque), abs(high_torque))
+                 + max(abs(low_slope), abs(high_slope)) * (high - low))
+        if bound > best:
+            kept[brackets, 0], kept[brackets, 1] = low, high
+            kept[brackets, 2], kept[brackets, 3] = low_slope, high_slope
+            kept[brackets, 4], kept[brackets, 5] = force, bound
+            kept[brackets, 6], kept[brackets, 7] = low_sin, low_cos
+            kept[brackets, 8], kept[brackets, 9] = high_sin, high_cos
+            return brackets + 1
+    return brackets
+
+
+@_jit
+def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
+                flywheel_inertia, lever_inertia, ram_mass, gravity_moment, cutting_force,
+                ram_friction, cutting_length, cut_samples, return_samples, tolerance,
+                max_steps):
+    """Peak |input torque| (N m) of configurations first to last - 1, into result."""
+    inertia = (flywheel_inertia, lever_inertia, ram_mass, gravity_moment)
+    # Load switches in order, with their sin and cos (closed form, no sin or cos calls).
+    bounds = np.empty((8, 3))
+    # Brackets kept from the samples: low, high, their slopes, force, bound, their sin, cos.
+    kept = np.empty((cut_samples + return_samples + 32, 10))
+    for i in range(first, last):
+        cos0, sin0 = math.cos(phase[i]), math.sin(phase[i])
+        ri, hi, heighti = r[i], h[i], height[i]
+        half_gap = math.asin(ri / hi)
+        return_density = max(1.0, _RETURN_DENSITY * math.sqrt(hi / (hi - ri)))
+        needed = cut_samples + int(math.ceil(return_samples * return_density)) + 32
+        if needed > kept.shape[0]:
+            kept = np.empty((needed, 10))
+        start = -half_gap
+        turn = math.pi + half_gap
+        ratio = ri / hi
+        cos_gap = math.sqrt((1.0 - ratio) * (1.0 + ratio))
+        # At both reversals sin(phi_c) = -r/h; cos(phi_c) = +-sqrt(1 - (r/h)^2).
+        bounds[0, 0], bounds[0, 1], bounds[0, 2] = start, -ratio, cos_gap
+        bounds[1, 0], bounds[1, 1], bounds[1, 2] = turn, -ratio, -cos_gap
+        bounds[2, 0], bounds[2, 1], bounds[2, 2] = start + _TWO_PI, -ratio, cos_gap
+        count = 3
+        if cutting_length > 0.0:
+            for side in (1.0, -1.0):
+                tangent = side * 0.5 * cutting_length / heighti
+                secant = math.sqrt(1.0 + tangent * tangent)
+                cosine = tangent * hi / (ri * secant)
+                if abs(cosine) <= 1.0:
+                    spread = math.acos(cosine)
+                    sine = math.sqrt((1.0 - cosine) * (1.0 + cosine))
+                    shift = math.atan(tangent)
+                    for turn_sign in (1.0, -1.0):
+                        # phi_c = +-spread - atan(tangent), by the angle-difference formulas.
+                        bounds[count, 0] = start + (turn_sign * spread - shift - start) % _TWO_PI
+                        bounds[count, 1] = (turn_sign * sine - cosine * tangent) / secant
+                        bounds[count, 2] = (cosine + turn_sign * sine * tangent) / secant
+                        count += 1
+        for j in range(3, count):  # insertion sort: at most four edges
+            value, value_sin, value_cos = bounds[j, 0], bounds[j, 1], bounds[j, 2]
+            k = j
+            while bounds[k - 1, 0] > value:
+                bounds[k, 0], bounds[k, 1], bounds[k, 2] = (bounds[k - 1, 0], bounds[k - 1, 1],
+                                                            bounds[k - 1, 2])
+                k -= 1
+            bounds[k, 0], bounds[k, 1], bounds[k, 2] = value, value_sin, value_cos
+        geometry = (r1[i], ri, hi, heighti, cos0, sin0, offset[i],
+                    (r1[i] - offset[i]) * (r1[i] + offset[i]), speed[i])
+        direction = 1.0 if speed[i] > 0.0 else -1.0
+        # Crank angles where the flywheel angle is 0 or pi: there sin_c, cos_c = +-(sin0, cos0).
+        first_cross = start + (phase[i] - start) % _TWO_PI
+        second_cross = start + (phase[i] + math.pi - start) % _TWO_PI
+        first_sign = 1.0
+        if second_cross < first_cross:
+            first_cross, second_cross, first_sign = second_cross, first_cross, -1.0
+        best = 0.0
+        brackets = 0
+        for piece in range(count - 1):
+            low, high = bounds[piece, 0], bounds[piece + 1, 0]
+            width = high - low
+            if width <= 0.0:
+                continue
+            middle = 0.5 * (low + high)
+            # Each stroke its own count: the return's arc narrows as sqrt(1 - r/h) when
+            # r/h -> 1, the torque's features there (the lever's quick swing) as 1 - r/h.
+            if middle < turn:
+                intervals = max(1, int(math.ceil(cut_samples * width / (turn - start))))
+            else:
+                intervals = max(1, int(math.ceil(return_samples * return_density * width
+                                                 / (start + _TWO_PI - turn))))
+            spacing = width / intervals
+            step_sin, step_cos = _rotate(0.0, 1.0, spacing)
+            sin_c, cos_c = bounds[piece, 1], bounds[piece, 2]
+            # The next even sample's sin and cos, rotated from the previous one's and put
+            # back onto the unit circle (one Newton step for 1 / sqrt): rotations drift off
+            # it by k eps, and where h + r sin(phi_c) is small (r/h -> 1) a point off the
+            # circle gives a torque 1e-11 off any true value.
+            even_sin = sin_c * step_cos + cos_c * step_sin
+            even_cos = cos_c * step_cos - sin_c * step_sin
+            # The piece's load, from a point inside it: the first even sample, or the middle.
+            if intervals > 1:
+                inside_sin, inside_cos = even_sin, even_cos
+            else:
+                inside_sin, inside_cos = math.sin(middle), math.cos(middle)
+            # The ram velocity's sign: x_c < 0 from the cut's start to its end reversal.
+            velocity_sign = -direction if middle < turn else direction
+            position = heighti * ri * inside_cos / (hi + ri * inside_sin)
+            cutting = velocity_sign < 0.0 and abs(position) <= 0.5 * cutting_length
+            force = (cutting_force if cutting else 0.0) - ram_friction * velocity_sign
+            angle = low
+            torque, slope = _torque(sin_c, cos_c, *geometry, force, *inertia)
+            best = max(best, abs(torque))
+            cross, cross_sign = first_cross, first_sign
+            if cross <= low:
+                cross, cross_sign = second_cross, -first_sign
+                if cross <= low:
+                    cross = math.inf
+            k = 1
+            while k <= intervals:
+                if cross < high and cross < low + spacing * k:
+                    following = cross
+                    next_sin, next_cos = cross_sign * sin0, cross_sign * cos0
+                    if cross < second_cross:
+                        cross, cross_sign = second_cross, -cross_sign
+                    else:
+                        cross = math.inf
+                elif k == intervals:
+                    following = high
+                    next_sin, next_cos = bounds[piece + 1, 1], bounds[piece + 1, 2]
+                    k += 1
+                else:
+                    following = low + spacing * k
+                    next_sin, next_cos = even_sin, even_cos
+                    even_sin, even_cos = (even_sin * step_cos + even_cos * step_sin,
+                                          even_cos * step_cos - even_sin * step_sin)
+                    norm = 1.5 - 0.5 * (even_sin * even_sin + even_cos * even_cos)
+                    even_sin *= norm
+                    even_cos *= norm
+                    k += 1
+                next_torque, next_slope = _torque(next_sin, next_cos, *geometry, force,
+                                                  *inertia)
+                best = max(best, abs(next_torque))
+                if (slope > 0.0) == (next_slope > 0.0) and (next_torque - torque) * slope < 0.0:
+                    # Both slopes of one sign but the torque moved the other way: a minimum
+                    # and a maximum hide between the samples (mean value theorem). Halve
+                    # towards them until a sample's slope shows the change.
+                    low_angle, low_torque, low_slope = angle, torque, slope
+                    high_angle, high_torque, high_slope = following, next_torque, next_slope
+                    low_sin, low_cos, high_sin, high_cos = sin_c, cos_c, next_sin, next_cos
+                    for _ in range(_SPLIT_DEPTH):
+                        half = 0.5 * (low_angle + high_angle)
+                        half_sin, half_cos = math.sin(half), math.cos(half)
+                        half_torque, half_slope = _torque(half_sin, half_cos, *geometry, force,
+                                                          *inertia)
+                        best = max(best, abs(half_torque))
+                        if half_slope == 0.0:
+                            break
+                        if (half_slope > 0.0) != (low_slope > 0.0):
+                            brackets = _keep(kept, brackets, best, force, low_angle,
+                                             low_torque, low_slope, low_sin, low_cos, half,
+                                             half_torque, half_slope, half_sin, half_cos)
+                            brackets = _keep(kept, brackets, best, force, half, half_torque,
+                                             half_slope, half_sin, half_cos, high_angle,
+                                             high_torque, high_slope, high_sin, high_cos)
+                            break
+                        if (half_torque - low_torque) * low_slope < 0.0:
+                            high_angle, high_torque, high_slope = half, half_torque, half_slope
+                            high_sin, high_cos = half_sin, half_cos
+                        else:
+                            low_angle, low_torque, low_slope = half, half_torque, half_slope
+                            low_sin, low_cos = half_sin, half_cos
+                else:
+                    brackets = _keep(kept, brackets, best, force, angle, torque, slope, sin_c,
+                                     cos_c, following, next_torque, next_slope, next_sin,
+                                     next_cos)
+                angle, sin_c, cos_c = following, next_sin, next_cos
+                torque, slope = next_torque, next_slope
+        # Largest bound first: once the highest peak is refined, most others fall below it.
+        for _ in range(brackets):
+            b = 0
+            for j in range(1, brackets):
+                if kept[j, 5] > kept[b, 5]:
+                    b = j
+            if kept[b, 5] <= best:
+                break
+            kept[b, 5] = -1.0
+            best = _refine(kept[b, 0], kept[b, 1], kept[b, 2], kept[b, 3], kept[b, 6],
+                           kept[b, 7], kept[b, 8], kept[b, 9], kept[b, 4], best, tolerance,
+                           max_steps, geometry, inertia)
+        result[i] = best
+
+
+@numba.njit('float64[::1](float64[::1], float64[::1], float64[::1], float64[::1], '
+            'float64[::1], float64[::1], float64[::1], float64, float64, float64, float64, '
+            'float64, float64, float64, int64, int64, float64, int64)', cache=True,
+            nogil=True, parallel=True, error_model='numpy', fastmath={'contract'})
+def peak_torques(r1, r, h, height, phase, offset, speed, flywheel_inertia, lever_inertia,
+                 ram_mass, gravity_moment, cutting_force, ram_friction, cutting_length,
+                 cut_samples, return_samples, tolerance, max_steps):
+    """
+    Peak |input torque| (N m) of flat configuration arrays; samples per stroke.
+
+    Blocks of configurations are shared among numba's threads (numba.set_num_threads).
+    """
+    size = offset.size
+    result = np.empty(size)
+    blocks = (size + _BLOCK - 1) // _BLOCK
+    for block in numba.prange(blocks):
+        _peak_block(result, block * _BLOCK, min(size, (block + 1) * _BLOCK), r1, r, h, height,
+                    phase, offset, speed, flywheel_inertia, lever_inertia, ram_mass,
+                    gravity_moment, cutting_force, ram_friction, cutting_length, cut_samples,
+                    return_samples, tolerance, max_steps)
+    return result
