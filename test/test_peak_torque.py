@@ -206,3 +206,16 @@ def test_thread_count_does_not_change_results():
         numba.set_num_threads(threads)
     shared = md.peak_input_torque(geometry, MASS, loads, offset, speed)
     np.testing.assert_array_equal(alone, shared)
+
+
+def test_the_readme_sweep():
+    """README's example: the offsets' peaks, each the same as pair_efforts' alone."""
+    geometry = kin.Geometry.paper()
+    mass, loads = dyn.MassProperties.small_shaper(), dyn.Loads.small_shaper()
+    offsets = np.array([-0.02, -0.01, 0.0, 0.01, 0.02])
+    peaks = md.peak_input_torque(geometry, mass, loads, offsets, 2 * math.pi)
+    for offset, peak, shown in zip(offsets, peaks, (480.25, 48.128, 26.225, 104.72, 2923.9)):
+        assert peak == pytest.approx(md.pair_efforts(geometry, mass, loads, offset,
+                                                     2 * math.pi).peak_input_torque,
+                                     rel=1e-12)
+        assert float(f'{peak:.5g}') == shown
