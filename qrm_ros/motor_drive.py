@@ -20,6 +20,7 @@ each revolution is split there and every smooth piece is integrated and searched
 peaks on its own; that is what makes the per-pair figures exact to quadrature accuracy.
 """
 
+import bisect
 import dataclasses
 import math
 from typing import NamedTuple
@@ -29,7 +30,7 @@ from scipy import integrate, optimize, special
 
 from qrm_ros import dynamics as dyn
 from qrm_ros.kinematics import (check_offset, input_angle_for_flywheel_angle, KinematicsError,
-                                reversal_flywheel_angles, state)
+                                reversal_flywheel_angles, state, TWO_PI)
 from qrm_ros.stepping import _finite, _positive, _ramp, checked_limits, wrap_angle
 
 __all__ = ['MotorStepper', 'PairEfforts', 'Simulation', 'SpeedFluctuation',
@@ -267,6 +268,12 @@ _ATOL = 1e-12
 # out and back within one fifth of a step would be missed; steps are far shorter than the
 # load pieces).
 _ROOT_SAMPLES = 5
+# A step whose sampled angles all stay this far (rad) from the ram's reversals and the
+# workpiece's edges (closed form, offset held) has no sign change of those two switching
+# functions at its samples, so they are not evaluated there: their computed signs are
+# exact beyond about 1e-8 rad (sqrt(eps): a workpiece as long as the stroke touches zero
+# at a reversal).
+_SWITCH_ANGLE_MARGIN = 1e-6
 _NANOSECONDS = 1e9
 # A ram reversal landed on with the input slower than this (rad/s) is the shaft stopping.
 _STOP_SPEED = 1e-9
@@ -420,6 +427,7 @@ class MotorStepper:
         # The chain's fixed arguments: math's functions, the geometry, the masses as floats.
         self._fixed = (dyn._SCALAR_OPS, *dyn._geometry_fields(self._geometry), mass.scalars())
         self._lean_acceleration, self._ram_motion = _lean_chain(self._geometry, mass)
+        self._switch_angles_at = (None, None, None)
         self._loads = loads.check_against(self._geometry.ram_stroke)
         loads.scalars()
         self._motor = motor
@@ -573,6 +581,8 @@ class MotorStepper:
         stiffness, limit = (0.0, 0.0) if motor is None else (motor.speed_stiffness,
                                                              motor.max_torque)
         direction, spin, half_work = self._direction, self._spin, self._half_work
+        switch_angles = (self._switch_angles(segment_offset) if spin and rate == 0.0
+                         else None)
         work_sign = 1 if self._in_work else -1
         cutting = self._loads.cutting_force > 0.0
 
@@ -581,38 +591,62 @@ class MotorStepper:
                 return command
             return _ramp(segment_reference, command, acceleration_limit, time - start)[0]
 
-        def offset_at(time):
-            if time >= offset_end:
-                return target
+        def offset_at(time):  # ramping (the callers check time < offset_end themselves)
             return _ramp(segment_offset, target, rate_limit, time - start)[0]
 
+        held_torque = saturation * limit if saturation else 0.0  # saturated, or no motor
+        free = motor is not None and not saturation  # the torque follows the speed law
+
         def acceleration(time, angle, speed):
-            if motor is None:
-                torque = 0.0
-            elif saturation:
-                torque = saturation * limit
-            else:
-                torque = stiffness * (reference_at(time) - speed)
-            return lean_acceleration(offset_at(time), angle, speed, rate, torque, load)
+            torque = stiffness * (reference_at(time) - speed) if free else held_torque
+            offset = target if time >= offset_end else offset_at(time)
+            return lean_acceleration(offset, angle, speed, rate, torque, load)
 
         def rhs(time, y):
             """Right-hand side for DOP853 (y an array: its values go on as plain floats)."""
             angle, speed = y.tolist()
-            return [speed, acceleration(float(time), angle, speed)]
+            time = float(time)
+            # acceleration's lines, written out: a call costs a few % of the right-hand side
+            torque = stiffness * (reference_at(time) - speed) if free else held_torque
+            offset = target if time >= offset_end else offset_at(time)
+            return [speed, lean_acceleration(offset, angle, speed, rate, torque, load)]
 
-        def switching(time, angle, speed):
-            position, velocity = ram_motion(offset_at(time), angle, speed, rate)
+        def switching(time, angle, speed, ram=True):
+            """ram=False: 1.0 for the ram's two (a step clear of the load's switches)."""
             if motor is None:
                 torque_margin = 1.0
             else:
                 demand = stiffness * (reference_at(time) - speed)
                 torque_margin = (limit - abs(demand) if saturation == 0
                                  else saturation * demand - limit)
+            if not ram:
+                return [1.0, 1.0, torque_margin, spin * speed]
+            offset = target if time >= offset_end else offset_at(time)
+            position, velocity = ram_motion(offset, angle, speed, rate)
             return [direction * velocity,
                     (half_work - abs(position)) * work_sign if cutting else 1.0,
                     torque_margin, spin * speed]
 
-        return rhs, acceleration, switching
+        def clear(low, high):
+            """Say whether the angles low..high (rad) keep the margin from the load's switches."""
+            if switch_angles is None:
+                return False
+            width = high - low + 2.0 * _SWITCH_ANGLE_MARGIN
+            low = (low - _SWITCH_ANGLE_MARGIN) % TWO_PI
+            index = bisect.bisect_left(switch_angles, low)
+            following = (switch_angles[index] if index < len(switch_angles)
+                         else switch_angles[0] + TWO_PI)  # the next switch up from low
+            return following - low > width
+
+        return rhs, acceleration, switching, clear
+
+    def _switch_angles(self, offset):
+        """Input angles (rad, in [0, 2 pi)) of the load's switches at this offset (cached)."""
+        if self._switch_angles_at[:2] != (offset, self._loads):
+            angles = _load_switch_angles(self._geometry, self._loads, offset)
+            self._switch_angles_at = (offset, self._loads,
+                                      sorted(float(angle) % TWO_PI for angle in angles))
+        return self._switch_angles_at[2]
 
     def _set_ramp_ends(self, time, reference, offset):
         """When (s) the reference and the offset reach their commands: kinks to stop at."""
@@ -675,7 +709,7 @@ class MotorStepper:
             self._saturation = self._saturation_of(reference, speed)
         self._load = self._loaded(self._direction, self._in_work)
         self._angle, self._speed = angle, speed
-        rhs, self._acceleration_at, self._switching = self._segment_functions()
+        rhs, self._acceleration_at, self._switching, self._clear = self._segment_functions()
         if self._spin == 0:
             self._solver = None
             self._piece = (time, math.inf, None)
@@ -754,10 +788,16 @@ class MotorStepper:
         # np.linspace(start, end, _ROOT_SAMPLES + 1), the same numbers without its overhead.
         step = (end - start) / _ROOT_SAMPLES
         times = [index * step + start for index in range(_ROOT_SAMPLES)] + [end]
+        samples = [at(time) for time in times]
+        angles, speeds = zip(*samples)
+        # With the speed's sign held at every sample, the ram's switching functions change
+        # sign only at the load's switch angles.
+        held = min(speeds) > 0.0 if self._spin > 0 else max(speeds) < 0.0
+        ram = not (held and self._clear(min(angles), max(angles)))
         switching = self._switching
-        previous = switching(times[0], *at(times[0]))
+        previous = switching(times[0], *samples[0], ram)
         for index in range(1, len(times)):
-            values = switching(times[index], *at(times[index]))
+            values = switching(times[index], *samples[index], ram)
             if min(values) > 0.0:  # the mode holds at this sample: nothing switched before it
                 previous = values
                 continue

@@ -469,6 +469,28 @@ def test_the_lean_chain_gives_the_chains_numbers_bit_for_bit(mass):
             [chain.ram_position, chain.ram_velocity])
 
 
+@pytest.mark.parametrize('cutting_length', [LOADS.cutting_length, GEOMETRY.ram_stroke])
+def test_steps_clear_of_the_load_switches_find_the_same_switches(monkeypatch, cutting_length):
+    # The stepper skips the ram's switching functions on steps whose angles stay clear of the
+    # load's switch angles; without that screening every sample is checked. Same numbers.
+    loads = dyn.Loads(cutting_force=LOADS.cutting_force, ram_friction=LOADS.ram_friction,
+                      cutting_length=cutting_length)
+
+    def commanded():
+        stepper = _stepper(loads)
+        rows = _run(stepper, 0, 1_500_000_000)
+        stepper.set_offset_command(-0.012)
+        stepper.set_speed_command(12.0)
+        rows += _run(stepper, 1_500_000_000, 3_000_000_000, 700_001)
+        stepper.set_speed_command(-4.0)
+        rows += _run(stepper, 3_000_000_000, 5_500_000_000, 1_300_000)
+        return rows
+
+    screened = commanded()
+    monkeypatch.setattr(md.MotorStepper, '_switch_angles', lambda self, offset: None)
+    assert commanded() == screened
+
+
 SOFT_MOTOR = dyn.MotorDrive(speed_stiffness=20.0, max_torque=250.0)
 
 
