@@ -439,6 +439,9 @@ class MotorStepper:
         self._acceleration_now = None
         if self._stamp_ns is None:
             change()
+            if self._spin:  # a held state (resync) reads the new settings as before
+                _, self._acceleration_at, self._switching, self._clear = (
+                    self._segment_functions())
             return
         angle, speed = self._angle, self._speed
         reference, offset = self._reference_at(self._time), self._offset_at(self._time)

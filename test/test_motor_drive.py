@@ -491,6 +491,20 @@ def test_steps_clear_of_the_load_switches_find_the_same_switches(monkeypatch, cu
     assert commanded() == screened
 
 
+def test_a_change_while_held_applies_to_the_held_state():
+    stepper = _stepper()
+    _run(stepper, 0, 300_000_000)
+    stepper.resync()
+    other = dyn.MassProperties(input_inertia=0.05, flywheel_inertia=0.0, lever_mass=3.0,
+                               lever_inertia=0.4, lever_com_distance=0.2, ram_mass=12.0)
+    stepper.set_dynamics(mass=other)
+    chain = dyn._chain(dyn._SCALAR_OPS, *dyn._geometry_fields(GEOMETRY), other.scalars(),
+                       stepper.offset, stepper.input_angle, stepper.input_speed, 0.0,
+                       stepper.offset_rate, 0.0, 0.0)
+    assert stepper.input_acceleration == stepper._acceleration(chain, stepper.motor_torque,
+                                                               stepper.ram_load)
+
+
 SOFT_MOTOR = dyn.MotorDrive(speed_stiffness=20.0, max_torque=250.0)
 
 
