@@ -440,8 +440,8 @@ class MotorStepper:
         if self._stamp_ns is None:
             change()
             if self._spin:  # a held state (resync) reads the new settings as before
-                _, self._acceleration_at, self._switching, self._clear = (
-                    self._segment_functions())
+                (_, self._acceleration_at, self._switching, self._clear,
+                 self._motor_holds) = self._segment_functions()
             return
         angle, speed = self._angle, self._speed
         reference, offset = self._reference_at(self._time), self._offset_at(self._time)
@@ -641,7 +641,25 @@ class MotorStepper:
                          else switch_angles[0] + TWO_PI)  # the next switch up from low
             return following - low > width
 
-        return rhs, acceleration, switching, clear
+        def motor_holds(start, low, high):
+            """
+            Say whether the motor's switching function is > 0 at all speeds low..high (rad/s).
+
+            From start (s) on with the reference at its command: the function is then
+            monotonic in the speed, in floating point too, so its ends bound it.
+            """
+            if motor is None:
+                return True
+            if start < reference_end:
+                return False
+            for speed in (low, high):
+                demand = stiffness * (command - speed)
+                if not (limit - abs(demand) if saturation == 0
+                        else saturation * demand - limit) > 0.0:
+                    return False
+            return True
+
+        return rhs, acceleration, switching, clear, motor_holds
 
     def _switch_angles(self, offset):
         """Input angles (rad, in [0, 2 pi)) of the load's switches at this offset (cached)."""
@@ -712,7 +730,8 @@ class MotorStepper:
             self._saturation = self._saturation_of(reference, speed)
         self._load = self._loaded(self._direction, self._in_work)
         self._angle, self._speed = angle, speed
-        rhs, self._acceleration_at, self._switching, self._clear = self._segment_functions()
+        (rhs, self._acceleration_at, self._switching, self._clear,
+         self._motor_holds) = self._segment_functions()
         if self._spin == 0:
             self._solver = None
             self._piece = (time, math.inf, None)
@@ -795,8 +814,11 @@ class MotorStepper:
         angles, speeds = zip(*samples)
         # With the speed's sign held at every sample, the ram's switching functions change
         # sign only at the load's switch angles.
-        held = min(speeds) > 0.0 if self._spin > 0 else max(speeds) < 0.0
+        low, high = min(speeds), max(speeds)
+        held = low > 0.0 if self._spin > 0 else high < 0.0
         ram = not (held and self._clear(min(angles), max(angles)))
+        if not ram and self._motor_holds(start, low, high):
+            return None  # no switching function goes from > 0 to <= 0 between samples
         switching = self._switching
         previous = switching(times[0], *samples[0], ram)
         for index in range(1, len(times)):

@@ -469,11 +469,15 @@ def test_the_lean_chain_gives_the_chains_numbers_bit_for_bit(mass):
             [chain.ram_position, chain.ram_velocity])
 
 
-@pytest.mark.parametrize('cutting_length', [LOADS.cutting_length, GEOMETRY.ram_stroke])
-def test_steps_clear_of_the_load_switches_find_the_same_switches(monkeypatch, cutting_length):
-    # The stepper skips the ram's switching functions on steps whose angles stay clear of the
-    # load's switch angles; without that screening every sample is checked. Same numbers.
-    loads = dyn.Loads(cutting_force=LOADS.cutting_force, ram_friction=LOADS.ram_friction,
+@pytest.mark.parametrize('cutting_force, cutting_length', [
+    (LOADS.cutting_force, LOADS.cutting_length), (LOADS.cutting_force, GEOMETRY.ram_stroke),
+    (6000.0, LOADS.cutting_length)])  # the last: the motor saturates, then the shaft stalls
+def test_steps_clear_of_the_load_switches_find_the_same_switches(monkeypatch, cutting_force,
+                                                                 cutting_length):
+    # The stepper skips the switching functions on steps whose angles stay clear of the load's
+    # switch angles (and whose speeds keep the motor's mode); without that screening every
+    # sample is checked. The same numbers.
+    loads = dyn.Loads(cutting_force=cutting_force, ram_friction=LOADS.ram_friction,
                       cutting_length=cutting_length)
 
     def commanded():
