@@ -730,12 +730,13 @@ class MotorStepper:
             self._saturation = self._saturation_of(reference, speed)
         self._load = self._loaded(self._direction, self._in_work)
         self._angle, self._speed = angle, speed
-        (rhs, self._acceleration_at, self._switching, self._clear,
-         self._motor_holds) = self._segment_functions()
         if self._spin == 0:
             self._solver = None
             self._piece = (time, math.inf, None)
             return
+        # At rest (this runs every tick then) nothing calls them.
+        (rhs, self._acceleration_at, self._switching, self._clear,
+         self._motor_holds) = self._segment_functions()
         self._solver = integrate.DOP853(rhs, time, [angle, speed],
                                         self._breakpoint(time), rtol=_RTOL, atol=_ATOL)
         # The last piece stays valid up to here (a stamp just before the switch), no further.
