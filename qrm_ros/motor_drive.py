@@ -317,8 +317,9 @@ def _lean_chain(geometry, mass):
     ram_motion(offset, angle, speed, offset_rate): the ram's (position m, velocity m/s).
     Both at zero input and offset acceleration. They are the chain's own operations in its
     order, with what they do not need left out (terms times an exact zero, the lever angle,
-    the named tuples, the mass dict), so they give its numbers bit for bit at a third of its
-    cost (a test holds them to it); the right-hand side runs about 16 times a solver step.
+    the named tuples, the mass dict), so they give its numbers bit for bit (a test holds
+    them to it) at under half its cost, a quarter for the ram's motion; the right-hand side
+    runs about 16 times a solver step.
     """
     r1, r, h = geometry.coupling_radius, geometry.crank_radius, geometry.pivot_distance
     height, phase = geometry.ram_height, geometry.crank_phase
@@ -393,8 +394,10 @@ class MotorStepper:
     Integration: scipy's DOP853, restarted at every switch of the right-hand side: stroke
     reversal, tool entering or leaving the workpiece, motor reaching or leaving its torque
     limit, input speed through zero, a ramp ending, any command. A switch inside a step is
-    found on the step's dense output with brentq, and the step is cut there. Outputs at
-    stamps come from dense output, so the trajectory does not depend on the stamps asked for.
+    found on the step's dense output with brentq, and the step is cut there; a step whose
+    samples keep clear of the load's switch angles (closed form) and of the motor's limit
+    skips the switching functions (the same switches, found cheaper). Outputs at stamps
+    come from dense output, so the trajectory does not depend on the stamps asked for.
 
     Stall rule: when the input speed reaches zero, the load seen by each direction of motion
     is the one that motion would meet (friction against it; the cutting force if the ram
@@ -734,7 +737,7 @@ class MotorStepper:
             self._solver = None
             self._piece = (time, math.inf, None)
             return
-        # At rest (this runs every tick then) nothing calls them.
+        # The segment's functions (not at rest: _start runs every tick while held).
         (rhs, self._acceleration_at, self._switching, self._clear,
          self._motor_holds) = self._segment_functions()
         self._solver = integrate.DOP853(rhs, time, [angle, speed],
