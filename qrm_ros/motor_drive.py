@@ -592,9 +592,7 @@ class MotorStepper:
         work_sign = 1 if self._in_work else -1
         cutting = self._loads.cutting_force > 0.0
 
-        def reference_at(time):
-            if time >= reference_end:
-                return command
+        def reference_at(time):  # ramping (the callers check time < reference_end themselves)
             return _ramp(segment_reference, command, acceleration_limit, time - start)[0]
 
         def offset_at(time):  # ramping (the callers check time < offset_end themselves)
@@ -604,7 +602,11 @@ class MotorStepper:
         free = motor is not None and not saturation  # the torque follows the speed law
 
         def acceleration(time, angle, speed):
-            torque = stiffness * (reference_at(time) - speed) if free else held_torque
+            if free:
+                reference = command if time >= reference_end else reference_at(time)
+                torque = stiffness * (reference - speed)
+            else:
+                torque = held_torque
             offset = target if time >= offset_end else offset_at(time)
             return lean_acceleration(offset, angle, speed, rate, torque, load)
 
@@ -613,7 +615,11 @@ class MotorStepper:
             angle, speed = y.tolist()
             time = float(time)
             # acceleration's lines, written out: a call costs a few % of the right-hand side
-            torque = stiffness * (reference_at(time) - speed) if free else held_torque
+            if free:
+                reference = command if time >= reference_end else reference_at(time)
+                torque = stiffness * (reference - speed)
+            else:
+                torque = held_torque
             offset = target if time >= offset_end else offset_at(time)
             return [speed, lean_acceleration(offset, angle, speed, rate, torque, load)]
 
@@ -622,7 +628,8 @@ class MotorStepper:
             if motor is None:
                 torque_margin = 1.0
             else:
-                demand = stiffness * (reference_at(time) - speed)
+                reference = command if time >= reference_end else reference_at(time)
+                demand = stiffness * (reference - speed)
                 torque_margin = (limit - abs(demand) if saturation == 0
                                  else saturation * demand - limit)
             if not ram:
