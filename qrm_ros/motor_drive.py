@@ -20,6 +20,7 @@ each revolution is split there and every smooth piece is integrated and searched
 peaks on its own; that is what makes the per-pair figures exact to quadrature accuracy.
 """
 
+import bisect
 import dataclasses
 import math
 from typing import NamedTuple
@@ -30,7 +31,7 @@ from scipy import integrate, optimize, special
 from qrm_ros import dynamics as dyn
 from qrm_ros.kinematics import (_flat_design, check_offset, Geometry,
                                 input_angle_for_flywheel_angle, KinematicsError,
-                                reversal_flywheel_angles, state)
+                                reversal_flywheel_angles, state, TWO_PI)
 from qrm_ros.stepping import _finite, _positive, _ramp, checked_limits, wrap_angle
 
 __all__ = ['MotorStepper', 'PairEfforts', 'Simulation', 'SpeedFluctuation',
@@ -321,6 +322,12 @@ _ATOL = 1e-12
 # out and back within one fifth of a step would be missed; steps are far shorter than the
 # load pieces).
 _ROOT_SAMPLES = 5
+# A step whose sampled angles all stay this far (rad) from the ram's reversals and the
+# workpiece's edges (closed form, offset held) has no sign change of those two switching
+# functions at its samples, so they are not evaluated there: their computed signs are
+# exact beyond about 1e-8 rad (sqrt(eps): a workpiece as long as the stroke touches zero
+# at a reversal).
+_SWITCH_ANGLE_MARGIN = 1e-6
 _NANOSECONDS = 1e9
 # A ram reversal landed on with the input slower than this (rad/s) is the shaft stopping.
 _STOP_SPEED = 1e-9
@@ -330,6 +337,101 @@ _DIRECTION, _WORK, _SATURATION, _SPIN = range(4)
 
 def _sign(value):
     return int(value > 0.0) - int(value < 0.0)
+
+
+def _float_dense(dense):
+    """
+    Return time (s) -> (angle, speed) on a DOP853 step's dense output, in plain floats.
+
+    The same operations in the same order as scipy's Dop853DenseOutput (Horner in x and
+    1 - x over its rows F, then y_old added), so the same numbers bit for bit, without
+    numpy's cost per call (about 9 us a call, most of a tick's output).
+    """
+    t_old, h = float(dense.t_old), float(dense.h)
+    rows = dense.F.tolist()
+    (a0, s0), (a1, s1), (a2, s2), (a3, s3), (a4, s4), (a5, s5), (a6, s6) = rows
+    angle_old, speed_old = dense.y_old.tolist()
+
+    def at(time):
+        x = (time - t_old) / h
+        w = 1 - x
+        return ((((((((0.0 + a6) * x + a5) * w + a4) * x + a3) * w + a2) * x + a1) * w + a0)
+                * x + angle_old,
+                (((((((0.0 + s6) * x + s5) * w + s4) * x + s3) * w + s2) * x + s1) * w + s0)
+                * x + speed_old)
+    return at
+
+
+def _lean_chain(geometry, mass):
+    """
+    Return the stepper's two lean evaluations of ``dynamics._chain`` on plain floats.
+
+    acceleration(offset, angle, speed, offset_rate, torque, load): the input acceleration
+    (rad/s^2) from the equation of motion under the input torque and ram load;
+    ram_motion(offset, angle, speed, offset_rate): the ram's (position m, velocity m/s).
+    Both at zero input and offset acceleration. They are the chain's own operations in its
+    order, with what they do not need left out (terms times an exact zero, the lever angle,
+    the named tuples, the mass dict), so they give its numbers bit for bit (a test holds
+    them to it) at under half its cost, a quarter for the ram's motion; the right-hand side
+    runs about 16 times a solver step.
+    """
+    r1, r, h = geometry.coupling_radius, geometry.crank_radius, geometry.pivot_distance
+    height, phase = geometry.ram_height, geometry.crank_phase
+    fields = mass.scalars()
+    input_inertia, flywheel_inertia = fields['input_inertia'], fields['flywheel_inertia']
+    lever_inertia, ram_mass = fields['lever_inertia'], fields['ram_mass']
+    lever_weight = fields['lever_mass'] * fields['gravity'] * fields['lever_com_distance']
+    sin, cos, sqrt, atan2 = math.sin, math.cos, math.sqrt, math.atan2
+    # Sub-expressions of the chain that hold the geometry alone, grouped as it groups them.
+    r1_r1, two_r1, r_h, two_r_h, minus_r = r1 * r1, 2.0 * r1, r * r + h * h, 2.0 * r * h, -r
+    minus_r_h, h_h_r_r, two_height = -r * h, h * h - r * r, 2.0 * height
+    minus_two_r1 = -2.0 * r1
+
+    # Both start with the same lines (the coupling, the lever's angle): a call shared by
+    # them would cost about a tenth of the right-hand side.
+    def ram_motion(offset, angle, speed, offset_rate):
+        sin_t, cos_t = sin(angle), cos(angle)
+        n = r1_r1 + offset * offset + two_r1 * offset * sin_t
+        crank_angle = angle + atan2(offset * cos_t, r1 + offset * sin_t) + phase
+        sin_c = sin(crank_angle)
+        tan_l = r * cos(crank_angle) / (h + r * sin_c)
+        psi_p = minus_r * (r + h * sin_c) / (r_h + two_r_h * sin_c)
+        flywheel_speed = r1 * (r1 + offset * sin_t) / n * speed + r1 * cos_t / n * offset_rate
+        return height * tan_l, height * (1.0 + tan_l * tan_l) * (psi_p * flywheel_speed)
+
+    def acceleration(offset, angle, speed, offset_rate, torque, load):
+        sin_t, cos_t = sin(angle), cos(angle)
+        n = r1_r1 + offset * offset + two_r1 * offset * sin_t
+        phi_t = r1 * (r1 + offset * sin_t) / n
+        phi_d = r1 * cos_t / n
+        crank_angle = angle + atan2(offset * cos_t, r1 + offset * sin_t) + phase
+        sin_c, cos_c = sin(crank_angle), cos(crank_angle)
+        tan_l = r * cos_c / (h + r * sin_c)
+        n2 = n * n
+        phi_tt = r1 * offset * cos_t * (offset * offset - r1_r1) / n2
+        phi_td = -r1 * (sin_t * (r1_r1 + offset * offset) + two_r1 * offset) / n2
+        phi_dd = minus_two_r1 * cos_t * (offset + r1 * sin_t) / n2
+        m = r_h + two_r_h * sin_c
+        psi_p = minus_r * (r + h * sin_c) / m
+        psi_pp = minus_r_h * cos_c * h_h_r_r / (m * m)
+        sec2 = 1.0 + tan_l * tan_l
+        x_p = height * sec2
+        x_pp = two_height * tan_l * sec2
+        flywheel_speed = phi_t * speed + phi_d * offset_rate
+        flywheel_acc = (phi_tt * (speed * speed) + 2.0 * phi_td * speed * offset_rate
+                        + phi_dd * offset_rate * offset_rate)
+        lever_speed = psi_p * flywheel_speed
+        lever_acc = psi_p * flywheel_acc + psi_pp * flywheel_speed * flywheel_speed
+        ram_force = ram_mass * (x_p * lever_acc + x_pp * lever_speed * lever_speed)
+        lever_torque = (lever_inertia * lever_acc - lever_weight * tan_l / sqrt(sec2)
+                        + ram_force * x_p)
+        flywheel_torque = flywheel_inertia * flywheel_acc + lever_torque * psi_p
+        inertia = input_inertia + phi_t * phi_t * (
+            flywheel_inertia + psi_p * psi_p * (lever_inertia + ram_mass * x_p * x_p))
+        bias = flywheel_torque * phi_t - load * (x_p * psi_p * phi_t)
+        return (torque - bias) / inertia
+
+    return acceleration, ram_motion
 
 
 class MotorStepper:
@@ -346,8 +448,10 @@ class MotorStepper:
     Integration: scipy's DOP853, restarted at every switch of the right-hand side: stroke
     reversal, tool entering or leaving the workpiece, motor reaching or leaving its torque
     limit, input speed through zero, a ramp ending, any command. A switch inside a step is
-    found on the step's dense output with brentq, and the step is cut there. Outputs at
-    stamps come from dense output, so the trajectory does not depend on the stamps asked for.
+    found on the step's dense output with brentq, and the step is cut there; a step whose
+    samples keep clear of the load's switch angles (closed form) and of the motor's limit
+    skips the switching functions (the same switches, found cheaper). Outputs at stamps
+    come from dense output, so the trajectory does not depend on the stamps asked for.
 
     Stall rule: when the input speed reaches zero, the load seen by each direction of motion
     is the one that motion would meet (friction against it; the cutting force if the ram
@@ -379,6 +483,8 @@ class MotorStepper:
         self._mass = mass
         # The chain's fixed arguments: math's functions, the geometry, the masses as floats.
         self._fixed = (dyn._SCALAR_OPS, *dyn._geometry_fields(self._geometry), mass.scalars())
+        self._lean_acceleration, self._ram_motion = _lean_chain(self._geometry, mass)
+        self._switch_angles_at = (None, None, None)
         self._loads = loads.check_against(self._geometry.ram_stroke)
         loads.scalars()
         self._motor = motor
@@ -390,6 +496,9 @@ class MotorStepper:
         self._acceleration_now = None
         if self._stamp_ns is None:
             change()
+            if self._spin:  # a held state (resync) reads the new settings as before
+                (_, self._acceleration_at, self._switching, self._clear,
+                 self._motor_holds) = self._segment_functions()
             return
         angle, speed = self._angle, self._speed
         reference, offset = self._reference_at(self._time), self._offset_at(self._time)
@@ -511,40 +620,118 @@ class MotorStepper:
         bias = chain.efforts.input_torque - load * chain.ram_lever_arm
         return (torque - bias) / chain.generalized_inertia
 
-    def _rhs(self, time, y):
-        """Right-hand side for DOP853 (y an array: its values go on as plain floats)."""
-        angle, speed = y.tolist()
-        return [speed, self._acceleration_at(float(time), angle, speed)]
+    def _segment_functions(self):
+        """
+        Return the present segment's right-hand side, acceleration and switching functions.
 
-    def _acceleration_at(self, time, angle, speed):
-        """Input acceleration (rad/s^2) from the equation of motion in the present segment."""
-        reference = (self._speed_command if time >= self._reference_end else
-                     self._reference_at(time))
-        offset = (self._offset_command if time >= self._offset_end else
-                  _ramp(self._segment_offset, self._offset_command, self._offset_rate_limit,
-                        time - self._segment_start)[0])
-        chain = self._chain(offset, angle, speed, self._offset_rate)
-        torque = self._motor_torque(reference, speed, self._saturation)
-        return self._acceleration(chain, torque, self._load)
+        acceleration(time, angle, speed) is the input's (rad/s^2) from the equation of
+        motion; switching(time, angle, speed) the values that stay > 0 while the segment's
+        mode holds (one per switch kind). Closures over the segment's constants: the
+        right-hand side runs about 16 times a solver step, the switch checks 6 times.
+        """
+        lean_acceleration, ram_motion = self._lean_acceleration, self._ram_motion
+        motor = self._motor
+        command, reference_end, segment_reference = (self._speed_command, self._reference_end,
+                                                     self._segment_reference)
+        target, offset_end, segment_offset = (self._offset_command, self._offset_end,
+                                              self._segment_offset)
+        acceleration_limit, rate_limit = self._acceleration_limit, self._offset_rate_limit
+        start, rate, load, saturation = (self._segment_start, self._offset_rate, self._load,
+                                         self._saturation)
+        stiffness, limit = (0.0, 0.0) if motor is None else (motor.speed_stiffness,
+                                                             motor.max_torque)
+        direction, spin, half_work = self._direction, self._spin, self._half_work
+        switch_angles = (self._switch_angles(segment_offset) if spin and rate == 0.0
+                         else None)
+        work_sign = 1 if self._in_work else -1
+        cutting = self._loads.cutting_force > 0.0
 
-    def _switching(self, time, angle, speed):
-        """Values that stay > 0 while the segment's mode holds (one per switch kind)."""
-        offset = self._offset_command if time >= self._offset_end else self._offset_at(time)
-        chain = self._chain(offset, angle, speed, self._offset_rate)
-        values = [self._direction * chain.ram_velocity,
-                  (self._half_work - abs(chain.ram_position)) * (1 if self._in_work else -1)
-                  if self._loads.cutting_force > 0.0 else 1.0]
-        if self._motor is None:
-            values.append(1.0)
-        else:
-            reference = (self._speed_command if time >= self._reference_end else
-                         self._reference_at(time))
-            demand = self._motor.speed_stiffness * (reference - speed)
-            limit = self._motor.max_torque
-            values.append(limit - abs(demand) if self._saturation == 0
-                          else self._saturation * demand - limit)
-        values.append(self._spin * speed)
-        return values
+        def reference_at(time):  # ramping (the callers check time < reference_end themselves)
+            return _ramp(segment_reference, command, acceleration_limit, time - start)[0]
+
+        def offset_at(time):  # ramping (the callers check time < offset_end themselves)
+            return _ramp(segment_offset, target, rate_limit, time - start)[0]
+
+        held_torque = saturation * limit if saturation else 0.0  # saturated, or no motor
+        free = motor is not None and not saturation  # the torque follows the speed law
+
+        def acceleration(time, angle, speed):
+            if free:
+                reference = command if time >= reference_end else reference_at(time)
+                torque = stiffness * (reference - speed)
+            else:
+                torque = held_torque
+            offset = target if time >= offset_end else offset_at(time)
+            return lean_acceleration(offset, angle, speed, rate, torque, load)
+
+        def rhs(time, y):
+            """Right-hand side for DOP853 (y an array: its values go on as plain floats)."""
+            angle, speed = y.tolist()
+            time = float(time)
+            # acceleration's lines, written out: a call costs a few % of the right-hand side
+            if free:
+                reference = command if time >= reference_end else reference_at(time)
+                torque = stiffness * (reference - speed)
+            else:
+                torque = held_torque
+            offset = target if time >= offset_end else offset_at(time)
+            return [speed, lean_acceleration(offset, angle, speed, rate, torque, load)]
+
+        def switching(time, angle, speed, ram=True):
+            """ram=False: 1.0 for the ram's two (a step clear of the load's switches)."""
+            if motor is None:
+                torque_margin = 1.0
+            else:
+                reference = command if time >= reference_end else reference_at(time)
+                demand = stiffness * (reference - speed)
+                torque_margin = (limit - abs(demand) if saturation == 0
+                                 else saturation * demand - limit)
+            if not ram:
+                return [1.0, 1.0, torque_margin, spin * speed]
+            offset = target if time >= offset_end else offset_at(time)
+            position, velocity = ram_motion(offset, angle, speed, rate)
+            return [direction * velocity,
+                    (half_work - abs(position)) * work_sign if cutting else 1.0,
+                    torque_margin, spin * speed]
+
+        def clear(low, high):
+            """Say whether the angles low..high (rad) keep the margin from the load's switches."""
+            if switch_angles is None:
+                return False
+            width = high - low + 2.0 * _SWITCH_ANGLE_MARGIN
+            low = (low - _SWITCH_ANGLE_MARGIN) % TWO_PI
+            index = bisect.bisect_left(switch_angles, low)
+            following = (switch_angles[index] if index < len(switch_angles)
+                         else switch_angles[0] + TWO_PI)  # the next switch up from low
+            return following - low > width
+
+        def motor_holds(start, low, high):
+            """
+            Say whether the motor's switching function is > 0 at all speeds low..high (rad/s).
+
+            From start (s) on with the reference at its command: the function is then
+            monotonic in the speed, in floating point too, so its ends bound it.
+            """
+            if motor is None:
+                return True
+            if start < reference_end:
+                return False
+            for speed in (low, high):
+                demand = stiffness * (command - speed)
+                if not (limit - abs(demand) if saturation == 0
+                        else saturation * demand - limit) > 0.0:
+                    return False
+            return True
+
+        return rhs, acceleration, switching, clear, motor_holds
+
+    def _switch_angles(self, offset):
+        """Input angles (rad, in [0, 2 pi)) of the load's switches at this offset (cached)."""
+        if self._switch_angles_at[:2] != (offset, self._loads):
+            angles = _load_switch_angles(self._geometry, self._loads, offset)
+            self._switch_angles_at = (offset, self._loads,
+                                      sorted(float(angle) % TWO_PI for angle in angles))
+        return self._switch_angles_at[2]
 
     def _set_ramp_ends(self, time, reference, offset):
         """When (s) the reference and the offset reach their commands: kinks to stop at."""
@@ -611,11 +798,14 @@ class MotorStepper:
             self._solver = None
             self._piece = (time, math.inf, None)
             return
-        self._solver = integrate.DOP853(self._rhs, time, [angle, speed],
+        # The segment's functions (not at rest: _start runs every tick while held).
+        (rhs, self._acceleration_at, self._switching, self._clear,
+         self._motor_holds) = self._segment_functions()
+        self._solver = integrate.DOP853(rhs, time, [angle, speed],
                                         self._breakpoint(time), rtol=_RTOL, atol=_ATOL)
         # The last piece stays valid up to here (a stamp just before the switch), no further.
-        piece_start, _, dense = self._piece
-        self._piece = (piece_start, time, dense) if dense is not None else (time, time, None)
+        piece_start, _, at = self._piece
+        self._piece = (piece_start, time, at) if at is not None else (time, time, None)
 
     def _saturation_of(self, reference, speed):
         if self._motor is None:
@@ -667,27 +857,40 @@ class MotorStepper:
             raise dyn.DynamicsError(f'the motor-drive integration failed: {message}')
         start, end = solver.t_old, solver.t
         dense = solver.dense_output()
-        switch = self._first_switch(dense, start, end)
+        at = _float_dense(dense)
+        switch = self._first_switch(at, start, end)
         if switch is None:
-            self._piece = (start, end, dense)
+            self._piece = (start, end, at)
             if self._observer is not None:
                 self._observer(start, end, dense)
             return
         time, kind = switch
-        self._piece = (start, time, dense)
+        self._piece = (start, time, at)
         if self._observer is not None:
             self._observer(start, time, dense)
-        angle, speed = dense(time)
-        self._pending = (time, float(angle), float(speed), kind)
+        angle, speed = at(time)
+        self._pending = (time, angle, speed, kind)
 
-    def _first_switch(self, dense, start, end):
+    def _first_switch(self, at, start, end):
         # np.linspace(start, end, _ROOT_SAMPLES + 1), the same numbers without its overhead.
         step = (end - start) / _ROOT_SAMPLES
         times = [index * step + start for index in range(_ROOT_SAMPLES)] + [end]
-        angles, speeds = dense(times).tolist()
-        previous = self._switching(times[0], angles[0], speeds[0])
+        samples = [at(time) for time in times]
+        angles, speeds = zip(*samples)
+        # With the speed's sign held at every sample, the ram's switching functions change
+        # sign only at the load's switch angles.
+        low, high = min(speeds), max(speeds)
+        held = low > 0.0 if self._spin > 0 else high < 0.0
+        ram = not (held and self._clear(min(angles), max(angles)))
+        if not ram and self._motor_holds(start, low, high):
+            return None  # no switching function goes from > 0 to <= 0 between samples
+        switching = self._switching
+        previous = switching(times[0], *samples[0], ram)
         for index in range(1, len(times)):
-            values = self._switching(times[index], angles[index], speeds[index])
+            values = switching(times[index], *samples[index], ram)
+            if min(values) > 0.0:  # the mode holds at this sample: nothing switched before it
+                previous = values
+                continue
             found = []
             for kind, (before, after) in enumerate(zip(previous, values)):
                 if before > 0.0 and after <= 0.0:
@@ -695,10 +898,9 @@ class MotorStepper:
                         found.append((times[index], kind))
                         continue
 
-                    def switching(time, kind=kind):
-                        angle, speed = dense(time)
-                        return self._switching(time, float(angle), float(speed))[kind]
-                    root = optimize.brentq(switching, times[index - 1], times[index],
+                    def value(time, kind=kind):
+                        return switching(time, *at(time))[kind]
+                    root = optimize.brentq(value, times[index - 1], times[index],
                                            xtol=1e-15, rtol=4 * np.finfo(float).eps)
                     found.append((root, kind))
             if found:
@@ -734,11 +936,11 @@ class MotorStepper:
             self._extend()
             if self._spin == 0 and self._piece[1] == math.inf:
                 break
-        start, end, dense = self._piece
-        if dense is None:
+        at = self._piece[2]
+        if at is None:
             return  # resting, or the segment starts exactly here
-        angle, speed = dense(time)
-        self._angle, self._speed = wrap_angle(float(angle)), float(speed)
+        angle, speed = at(time)
+        self._angle, self._speed = wrap_angle(angle), speed
 
     def mechanism_state(self):
         """Return the kinematics core's exact state (MechanismState) at the present stamp."""

@@ -431,6 +431,84 @@ def test_time_reset_and_restore():
     assert _run(twin, 5_000_000, 300_000_000) == _run(stepper, 5_000_000, 300_000_000)
 
 
+def _bits(values):
+    return [float(value).hex() for value in values]
+
+
+def test_the_float_dense_output_is_scipys_bit_for_bit():
+    solver = integrate.DOP853(lambda time, y: [y[1], -9.0 * math.sin(y[0]) - 0.1 * y[1]],
+                              0.0, [0.3, 2.0], 20.0, rtol=md._RTOL, atol=md._ATOL)
+    for _ in range(30):
+        solver.step()
+        dense = solver.dense_output()
+        at = md._float_dense(dense)
+        times = np.linspace(solver.t_old, solver.t, 17).tolist()
+        for time, expected in zip(times, dense(times).T):
+            assert _bits(at(time)) == _bits(expected) == _bits(dense(time))
+
+
+@pytest.mark.parametrize('mass', [MASS, dyn.MassProperties(
+    input_inertia=0.05, flywheel_inertia=0.0, lever_mass=3.0, lever_inertia=0.4,
+    lever_com_distance=0.2, ram_mass=12.0, gravity=9.81)])
+def test_the_lean_chain_gives_the_chains_numbers_bit_for_bit(mass):
+    # The stepper's right-hand side and switch checks: the chain's formula, not a second one.
+    rng = np.random.default_rng(9)
+    stepper = _stepper()
+    fixed = (dyn._SCALAR_OPS, *dyn._geometry_fields(GEOMETRY), mass.scalars())
+    acceleration, ram_motion = md._lean_chain(GEOMETRY, mass)
+    radius = GEOMETRY.coupling_radius
+    for index in range(20000):
+        offset = 0.0 if index % 5 == 0 else float(rng.uniform(-0.9, 0.9)) * radius
+        rate = 0.0 if index % 3 == 0 else float(rng.normal(0.0, 0.02))
+        angle, speed = float(rng.uniform(-4.0, 4.0)), float(rng.normal(0.0, 20.0))
+        torque, load = float(rng.normal(0.0, 300.0)), float(rng.normal(0.0, 1500.0))
+        chain = dyn._chain(*fixed, offset, angle, speed, 0.0, rate, 0.0, 0.0)
+        assert _bits([acceleration(offset, angle, speed, rate, torque, load)]) == _bits(
+            [stepper._acceleration(chain, torque, load)])
+        assert _bits(ram_motion(offset, angle, speed, rate)) == _bits(
+            [chain.ram_position, chain.ram_velocity])
+
+
+@pytest.mark.parametrize('cutting_force, cutting_length', [
+    (LOADS.cutting_force, LOADS.cutting_length), (LOADS.cutting_force, GEOMETRY.ram_stroke),
+    (6000.0, LOADS.cutting_length)])  # the last: the motor saturates, then the shaft stalls
+def test_steps_clear_of_the_load_switches_find_the_same_switches(monkeypatch, cutting_force,
+                                                                 cutting_length):
+    # The stepper skips the switching functions on steps whose angles stay clear of the load's
+    # switch angles (and whose speeds keep the motor's mode); without that screening every
+    # sample is checked. The same numbers.
+    loads = dyn.Loads(cutting_force=cutting_force, ram_friction=LOADS.ram_friction,
+                      cutting_length=cutting_length)
+
+    def commanded():
+        stepper = _stepper(loads)
+        rows = _run(stepper, 0, 1_500_000_000)
+        stepper.set_offset_command(-0.012)
+        stepper.set_speed_command(12.0)
+        rows += _run(stepper, 1_500_000_000, 3_000_000_000, 700_001)
+        stepper.set_speed_command(-4.0)
+        rows += _run(stepper, 3_000_000_000, 5_500_000_000, 1_300_000)
+        return rows
+
+    screened = commanded()
+    monkeypatch.setattr(md.MotorStepper, '_switch_angles', lambda self, offset: None)
+    assert commanded() == screened
+
+
+def test_a_change_while_held_applies_to_the_held_state():
+    stepper = _stepper()
+    _run(stepper, 0, 300_000_000)
+    stepper.resync()
+    other = dyn.MassProperties(input_inertia=0.05, flywheel_inertia=0.0, lever_mass=3.0,
+                               lever_inertia=0.4, lever_com_distance=0.2, ram_mass=12.0)
+    stepper.set_dynamics(mass=other)
+    chain = dyn._chain(dyn._SCALAR_OPS, *dyn._geometry_fields(GEOMETRY), other.scalars(),
+                       stepper.offset, stepper.input_angle, stepper.input_speed, 0.0,
+                       stepper.offset_rate, 0.0, 0.0)
+    assert stepper.input_acceleration == stepper._acceleration(chain, stepper.motor_torque,
+                                                               stepper.ram_load)
+
+
 SOFT_MOTOR = dyn.MotorDrive(speed_stiffness=20.0, max_torque=250.0)
 
 
