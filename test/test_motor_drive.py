@@ -455,7 +455,7 @@ def test_the_lean_chain_gives_the_chains_numbers_bit_for_bit(mass):
     rng = np.random.default_rng(9)
     stepper = _stepper()
     fixed = (dyn._SCALAR_OPS, *dyn._geometry_fields(GEOMETRY), mass.scalars())
-    acceleration, ram_motion = md._lean_chain(GEOMETRY, mass)
+    acceleration, ram_motion = dyn._lean_chain(GEOMETRY, mass)
     radius = GEOMETRY.coupling_radius
     for index in range(20000):
         offset = 0.0 if index % 5 == 0 else float(rng.uniform(-0.9, 0.9)) * radius
