@@ -26,6 +26,7 @@ order, so slow drifts of the machine hit all alike):
   node-cut     as shipped, speed drive, with the main job's default cutting load
                (dynamics.Loads.small_shaper)
   node-motor   as shipped, drive:=motor, with that load (issue 9: <= 1.3 x node-cut)
+  node-nomark  as shipped but marker_rate:=0 (no linkage markers: what they cost a tick)
   bare         a plain rclpy timer publishing one JointState, on the SingleThreadedExecutor
                (the baseline)
   bare-2pub    the bare timer also publishing a TwistStamped (the node's two messages)
@@ -58,8 +59,8 @@ from qrm_ros.ros_isolation import isolate_ros_traffic
 
 RATES = [100.0, 1000.0, 2000.0, 3000.0, 5000.0]
 CPU_RATES = (100.0, 1000.0)
-VARIANTS = ('node', 'node-single', 'node-cut', 'node-motor', 'bare', 'bare-2pub',
-            'bare-events')
+VARIANTS = ('node', 'node-single', 'node-cut', 'node-motor', 'node-nomark', 'bare',
+            'bare-2pub', 'bare-events')
 # (variant, baseline) CPU ratios printed besides each variant / bare.
 RATIOS = (('node', 'node-single'), ('node-motor', 'node-cut'))
 SUSTAINED_MISSED_FRACTION = 0.01
@@ -86,6 +87,8 @@ def _node_parameters(variant, rate):
                        for name in Loads.field_names()]
     if variant == 'node-motor':
         parameters.append(Parameter('drive', value='motor'))
+    if variant == 'node-nomark':
+        parameters.append(Parameter('marker_rate', value=0.0))
     return parameters
 
 
