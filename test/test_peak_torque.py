@@ -19,6 +19,7 @@ slope to finite differences.
 """
 
 import math
+from pathlib import Path
 
 import numba
 import numpy as np
@@ -214,6 +215,9 @@ def test_the_readme_sweep():
     mass, loads = dyn.MassProperties.small_shaper(), dyn.Loads.small_shaper()
     offsets = np.array([-0.02, -0.01, 0.0, 0.01, 0.02])
     peaks = md.peak_input_torque(geometry, mass, loads, offsets, 2 * math.pi)
+    readme = ' '.join((Path(__file__).resolve().parent.parent / 'README.md').read_text().split())
+    assert ('offsets −20, −10, 0, +10, +20 mm give 480.25, 48.128, 26.225, 104.72 and 2923.9 N·m'
+            in readme)
     for offset, peak, shown in zip(offsets, peaks, (480.25, 48.128, 26.225, 104.72, 2923.9)):
         assert peak == pytest.approx(md.pair_efforts(geometry, mass, loads, offset,
                                                      2 * math.pi).peak_input_torque,
