@@ -23,6 +23,7 @@ peaks on its own; that is what makes the per-pair figures exact to quadrature ac
 import bisect
 import dataclasses
 import math
+import threading
 from typing import NamedTuple
 
 import numpy as np
@@ -272,6 +273,9 @@ def pair_efforts(geometry, mass, loads, offset, input_speed):
 _TORQUE_SAMPLES = (12, 8)
 _TORQUE_ANGLE_TOLERANCE = 1e-9
 _TORQUE_MAX_STEPS = 100
+# One caller at a time in the kernel's parallel loop: numba's workqueue threading layer (the
+# one left where no OpenMP or TBB library is found) aborts the process on concurrent calls.
+_KERNEL_LOCK = threading.Lock()
 
 
 def peak_input_torque(geometry, mass, loads, offset, input_speed):
@@ -307,11 +311,12 @@ def peak_input_torque(geometry, mass, loads, offset, input_speed):
             pair_efforts(Geometry(*values[:5]), mass, loads, values[5], values[6])
             .peak_input_torque for values in zip(*(v.tolist() for v in flat))])
     else:
-        peaks = torque_kernel.peak_torques(
-            *flat, masses['flywheel_inertia'], masses['lever_inertia'], masses['ram_mass'],
-            masses['lever_mass'] * masses['gravity'] * masses['lever_com_distance'],
-            load['cutting_force'], load['ram_friction'], load['cutting_length'],
-            *_TORQUE_SAMPLES, _TORQUE_ANGLE_TOLERANCE, _TORQUE_MAX_STEPS)
+        with _KERNEL_LOCK:
+            peaks = torque_kernel.peak_torques(
+                *flat, masses['flywheel_inertia'], masses['lever_inertia'], masses['ram_mass'],
+                masses['lever_mass'] * masses['gravity'] * masses['lever_com_distance'],
+                load['cutting_force'], load['ram_friction'], load['cutting_length'],
+                *_TORQUE_SAMPLES, _TORQUE_ANGLE_TOLERANCE, _TORQUE_MAX_STEPS)
     return float(peaks[0]) if shape == () else peaks.reshape(shape)
 
 

@@ -19,7 +19,10 @@ slope to finite differences.
 """
 
 import math
+import os
 from pathlib import Path
+import subprocess
+import sys
 
 import numba
 import numpy as np
@@ -223,3 +226,34 @@ def test_the_readme_sweep():
                                                      2 * math.pi).peak_input_torque,
                                      rel=1e-12)
         assert float(f'{peak:.5g}') == shown
+
+
+_CONCURRENT_CALLS = '''
+import math, threading
+import numpy as np
+from qrm_ros import dynamics as dyn
+from qrm_ros.kinematics import Geometry
+from qrm_ros.motor_drive import peak_input_torque
+geometry = Geometry.paper()
+mass, loads = dyn.MassProperties.small_shaper(), dyn.Loads.small_shaper()
+offsets = np.linspace(-0.02, 0.02, 20000)
+sums = []
+def run():
+    for _ in range(3):
+        sums.append(float(peak_input_torque(geometry, mass, loads, offsets, 2 * math.pi).sum()))
+threads = [threading.Thread(target=run) for _ in range(3)]
+for thread in threads:
+    thread.start()
+for thread in threads:
+    thread.join()
+print(len(sums), len(set(sums)))
+'''
+
+
+def test_concurrent_callers_are_safe_on_any_threading_layer():
+    """numba's workqueue layer aborts on concurrent parallel calls; the callers take turns."""
+    result = subprocess.run([sys.executable, '-c', _CONCURRENT_CALLS], capture_output=True,
+                            text=True, timeout=120,
+                            env=dict(os.environ, NUMBA_THREADING_LAYER='workqueue'))
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert result.stdout.split() == ['9', '1']
