@@ -26,7 +26,6 @@ pair_efforts on the subsample.
 
 import argparse
 import math
-import statistics
 import time
 
 import numba
@@ -36,14 +35,7 @@ from qrm_ros import dynamics as dyn
 from qrm_ros.kinematics import Geometry, state
 from qrm_ros.motor_drive import pair_efforts, peak_input_torque
 
-
-def median_seconds(function, repeats):
-    timings = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        function()
-        timings.append(time.perf_counter() - start)
-    return statistics.median(timings)
+from bench_dynamics import median_seconds  # this folder: run as python bench/<name>.py
 
 
 def random_designs(count, rng):
