@@ -27,6 +27,7 @@ from concurrent.futures import ThreadPoolExecutor
 import difflib
 import math
 import sys
+import time
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -65,6 +66,9 @@ __all__ = ['JOINT_NAMES', 'PARAMETERS', 'ShaperSimNode', 'main', 'refusal_reason
 _WARNING_PERIOD = 1.0  # s, throttle for repeated warnings
 # s: the longest the pair thread may hold the GIL while a tick waits for it.
 PAIR_THREAD_SWITCH_INTERVAL = 1e-4
+# s: the whole marker array is sent at least this often (a viewer started later sees the
+# still parts within it), the moving markers alone in between.
+MARKER_REFRESH_PERIOD = 1.0
 _STALL_REPEAT_NS = 1_000_000_000  # a stall's ERROR status is repeated this often
 # Publisher history, in seconds of messages at the publish rate: a reliable subscriber that
 # keeps up on average (the recorder) but stalls for a moment (a loaded machine) is resent
@@ -100,6 +104,7 @@ class ShaperSimNode(Node):
         # Completed stroke pairs are measured and reported here, off the timer's thread:
         # a pair of thousands of samples takes milliseconds, which a tick must not wait for.
         self._pair_thread = ThreadPoolExecutor(max_workers=1, thread_name_prefix='pairs')
+        self._pair_reports_published = 0
         # A Python thread keeps the GIL for up to the switch interval (5 ms by default)
         # while the timer's callback waits for it; a short one bounds that wait.
         if sys.getswitchinterval() > PAIR_THREAD_SWITCH_INTERVAL:
@@ -151,6 +156,9 @@ class ShaperSimNode(Node):
                                                        MIN_PUBLISHER_DEPTH)
         self._marker_timer = None
         self._clear_markers = False
+        # What the still markers last sent show (offset, reversed, frame), and when (s).
+        self._still_markers = None
+        self._still_markers_sent = 0.0
         self.set_marker_rate(self._values['marker_rate'])
         self.create_subscription(Float64, SPEED_COMMAND_TOPIC, self._on_speed_command, 10)
         self.create_service(Trigger, '~/reset', self._on_reset, qos_profile=SERVICE_QOS)
@@ -459,11 +467,21 @@ class ShaperSimNode(Node):
                                      self._values['cutting_speed_definition'])
         return True
 
+    def wait_for_pair_reports(self, timeout=None):
+        """Wait until every pair completed so far is reported (for tests and tools)."""
+        self._pair_thread.submit(lambda: None).result(timeout)
+
+    @property
+    def pair_reports_published(self):
+        """How many stroke-pair statuses this node has published on /diagnostics."""
+        return self._pair_reports_published
+
     def _report_pairs(self, completed, setting, setting_since_ns, target, definition):
         """Measure and publish completed stroke pairs (on the pair thread)."""
         try:
             for report in self._monitor.measure(completed):
                 self._publish_pair(report, setting, setting_since_ns, target, definition)
+                self._pair_reports_published += 1
         except Exception as error:  # noqa: B902 said, not lost in the thread's future
             self.get_logger().error(f'stroke pair at {completed.stamp_ns} ns not reported: '
                                     f'{type(error).__name__}: {error}')
@@ -548,7 +566,10 @@ class ShaperSimNode(Node):
         Publish the mechanism as markers at the latest published sample (its stamp).
 
         Returns False before the first sample. After a reset a DELETEALL goes first, so no
-        stale part is left behind.
+        stale part is left behind. The whole array goes out when what the still markers show
+        changes (offset, direction, frame) and at least every MARKER_REFRESH_PERIOD (for a
+        viewer that starts later); in between only the moving markers, which keeps the
+        conversion's hold on the GIL off the ticks (see linkage_markers).
         """
         stepper = self._stepper
         if stepper.stamp_ns is None:
@@ -557,9 +578,16 @@ class ShaperSimNode(Node):
         if self._clear_markers:
             self._marker_publisher.publish(delete_all_marker_array(stepper.stamp_ns, frame_id))
             self._clear_markers = False
+            self._still_markers = None
+        still = (stepper.offset, stepper.input_speed < 0.0, frame_id)
+        now = time.monotonic()
+        moving_only = (still == self._still_markers
+                       and now - self._still_markers_sent < MARKER_REFRESH_PERIOD)
+        if not moving_only:
+            self._still_markers, self._still_markers_sent = still, now
         self._marker_publisher.publish(linkage_marker_array(
             self._geometry, stepper.offset, stepper.input_angle, stepper.stamp_ns, frame_id,
-            input_speed=stepper.input_speed))
+            input_speed=stepper.input_speed, moving_only=moving_only))
         return True
 
     def _report_stall(self, stepper, stamp_ns):

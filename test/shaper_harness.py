@@ -61,13 +61,21 @@ class Harness:
         self.probe.destroy_node()
 
 
-def run_ticks(node, start_ns, seconds, rate=100.0, jitter_ns=1_000_000, seed=7):
-    """Publish at about `rate` with deterministic jitter (as a loaded timer would)."""
+def run_ticks(node, start_ns, seconds, rate=100.0, jitter_ns=1_000_000, seed=7,
+              wait_for_reports=True):
+    """
+    Publish at about `rate` with deterministic jitter (as a loaded timer would).
+
+    The node reports stroke pairs on a thread of its own; unless told not to, this returns
+    once the pairs completed here are reported.
+    """
     stamps, now, period = [], start_ns, int(NS / rate)
     for i in range(int(seconds * rate)):
         now += period + (i * 7919 + seed) % (2 * jitter_ns + 1) - jitter_ns
         assert node.publish_at(now)
         stamps.append(now)
+    if wait_for_reports:
+        node.wait_for_pair_reports(timeout=30.0)
     return stamps
 
 

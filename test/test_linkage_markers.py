@@ -31,7 +31,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 from qrm_ros import kinematics as kin
 from qrm_ros.linkage import linkage_sizes, workpiece_span
 from qrm_ros.linkage_markers import (delete_all_marker_array, linkage_marker_array,
-                                     MARKER_KEYS)
+                                     MARKER_KEYS, MOVING_KEYS)
 from qrm_ros.names import LINKAGE_MARKERS_TOPIC
 from ros_probe import BackgroundSpinner, wait_for
 
@@ -80,6 +80,29 @@ def test_marker_pins_are_the_cores_pins(geometry):
         assert _xy(markers['lever', 0].points[0]) == (0.0, -geometry.pivot_distance)
         assert [_xy(p) for p in markers['pivots', 0].points] == [
             (0.0, offset), (0.0, 0.0), (0.0, -geometry.pivot_distance)]
+
+
+def test_the_moving_markers_alone_are_those_that_move_at_a_fixed_offset():
+    """moving_only leaves out exactly the markers that stay put while the shaft turns."""
+    assert set(MOVING_KEYS) < set(MARKER_KEYS)
+    assert list(MOVING_KEYS) == [key for key in MARKER_KEYS if key in MOVING_KEYS]
+
+    def copied(array):  # the calls reuse their markers: keep copies
+        return {(m.ns, m.id): (m.action, [_xy(p) for p in m.points], m.pose.position.x,
+                               m.pose.position.y, m.text, m.header.stamp.sec)
+                for m in array.markers}
+    angles = (0.3, 1.9, 4.4)
+    whole = [copied(linkage_marker_array(GEOMETRY, 0.012, angle, index * 10**9, 'f'))
+             for index, angle in enumerate(angles)]
+    moving = [copied(linkage_marker_array(GEOMETRY, 0.012, angle, index * 10**9, 'f',
+                                          moving_only=True))
+              for index, angle in enumerate(angles)]
+    for full, part in zip(whole, moving):
+        assert list(part) == list(MOVING_KEYS)
+        assert all(part[key] == full[key] for key in MOVING_KEYS)
+    for key in MARKER_KEYS:
+        changed = any(whole[0][key][:5] != other[key][:5] for other in whole[1:])
+        assert changed == (key in MOVING_KEYS), key
 
 
 def test_keys_header_and_well_formed_markers():

@@ -25,6 +25,8 @@ import time
 
 import pytest
 from qrm_ros.kinematics import peak_speed_ratio, speed_ratio, state, time_ratio
+from qrm_ros import shaper_sim
+from qrm_ros.linkage_markers import MARKER_KEYS, MOVING_KEYS
 from qrm_ros.shaper_sim import JOINT_NAMES, PARAMETERS, ShaperSimNode
 from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterType, ParameterValue
 from rcl_interfaces.srv import DescribeParameters, SetParameters
@@ -255,7 +257,8 @@ def test_a_tick_does_not_wait_for_the_stroke_pair_measurement(harness):
         return measure(completed)
 
     h.shaper._monitor.measure = held_measure
-    run_ticks(h.shaper, 5000 * NS, 3.5)  # two pairs completed, both measurements held
+    # Two pairs completed, both measurements held.
+    run_ticks(h.shaper, 5000 * NS, 3.5, wait_for_reports=False)
     assert not measured and not h.diagnostics
     release.set()
     h.wait_for(lambda: len(h.diagnostics) >= 2, what='the held pairs reported')
@@ -266,8 +269,9 @@ def test_a_moving_offset_is_flagged_and_nothing_is_ever_non_finite(harness):
     h = harness(spin_shaper=False, coupling_offset=-0.02, offset_rate_limit=0.01)
     h.shaper.set_parameters([Parameter('coupling_offset', value=0.0225)])  # 4.25 s of travel
     run_ticks(h.shaper, 10 * NS, 6.0)
-    h.wait_for(lambda: len(h.diagnostics) >= 4 and len(h.joint_states) >= 600,
-               what='diagnostics and joint states')
+    # Every pair reported, and received: the last one is the steady one.
+    h.wait_for(lambda: len(h.diagnostics) == h.shaper.pair_reports_published >= 4
+               and len(h.joint_states) >= 600, what='diagnostics and joint states')
     steady = [pair_values(m)['offset_steady'] for m in h.diagnostics]
     assert steady[:3] == ['false'] * 3 and steady[-1] == 'true'
     assert all(all_finite(m) for m in h.joint_states)
@@ -407,6 +411,30 @@ def test_markers_show_the_published_state_and_clear_on_reset(harness):
     h.wait_for(lambda: len(arrays) >= count + 2, what='markers after the reset')
     assert [m.action for m in arrays[count].markers] == [Marker.DELETEALL]
     assert len(arrays[count + 1].markers) > 5
+
+
+def test_still_markers_go_out_when_they_change_and_every_refresh_period(harness, monkeypatch):
+    h = harness(spin_shaper=False, coupling_offset=0.012, marker_rate=0.0)
+    arrays = []
+    h.probe.create_subscription(MarkerArray, 'linkage_markers', arrays.append, 100)
+    stamp = [50 * NS]
+
+    def publish(count=1):
+        for _ in range(count):
+            stamp[0] = run_ticks(h.shaper, stamp[0], 0.02)[-1]
+            assert h.shaper.publish_markers()
+        h.wait_for(lambda: len(arrays) >= sent + count, what='markers')
+        return [len(array.markers) for array in arrays[sent:sent + count]]
+
+    sent = 0
+    assert publish(3) == [len(MARKER_KEYS), len(MOVING_KEYS), len(MOVING_KEYS)]
+    sent = len(arrays)
+    h.shaper.stepper.set_offset_command(0.0)  # the offset jumps: pivots and label change
+    h.shaper.stepper.set_limits(offset_rate_limit=1e9)
+    assert publish(2) == [len(MARKER_KEYS), len(MOVING_KEYS)]
+    sent = len(arrays)
+    monkeypatch.setattr(shaper_sim, 'MARKER_REFRESH_PERIOD', 0.0)  # a late viewer's refresh
+    assert publish(2) == [len(MARKER_KEYS), len(MARKER_KEYS)]
 
 
 def test_marker_rate_is_live_and_zero_turns_markers_off(harness):
