@@ -290,8 +290,8 @@ PARAMETERS = {
         'Set at start-up only.', True, DoubleRange(1.0, 1e4)),
     'marker_rate': ParameterSpec(
         30.0, 'Hz', 'Rate of the linkage_markers MarkerArray (the mechanism drawn for RViz and '
-        'Foxglove, at the latest published sample); 0 turns it off. Independent of '
-        'publish_rate.', False, DoubleRange(0.0, 1000.0),
+        'Foxglove, at the latest published sample); 0 turns it off. Sent right after a tick, '
+        'so at most publish_rate.', False, DoubleRange(0.0, 1000.0),
         apply=lambda node, value: node.set_marker_rate(value)),
     'frame_id': ParameterSpec(
         'shaper_base', '', 'frame_id of the published joint_states and ram/twist headers. '
