@@ -156,6 +156,7 @@ class ShaperSimNode(Node):
                                                        MIN_PUBLISHER_DEPTH)
         self._marker_period_ns = 0
         self._next_markers_ns = 0
+        self._published_stamp_ns = None  # the markers draw the latest published sample
         self._clear_markers = False
         # What the still markers last sent show (offset, reversed, frame), and when (s).
         self._still_markers = None
@@ -390,7 +391,8 @@ class ShaperSimNode(Node):
     # Stepping and publishing --------------------------------------------------------------
 
     def _on_timer(self):
-        if self._paused:
+        if self._paused:  # the held state, still drawn for a viewer that starts now
+            self._publish_markers_if_due(self.get_clock().now().nanoseconds)
             return
         stamp_ns = self.get_clock().now().nanoseconds
         if stamp_ns == 0:
@@ -455,13 +457,8 @@ class ShaperSimNode(Node):
         twist.header.frame_id = frame_id
         twist.twist.linear.x = sample.ram_velocity
         self._twist_publisher.publish(twist)
-        period, due = self._marker_period_ns, self._next_markers_ns
-        if period and (stamp_ns >= due or stamp_ns < due - period):  # due, or time went back
-            # The next a period after this one's due time (the rate kept on average), or
-            # after now when the first, a period behind or after the clock went back.
-            late = stamp_ns - due
-            self._next_markers_ns = (due if 0 <= late < period else stamp_ns) + period
-            self.publish_markers()
+        self._published_stamp_ns = stamp_ns
+        self._publish_markers_if_due(stamp_ns)
         self._note_setting(stepper, stamp_ns)
         completed = self._monitor.collect(stamp_ns, sample.ram_position, sample.ram_velocity,
                                           stepper.offset, stepper.offset_rate,
@@ -573,6 +570,15 @@ class ShaperSimNode(Node):
         self._marker_period_ns = round(1e9 / rate) if rate > 0.0 else 0
         self._next_markers_ns = 0
 
+    def _publish_markers_if_due(self, stamp_ns):
+        period, due = self._marker_period_ns, self._next_markers_ns
+        if period and (stamp_ns >= due or stamp_ns < due - period):  # due, or time went back
+            # The next a period after this one's due time (the rate kept on average), or
+            # after now when the first, a period behind or after the clock went back.
+            late = stamp_ns - due
+            self._next_markers_ns = (due if 0 <= late < period else stamp_ns) + period
+            self.publish_markers()
+
     def publish_markers(self):
         """
         Publish the mechanism as markers at the latest published sample (its stamp).
@@ -584,11 +590,12 @@ class ShaperSimNode(Node):
         conversion's hold on the GIL off the ticks (see linkage_markers).
         """
         stepper = self._stepper
-        if stepper.stamp_ns is None:
+        stamp_ns = self._published_stamp_ns
+        if stamp_ns is None:
             return False
         frame_id = self._values['frame_id']
         if self._clear_markers:
-            self._marker_publisher.publish(delete_all_marker_array(stepper.stamp_ns, frame_id))
+            self._marker_publisher.publish(delete_all_marker_array(stamp_ns, frame_id))
             self._clear_markers = False
             self._still_markers = None
         still = (stepper.offset, stepper.input_speed < 0.0, frame_id)
@@ -598,7 +605,7 @@ class ShaperSimNode(Node):
         if not moving_only:
             self._still_markers, self._still_markers_sent = still, now
         self._marker_publisher.publish(linkage_marker_array(
-            self._geometry, stepper.offset, stepper.input_angle, stepper.stamp_ns, frame_id,
+            self._geometry, stepper.offset, stepper.input_angle, stamp_ns, frame_id,
             input_speed=stepper.input_speed, moving_only=moving_only))
         return True
 

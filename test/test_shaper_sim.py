@@ -316,13 +316,20 @@ def test_time_going_back_is_survived(harness):
 
 def test_pause_holds_and_resume_continues_from_the_held_state(harness):
     h = harness()
+    arrays = []
+    h.probe.create_subscription(MarkerArray, 'linkage_markers', arrays.append, 100)
     h.wait_for(lambda: len(h.joint_states) >= 5, what='joint states')
     response = h.call(SetBool, '/shaper_sim/pause', SetBool.Request(data=True))
     assert response.success and response.message == 'paused'
     count = len(h.joint_states)
     held = h.shaper.stepper.input_angle
+    drawn = len(arrays)
     time.sleep(0.2)  # would be 20 ticks
     assert len(h.joint_states) == count and h.shaper.stepper.input_angle == held
+    # The held state is still drawn (for a viewer that starts during the pause).
+    h.wait_for(lambda: len(arrays) >= drawn + 3, what='markers while paused')
+    stamp = h.joint_states[-1].header.stamp
+    assert all(array.markers[0].header.stamp == stamp for array in arrays[drawn + 1:])
     assert h.call(SetBool, '/shaper_sim/pause', SetBool.Request(data=False)).success
     h.wait_for(lambda: len(h.joint_states) > count + 2, what='joint states after resuming')
     resumed = h.joint_states[count]
