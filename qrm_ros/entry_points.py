@@ -31,15 +31,26 @@ __all__ = ['mcap_recorder', 'qrm_analyze', 'qrm_animate', 'qrm_design', 'qrm_mai
 EXIT_INTERRUPTED = 130  # the shell's code for a Ctrl-C
 
 
+_STOP_REQUESTS = []  # the stop signals received while starting
+
+
 def _stopped_while_starting(signal_number, frame):
-    del signal_number, frame
+    del frame
+    _STOP_REQUESTS.append(signal_number)
     raise SystemExit(0)  # nothing was started: a clean, quiet stop
 
 
 def _run(module_name):
     previous = {number: signal.signal(number, _stopped_while_starting)
                 for number in (signal.SIGINT, signal.SIGTERM)}
-    module = importlib.import_module(module_name)
+    try:
+        module = importlib.import_module(module_name)
+    except Exception:
+        # The SystemExit raised inside a C extension's initialisation (scipy's, say) comes
+        # out as its ImportError: still the stop asked for, not a failure to report.
+        if _STOP_REQUESTS:
+            raise SystemExit(0) from None
+        raise
     for number, handler in previous.items():
         signal.signal(number, handler)
     try:
