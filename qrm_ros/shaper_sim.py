@@ -17,9 +17,9 @@ The shaper_sim node: the mechanism stepped in time, published as joint states.
 A thin adapter: ShaperStepper (qrm_ros.stepping) integrates the input angle and moves the
 offset; the kinematics core gives every other state in closed form; StrokeMonitor
 (qrm_ros.stroke_monitor) measures each completed stroke pair for /diagnostics, on a thread
-of its own so that no tick waits for it; the
-parameters, their rules and effects are data (qrm_ros.shaper_parameters). This module only
-turns parameters into descriptors, commands into stepper calls and states into messages.
+of the node's own so that no tick waits for it; the parameters, their rules and effects are
+data (qrm_ros.shaper_parameters). This module only turns parameters into descriptors,
+commands into stepper calls and states into messages.
 """
 
 from array import array
