@@ -158,7 +158,7 @@ class ShaperSimNode(Node):
         self._next_markers_ns = 0
         self._published_stamp_ns = None  # the markers draw the latest published sample
         self._clear_markers = False
-        # What the still markers last sent show (offset, reversed, frame), and when (s).
+        # What the still markers last sent show (offset, reversed, frame, loads), and when (s).
         self._still_markers = None
         self._still_markers_sent = 0.0
         self.set_marker_rate(self._values['marker_rate'])
@@ -584,10 +584,11 @@ class ShaperSimNode(Node):
         Publish the mechanism as markers at the latest published sample (its stamp).
 
         Returns False before the first sample. After a reset a DELETEALL goes first, so no
-        stale part is left behind. The whole array goes out when what the still markers show
-        changes (offset, direction, frame) and at least every MARKER_REFRESH_PERIOD (for a
-        viewer that starts later); in between only the moving markers, which keeps the
-        conversion's hold on the GIL off the ticks (see linkage_markers).
+        stale part is left behind. The workpiece is drawn while there is a cutting load. The
+        whole array goes out when what the still markers show changes (offset, direction,
+        frame, loads) and at least every MARKER_REFRESH_PERIOD (for a viewer that starts
+        later); in between only the moving markers, which keeps the conversion's hold on the
+        GIL off the ticks (see linkage_markers).
         """
         stepper = self._stepper
         stamp_ns = self._published_stamp_ns
@@ -598,7 +599,7 @@ class ShaperSimNode(Node):
             self._marker_publisher.publish(delete_all_marker_array(stamp_ns, frame_id))
             self._clear_markers = False
             self._still_markers = None
-        still = (stepper.offset, stepper.input_speed < 0.0, frame_id)
+        still = (stepper.offset, stepper.input_speed < 0.0, frame_id, self._loads)
         now = time.monotonic()
         moving_only = (still == self._still_markers
                        and now - self._still_markers_sent < MARKER_REFRESH_PERIOD)
@@ -606,7 +607,7 @@ class ShaperSimNode(Node):
             self._still_markers, self._still_markers_sent = still, now
         self._marker_publisher.publish(linkage_marker_array(
             self._geometry, stepper.offset, stepper.input_angle, stamp_ns, frame_id,
-            input_speed=stepper.input_speed, moving_only=moving_only))
+            input_speed=stepper.input_speed, loads=self._loads, moving_only=moving_only))
         return True
 
     def _report_stall(self, stepper, stamp_ns):

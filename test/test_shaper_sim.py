@@ -461,6 +461,24 @@ def test_markers_follow_ticks_at_their_rate_and_survive_the_clock_going_back(har
     h.wait_for(lambda: len(arrays) >= 66, what='markers going on after the clock went back')
 
 
+def test_markers_show_the_workpiece_while_there_is_a_cutting_load(harness):
+    h = harness(spin_shaper=False, marker_rate=0.0)
+    arrays = []
+    h.probe.create_subscription(MarkerArray, 'linkage_markers', arrays.append, 100)
+    run_ticks(h.shaper, 50 * NS, 0.05)
+    assert h.shaper.publish_markers()
+    assert h.shaper.set_parameters([Parameter('cutting_force', value=400.0),
+                                    Parameter('cutting_length', value=0.15)])[0].successful
+    run_ticks(h.shaper, 51 * NS, 0.05)
+    assert h.shaper.publish_markers()  # the loads changed: the whole array, workpiece drawn
+    h.wait_for(lambda: len(arrays) >= 2, what='markers before and after the load')
+    before, after = ({(m.ns, m.id): m for m in array.markers} for array in arrays[:2])
+    assert before['workpiece', 0].action == Marker.DELETE
+    assert after['workpiece', 0].action == Marker.ADD
+    # The tool tip's range while cutting: cutting_length long (linkage.workpiece_span).
+    assert after['workpiece', 0].scale.x == pytest.approx(0.15, rel=1e-12)
+
+
 def test_marker_rate_is_live_and_zero_turns_markers_off(harness):
     h = harness(marker_rate=50.0)
     arrays = []
