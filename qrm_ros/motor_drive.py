@@ -600,15 +600,7 @@ class MotorStepper:
         def rhs(time, y):
             """Right-hand side for DOP853 (y an array: its values go on as plain floats)."""
             angle, speed = y.tolist()
-            time = float(time)
-            # acceleration's lines, written out: a call costs a few % of the right-hand side
-            if free:
-                reference = command if time >= reference_end else reference_at(time)
-                torque = stiffness * (reference - speed)
-            else:
-                torque = held_torque
-            offset = target if time >= offset_end else offset_at(time)
-            return [speed, lean_acceleration(offset, angle, speed, rate, torque, load)]
+            return [speed, acceleration(float(time), angle, speed)]
 
         def switching(time, angle, speed, ram=True):
             """ram=False: 1.0 for the ram's two (a step clear of the load's switches)."""
