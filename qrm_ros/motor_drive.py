@@ -71,8 +71,9 @@ class PairEfforts(NamedTuple):
 
 
 def _speed(input_speed):
+    """Return the checked input speed (float or array), refusing a zero anywhere."""
     input_speed = dyn._checked('input_speed', input_speed, 'rad/s')
-    if input_speed == 0.0:
+    if np.any(np.asarray(input_speed) == 0.0):
         raise KinematicsError('input_speed must be non-zero (rad/s): a stopped shaft has no '
                               'stroke pairs')
     return input_speed
@@ -295,10 +296,7 @@ def peak_input_torque(geometry, mass, loads, offset, input_speed):
     configuration goes through pair_efforts (1.4 ms each).
     """
     design_shape, flat = _flat_design(geometry, offset)
-    speed = np.asarray(dyn._checked('input_speed', input_speed, 'rad/s'), dtype=float)
-    if np.any(speed == 0.0):
-        raise KinematicsError('input_speed must be non-zero (rad/s): a stopped shaft has no '
-                              'stroke pairs')
+    speed = np.asarray(_speed(input_speed), dtype=float)
     masses, load = mass.scalars(), loads.scalars()
     loads.check_against(float(np.min(geometry.ram_stroke)))
     shape = np.broadcast_shapes(design_shape, speed.shape)
