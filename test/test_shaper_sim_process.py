@@ -207,16 +207,21 @@ def test_process_publishes_a_continuous_exact_state_and_refuses_bad_values(probe
         # Offset: moves no faster than its rate limit.
         assert abs(offset1 - offset0) <= OFFSET_RATE_LIMIT * dt * (1 + 1e-9)
         # Every other joint is continuous: its move over the interval matches the
-        # trapezoid of its published velocities within 5 % of the largest possible move
-        # (smooth motion at 100 samples per turn stays below 1 %; a 1 mm offset step would
-        # jump the flywheel by 0.04 rad, about half a tick's move).
+        # trapezoid of its published velocities within 5 % of the largest possible move per
+        # period (a 1 mm offset step would jump the flywheel by 0.04 rad, about half a
+        # tick's move). Smooth motion stays below that: the closed form at 8 rad/s and
+        # 10 mm, one period apart, gives at most 4.7 %, next to a stroke reversal, and the
+        # same per period over intervals of 1.5 to 5 periods, which a loaded machine's late
+        # tick makes; so the allowance grows with the interval in periods.
+        lateness = max(1.0, dt * RATE)
         for joint in (1, 2, 3):
             move = after.position[joint] - before.position[joint]
             if joint == 1:
                 move = wrapped(move)
             fastest = max(abs(before.velocity[joint]), abs(after.velocity[joint]))
             trapezoid = 0.5 * (before.velocity[joint] + after.velocity[joint]) * dt
-            assert abs(move - trapezoid) <= 0.05 * fastest * dt + 1e-12, (joint, after)
+            assert abs(move - trapezoid) <= 0.05 * lateness * fastest * dt + 1e-12, (
+                joint, dt, after)
     assert {4.0, 8.0} <= speeds_seen and len(speeds_seen) > 3  # ramped, not jumped
 
     # Published state = the core's closed form at the published angle, speed and offset.
