@@ -29,8 +29,8 @@ from rclpy.qos import QoSProfile
 from visualization_msgs.msg import Marker, MarkerArray
 
 from qrm_ros import kinematics as kin
-from qrm_ros.linkage import linkage_sizes, workpiece_span
-from qrm_ros.linkage_markers import (delete_all_marker_array, linkage_marker_array,
+from qrm_ros.linkage import COLOURS, linkage_sizes, workpiece_span
+from qrm_ros.linkage_markers import (delete_all_marker_array, LINK_BARS, linkage_marker_array,
                                      MARKER_KEYS, MOVING_KEYS)
 from qrm_ros.names import LINKAGE_MARKERS_TOPIC
 from ros_probe import BackgroundSpinner, wait_for
@@ -45,6 +45,18 @@ def _by_key(array):
 
 def _xy(point):
     return (point.x, point.y)
+
+
+def _bars(links):
+    """Return the links marker's bars: name -> (start, end), each bar in its own colour."""
+    assert links.type == Marker.LINE_LIST
+    assert len(links.points) == len(links.colors) == 2 * len(LINK_BARS)
+    bars = {}
+    for index, (name, colour) in enumerate(LINK_BARS):
+        for corner in links.colors[2 * index:2 * index + 2]:
+            assert (corner.r, corner.g, corner.b, corner.a) == pytest.approx(COLOURS[colour])
+        bars[name] = tuple(_xy(p) for p in links.points[2 * index:2 * index + 2])
+    return bars
 
 
 def _core_pins(geometry, offset, input_angle):
@@ -73,11 +85,18 @@ def test_marker_pins_are_the_cores_pins(geometry):
             assert _xy(point) == pytest.approx(pins[name], abs=1e-15)
             assert point.z == 0.0
         # The links end on the pins and pivots.
-        assert _xy(markers['input_crank', 0].points[0]) == (0.0, offset)
-        assert _xy(markers['input_crank', 0].points[1]) == _xy(drawn[0])
-        assert _xy(markers['crank', 0].points[1]) == _xy(drawn[1])
+        bars = _bars(markers['links', 0])
+        assert bars['input_crank'] == ((0.0, offset), _xy(drawn[0]))
+        assert bars['crank'] == ((0.0, 0.0), _xy(drawn[1]))
         assert _xy(markers['ram', 0].pose.position) == _xy(drawn[2])
-        assert _xy(markers['lever', 0].points[0]) == (0.0, -geometry.pivot_distance)
+        assert bars['lever'][0] == (0.0, -geometry.pivot_distance)
+        # The lever's tip is on the line from its pivot through the crank pin.
+        (pivot_x, pivot_y), (tip_x, tip_y) = bars['lever']
+        assert (tip_x - pivot_x) * (drawn[1].y - pivot_y) == pytest.approx(
+            (tip_y - pivot_y) * (drawn[1].x - pivot_x), abs=1e-15)
+        # The tool hangs from the ram block's rear end.
+        sizes = linkage_sizes(geometry)
+        assert bars['tool'][0] == (drawn[2].x - 0.5 * sizes.ram_length, drawn[2].y)
         assert [_xy(p) for p in markers['pivots', 0].points] == [
             (0.0, offset), (0.0, 0.0), (0.0, -geometry.pivot_distance)]
 
