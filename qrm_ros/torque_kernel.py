@@ -46,10 +46,16 @@ _RETURN_DENSITY = 1.0
 _SPLIT_DEPTH = 20
 # Configurations per block handed to a thread.
 _BLOCK = 4096
+# Samples per SIMD vector (AVX-512: 8 doubles); sample arrays are filled to whole vectors.
+_LANES = 8
 _EPSILON = float(np.finfo(np.float64).eps)
 
 _jit = _compiler()
 _torque = _jit(speed_drive_torque_of)
+# The same formula, inlined by numba itself (LLVM inlines only after its loop vectoriser
+# ran), so that _evaluate's loop runs on SIMD lanes.
+_torque_inline = numba.njit(cache=True, nogil=True, error_model='numpy',
+                            fastmath={'contract'}, inline='always')(speed_drive_torque_of)
 
 
 @_jit
@@ -133,6 +139,23 @@ def _keep(kept, brackets, best, force, low, low_torque, low_slope, low_sin, low_
 
 
 @_jit
+def _evaluate(count, sines, cosines, forces, torques, slopes, r1, r, h, height, cos0, sin0,
+              offset, clearance, speed, flywheel_inertia, lever_inertia, ram_mass,
+              gravity_moment):
+    """
+    Torque and slope at the first count samples, into torques and slopes.
+
+    The samples are independent, so LLVM runs this loop on SIMD lanes (several samples per
+    instruction) instead of one sample's chain of divisions and square roots at a time.
+    """
+    for k in range(count):
+        torques[k], slopes[k] = _torque_inline(sines[k], cosines[k], r1, r, h, height, cos0,
+                                               sin0, offset, clearance, speed, forces[k],
+                                               flywheel_inertia, lever_inertia, ram_mass,
+                                               gravity_moment)
+
+
+@_jit
 def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
                 flywheel_inertia, lever_inertia, ram_mass, gravity_moment, cutting_force,
                 ram_friction, cutting_length, cut_samples, return_samples, tolerance,
@@ -141,16 +164,25 @@ def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
     inertia = (flywheel_inertia, lever_inertia, ram_mass, gravity_moment)
     # Load switches in order, with their sin and cos (closed form, no sin or cos calls).
     bounds = np.empty((8, 3))
+    # Each piece's first sample and its force.
+    piece_first = np.empty(8, np.int64)
+    piece_force = np.empty(8)
     # Brackets kept from the samples: low, high, their slopes, force, bound, their sin, cos.
-    kept = np.empty((cut_samples + return_samples + 32, 10))
+    capacity = cut_samples + return_samples + 32 + _LANES
+    kept = np.empty((capacity, 10))
+    # Samples of the revolution: angle, sin, cos, force; torque and slope.
+    angles, sines, cosines = np.empty(capacity), np.empty(capacity), np.empty(capacity)
+    forces, torques, slopes = np.empty(capacity), np.empty(capacity), np.empty(capacity)
     for i in range(first, last):
         cos0, sin0 = math.cos(phase[i]), math.sin(phase[i])
         ri, hi, heighti = r[i], h[i], height[i]
         half_gap = math.asin(ri / hi)
         return_density = max(1.0, _RETURN_DENSITY * math.sqrt(hi / (hi - ri)))
-        needed = cut_samples + int(math.ceil(return_samples * return_density)) + 32
+        needed = cut_samples + int(math.ceil(return_samples * return_density)) + 32 + _LANES
         if needed > kept.shape[0]:
             kept = np.empty((needed, 10))
+            angles, sines, cosines = np.empty(needed), np.empty(needed), np.empty(needed)
+            forces, torques, slopes = np.empty(needed), np.empty(needed), np.empty(needed)
         start = -half_gap
         turn = math.pi + half_gap
         ratio = ri / hi
@@ -183,8 +215,8 @@ def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
                                                             bounds[k - 1, 2])
                 k -= 1
             bounds[k, 0], bounds[k, 1], bounds[k, 2] = value, value_sin, value_cos
-        geometry = (r1[i], ri, hi, heighti, cos0, sin0, offset[i],
-                    (r1[i] - offset[i]) * (r1[i] + offset[i]), speed[i])
+        clearance = (r1[i] - offset[i]) * (r1[i] + offset[i])
+        geometry = (r1[i], ri, hi, heighti, cos0, sin0, offset[i], clearance, speed[i])
         direction = 1.0 if speed[i] > 0.0 else -1.0
         # Crank angles where the flywheel angle is 0 or pi: there sin_c, cos_c = +-(sin0, cos0).
         first_cross = start + (phase[i] - start) % _TWO_PI
@@ -192,8 +224,10 @@ def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
         first_sign = 1.0
         if second_cross < first_cross:
             first_cross, second_cross, first_sign = second_cross, first_cross, -1.0
-        best = 0.0
-        brackets = 0
+        # The samples of every piece, in order: its ends (with its own force) and between
+        # them the even samples and the coupling's crossings.
+        samples = 0
+        pieces = 0
         for piece in range(count - 1):
             low, high = bounds[piece, 0], bounds[piece + 1, 0]
             width = high - low
@@ -226,9 +260,11 @@ def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
             position = heighti * ri * inside_cos / (hi + ri * inside_sin)
             cutting = velocity_sign < 0.0 and abs(position) <= 0.5 * cutting_length
             force = (cutting_force if cutting else 0.0) - ram_friction * velocity_sign
-            angle = low
-            torque, slope = _torque(sin_c, cos_c, *geometry, force, *inertia)
-            best = max(best, abs(torque))
+            piece_first[pieces], piece_force[pieces] = samples, force
+            pieces += 1
+            angles[samples], sines[samples], cosines[samples] = low, sin_c, cos_c
+            forces[samples] = force
+            samples += 1
             cross, cross_sign = first_cross, first_sign
             if cross <= low:
                 cross, cross_sign = second_cross, -first_sign
@@ -237,35 +273,50 @@ def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
             k = 1
             while k <= intervals:
                 if cross < high and cross < low + spacing * k:
-                    following = cross
-                    next_sin, next_cos = cross_sign * sin0, cross_sign * cos0
+                    angles[samples] = cross
+                    sines[samples], cosines[samples] = cross_sign * sin0, cross_sign * cos0
                     if cross < second_cross:
                         cross, cross_sign = second_cross, -cross_sign
                     else:
                         cross = math.inf
                 elif k == intervals:
-                    following = high
-                    next_sin, next_cos = bounds[piece + 1, 1], bounds[piece + 1, 2]
+                    angles[samples] = high
+                    sines[samples], cosines[samples] = bounds[piece + 1, 1], bounds[piece + 1, 2]
                     k += 1
                 else:
-                    following = low + spacing * k
-                    next_sin, next_cos = even_sin, even_cos
+                    angles[samples] = low + spacing * k
+                    sines[samples], cosines[samples] = even_sin, even_cos
                     even_sin, even_cos = (even_sin * step_cos + even_cos * step_sin,
                                           even_cos * step_cos - even_sin * step_sin)
                     norm = 1.5 - 0.5 * (even_sin * even_sin + even_cos * even_cos)
                     even_sin *= norm
                     even_cos *= norm
                     k += 1
-                next_torque, next_slope = _torque(next_sin, next_cos, *geometry, force,
-                                                  *inertia)
-                best = max(best, abs(next_torque))
+                forces[samples] = force
+                samples += 1
+        piece_first[pieces] = samples
+        # Whole vectors: the last ones filled with copies of the first sample.
+        padded = samples + (-samples) % _LANES
+        for k in range(samples, padded):
+            sines[k], cosines[k], forces[k] = sines[0], cosines[0], forces[0]
+        _evaluate(padded, sines, cosines, forces, torques, slopes, *geometry, *inertia)
+        best = 0.0
+        for k in range(samples):
+            best = max(best, abs(torques[k]))
+        brackets = 0
+        for piece in range(pieces):
+            force = piece_force[piece]
+            for k in range(piece_first[piece], piece_first[piece + 1] - 1):
+                angle, torque, slope = angles[k], torques[k], slopes[k]
+                following, next_torque, next_slope = angles[k + 1], torques[k + 1], slopes[k + 1]
                 if (slope > 0.0) == (next_slope > 0.0) and (next_torque - torque) * slope < 0.0:
                     # Both slopes of one sign but the torque moved the other way: a minimum
                     # and a maximum hide between the samples (mean value theorem). Halve
                     # towards them until a sample's slope shows the change.
                     low_angle, low_torque, low_slope = angle, torque, slope
                     high_angle, high_torque, high_slope = following, next_torque, next_slope
-                    low_sin, low_cos, high_sin, high_cos = sin_c, cos_c, next_sin, next_cos
+                    low_sin, low_cos = sines[k], cosines[k]
+                    high_sin, high_cos = sines[k + 1], cosines[k + 1]
                     for _ in range(_SPLIT_DEPTH):
                         half = 0.5 * (low_angle + high_angle)
                         half_sin, half_cos = math.sin(half), math.cos(half)
@@ -289,11 +340,9 @@ def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
                             low_angle, low_torque, low_slope = half, half_torque, half_slope
                             low_sin, low_cos = half_sin, half_cos
                 else:
-                    brackets = _keep(kept, brackets, best, force, angle, torque, slope, sin_c,
-                                     cos_c, following, next_torque, next_slope, next_sin,
-                                     next_cos)
-                angle, sin_c, cos_c = following, next_sin, next_cos
-                torque, slope = next_torque, next_slope
+                    brackets = _keep(kept, brackets, best, force, angle, torque, slope,
+                                     sines[k], cosines[k], following, next_torque, next_slope,
+                                     sines[k + 1], cosines[k + 1])
         # Largest bound first: once the highest peak is refined, most others fall below it.
         for _ in range(brackets):
             b = 0
