@@ -49,6 +49,8 @@ _BLOCK = 4096
 # Samples per SIMD vector (AVX-512: 8 doubles); sample arrays are filled to whole vectors.
 _LANES = 8
 _EPSILON = float(np.finfo(np.float64).eps)
+# Brent's method stops once the torque's possible gain is below this part of it (eps / 64).
+_GAIN_RESOLUTION = _EPSILON / 64.0
 
 _jit = _compiler()
 _torque = _jit(speed_drive_torque_of)
@@ -56,6 +58,23 @@ _torque = _jit(speed_drive_torque_of)
 # ran), so that _evaluate's loop runs on SIMD lanes.
 _torque_inline = numba.njit(cache=True, nogil=True, error_model='numpy',
                             fastmath={'contract'}, inline='always')(speed_drive_torque_of)
+
+
+@_jit
+def _turns(angle):
+    """
+    Return angle % 2 pi (the same float), without fmod's call for angles in (-2 pi, 4 pi).
+
+    There angle - 2 pi is exact (as fmod), and angle + 2 pi rounds as Python's % does.
+    """
+    if angle >= 0.0:
+        if angle < _TWO_PI:
+            return angle
+        if angle < 2.0 * _TWO_PI:
+            return angle - _TWO_PI
+    elif angle > -_TWO_PI:
+        return angle + _TWO_PI
+    return angle % _TWO_PI
 
 
 @_jit
@@ -115,6 +134,10 @@ def _refine(low, high, low_slope, high_slope, low_sin, low_cos, high_sin, high_c
         cos_b *= norm
         torque, fb = _torque(sin_b, cos_b, *geometry, force, *inertia)
         best = max(best, abs(torque))
+        # Near the root torque(root) - torque(b) is about slope * step / 2, step the secant's
+        # to the root: once that is far below the torque's round-off, no point can add more.
+        if abs(fb * fb * (b - a)) <= _GAIN_RESOLUTION * abs(torque * (fb - fa)):
+            break
     return best
 
 
@@ -203,7 +226,7 @@ def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
                     shift = math.atan(tangent)
                     for turn_sign in (1.0, -1.0):
                         # phi_c = +-spread - atan(tangent), by the angle-difference formulas.
-                        bounds[count, 0] = start + (turn_sign * spread - shift - start) % _TWO_PI
+                        bounds[count, 0] = start + _turns(turn_sign * spread - shift - start)
                         bounds[count, 1] = (turn_sign * sine - cosine * tangent) / secant
                         bounds[count, 2] = (cosine + turn_sign * sine * tangent) / secant
                         count += 1
@@ -219,8 +242,8 @@ def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
         geometry = (r1[i], ri, hi, heighti, cos0, sin0, offset[i], clearance, speed[i])
         direction = 1.0 if speed[i] > 0.0 else -1.0
         # Crank angles where the flywheel angle is 0 or pi: there sin_c, cos_c = +-(sin0, cos0).
-        first_cross = start + (phase[i] - start) % _TWO_PI
-        second_cross = start + (phase[i] + math.pi - start) % _TWO_PI
+        first_cross = start + _turns(phase[i] - start)
+        second_cross = start + _turns(phase[i] + math.pi - start)
         first_sign = 1.0
         if second_cross < first_cross:
             first_cross, second_cross, first_sign = second_cross, first_cross, -1.0
@@ -253,8 +276,12 @@ def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
             # The piece's load, from a point inside it: the first even sample, or the middle.
             if intervals > 1:
                 inside_sin, inside_cos = even_sin, even_cos
-            else:
-                inside_sin, inside_cos = math.sin(middle), math.cos(middle)
+            else:  # the middle: the chord's midpoint (less than half a turn) onto the circle
+                inside_sin = sin_c + bounds[piece + 1, 1]
+                inside_cos = cos_c + bounds[piece + 1, 2]
+                length = math.sqrt(inside_sin * inside_sin + inside_cos * inside_cos)
+                inside_sin /= length
+                inside_cos /= length
             # The ram velocity's sign: x_c < 0 from the cut's start to its end reversal.
             velocity_sign = -direction if middle < turn else direction
             position = heighti * ri * inside_cos / (hi + ri * inside_sin)
@@ -301,13 +328,13 @@ def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
             sines[k], cosines[k], forces[k] = sines[0], cosines[0], forces[0]
         _evaluate(padded, sines, cosines, forces, torques, slopes, *geometry, *inertia)
         best = 0.0
-        for k in range(samples):
-            best = max(best, abs(torques[k]))
         brackets = 0
         for piece in range(pieces):
             force = piece_force[piece]
+            best = max(best, abs(torques[piece_first[piece]]))
             for k in range(piece_first[piece], piece_first[piece + 1] - 1):
                 angle, torque, slope = angles[k], torques[k], slopes[k]
+                best = max(best, abs(torques[k + 1]))
                 following, next_torque, next_slope = angles[k + 1], torques[k + 1], slopes[k + 1]
                 if (slope > 0.0) == (next_slope > 0.0) and (next_torque - torque) * slope < 0.0:
                     # Both slopes of one sign but the torque moved the other way: a minimum
