@@ -196,6 +196,9 @@ def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
     # Samples of the revolution: angle, sin, cos, force; torque and slope.
     angles, sines, cosines = np.empty(capacity), np.empty(capacity), np.empty(capacity)
     forces, torques, slopes = np.empty(capacity), np.empty(capacity), np.empty(capacity)
+    # The intervals to look into; whether an interval lies inside a piece (all but between).
+    marks = np.empty(capacity, np.int64)
+    inside = np.ones(capacity, np.bool_)
     for i in range(first, last):
         cos0, sin0 = math.cos(phase[i]), math.sin(phase[i])
         ri, hi, heighti = r[i], h[i], height[i]
@@ -206,6 +209,7 @@ def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
             kept = np.empty((needed, 10))
             angles, sines, cosines = np.empty(needed), np.empty(needed), np.empty(needed)
             forces, torques, slopes = np.empty(needed), np.empty(needed), np.empty(needed)
+            marks, inside = np.empty(needed, np.int64), np.ones(needed, np.bool_)
         start = -half_gap
         turn = math.pi + half_gap
         ratio = ri / hi
@@ -327,49 +331,64 @@ def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
         for k in range(samples, padded):
             sines[k], cosines[k], forces[k] = sines[0], cosines[0], forces[0]
         _evaluate(padded, sines, cosines, forces, torques, slopes, *geometry, *inertia)
-        best = 0.0
+        # The intervals that may hold a peak, marked without branches: the slope changes
+        # sign, or both slopes have one sign but the torque moved the other way (a minimum
+        # and a maximum hide between the samples, by the mean value theorem). Not the
+        # zero-width ones between pieces.
+        for piece in range(1, pieces):
+            inside[piece_first[piece] - 1] = False
+        best = abs(torques[samples - 1])
+        marked = 0
+        for k in range(samples - 1):
+            best = max(best, abs(torques[k]))
+            slope, next_slope = slopes[k], slopes[k + 1]
+            change = (((slope > 0.0) & (next_slope < 0.0))
+                      | ((slope < 0.0) & (next_slope > 0.0)))
+            hidden = (((slope > 0.0) == (next_slope > 0.0))
+                      & ((torques[k + 1] - torques[k]) * slope < 0.0))
+            marks[marked] = k
+            marked += (change | hidden) & inside[k]
+        for piece in range(1, pieces):
+            inside[piece_first[piece] - 1] = True
         brackets = 0
-        for piece in range(pieces):
-            force = piece_force[piece]
-            best = max(best, abs(torques[piece_first[piece]]))
-            for k in range(piece_first[piece], piece_first[piece + 1] - 1):
-                angle, torque, slope = angles[k], torques[k], slopes[k]
-                best = max(best, abs(torques[k + 1]))
-                following, next_torque, next_slope = angles[k + 1], torques[k + 1], slopes[k + 1]
-                if (slope > 0.0) == (next_slope > 0.0) and (next_torque - torque) * slope < 0.0:
-                    # Both slopes of one sign but the torque moved the other way: a minimum
-                    # and a maximum hide between the samples (mean value theorem). Halve
-                    # towards them until a sample's slope shows the change.
-                    low_angle, low_torque, low_slope = angle, torque, slope
-                    high_angle, high_torque, high_slope = following, next_torque, next_slope
-                    low_sin, low_cos = sines[k], cosines[k]
-                    high_sin, high_cos = sines[k + 1], cosines[k + 1]
-                    for _ in range(_SPLIT_DEPTH):
-                        half = 0.5 * (low_angle + high_angle)
-                        half_sin, half_cos = math.sin(half), math.cos(half)
-                        half_torque, half_slope = _torque(half_sin, half_cos, *geometry, force,
-                                                          *inertia)
-                        best = max(best, abs(half_torque))
-                        if half_slope == 0.0:
-                            break
-                        if (half_slope > 0.0) != (low_slope > 0.0):
-                            brackets = _keep(kept, brackets, best, force, low_angle,
-                                             low_torque, low_slope, low_sin, low_cos, half,
-                                             half_torque, half_slope, half_sin, half_cos)
-                            brackets = _keep(kept, brackets, best, force, half, half_torque,
-                                             half_slope, half_sin, half_cos, high_angle,
-                                             high_torque, high_slope, high_sin, high_cos)
-                            break
-                        if (half_torque - low_torque) * low_slope < 0.0:
-                            high_angle, high_torque, high_slope = half, half_torque, half_slope
-                            high_sin, high_cos = half_sin, half_cos
-                        else:
-                            low_angle, low_torque, low_slope = half, half_torque, half_slope
-                            low_sin, low_cos = half_sin, half_cos
-                else:
-                    brackets = _keep(kept, brackets, best, force, angle, torque, slope,
-                                     sines[k], cosines[k], following, next_torque, next_slope,
-                                     sines[k + 1], cosines[k + 1])
+        for mark in range(marked):
+            k = marks[mark]
+            force = forces[k]
+            angle, torque, slope = angles[k], torques[k], slopes[k]
+            following, next_torque, next_slope = angles[k + 1], torques[k + 1], slopes[k + 1]
+            if (slope > 0.0) == (next_slope > 0.0) and (next_torque - torque) * slope < 0.0:
+                # A minimum and a maximum hide here: halve towards them until a sample's
+                # slope shows the change.
+                low_angle, low_torque, low_slope = angle, torque, slope
+                high_angle, high_torque, high_slope = following, next_torque, next_slope
+                low_sin, low_cos = sines[k], cosines[k]
+                high_sin, high_cos = sines[k + 1], cosines[k + 1]
+                for _ in range(_SPLIT_DEPTH):
+                    half = 0.5 * (low_angle + high_angle)
+                    half_sin, half_cos = math.sin(half), math.cos(half)
+                    half_torque, half_slope = _torque(half_sin, half_cos, *geometry, force,
+                                                      *inertia)
+                    best = max(best, abs(half_torque))
+                    if half_slope == 0.0:
+                        break
+                    if (half_slope > 0.0) != (low_slope > 0.0):
+                        brackets = _keep(kept, brackets, best, force, low_angle,
+                                         low_torque, low_slope, low_sin, low_cos, half,
+                                         half_torque, half_slope, half_sin, half_cos)
+                        brackets = _keep(kept, brackets, best, force, half, half_torque,
+                                         half_slope, half_sin, half_cos, high_angle,
+                                         high_torque, high_slope, high_sin, high_cos)
+                        break
+                    if (half_torque - low_torque) * low_slope < 0.0:
+                        high_angle, high_torque, high_slope = half, half_torque, half_slope
+                        high_sin, high_cos = half_sin, half_cos
+                    else:
+                        low_angle, low_torque, low_slope = half, half_torque, half_slope
+                        low_sin, low_cos = half_sin, half_cos
+            else:
+                brackets = _keep(kept, brackets, best, force, angle, torque, slope,
+                                 sines[k], cosines[k], following, next_torque, next_slope,
+                                 sines[k + 1], cosines[k + 1])
         # Largest bound first: once the highest peak is refined, most others fall below it.
         for _ in range(brackets):
             b = 0
