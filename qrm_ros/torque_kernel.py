@@ -219,6 +219,7 @@ def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
         bounds[1, 0], bounds[1, 1], bounds[1, 2] = turn, -ratio, -cos_gap
         bounds[2, 0], bounds[2, 1], bounds[2, 2] = start + _TWO_PI, -ratio, cos_gap
         count = 3
+        direction = 1.0 if speed[i] > 0.0 else -1.0
         if cutting_length > 0.0:
             for side in (1.0, -1.0):
                 tangent = side * 0.5 * cutting_length / heighti
@@ -230,11 +231,16 @@ def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
                     shift = math.atan(tangent)
                     for turn_sign in (1.0, -1.0):
                         # phi_c = +-spread - atan(tangent), by the angle-difference formulas.
-                        bounds[count, 0] = start + _turns(turn_sign * spread - shift - start)
+                        edge = start + _turns(turn_sign * spread - shift - start)
+                        # Only the cutting stroke's edges switch the load (ram friction alone
+                        # on the other stroke; x_c < 0 from the start to the turn).
+                        if (edge > turn) if direction > 0.0 else (edge < turn):
+                            continue
+                        bounds[count, 0] = edge
                         bounds[count, 1] = (turn_sign * sine - cosine * tangent) / secant
                         bounds[count, 2] = (cosine + turn_sign * sine * tangent) / secant
                         count += 1
-        for j in range(3, count):  # insertion sort: at most four edges
+        for j in range(3, count):  # insertion sort: at most two edges
             value, value_sin, value_cos = bounds[j, 0], bounds[j, 1], bounds[j, 2]
             k = j
             while bounds[k - 1, 0] > value:
@@ -244,7 +250,6 @@ def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
             bounds[k, 0], bounds[k, 1], bounds[k, 2] = value, value_sin, value_cos
         clearance = (r1[i] - offset[i]) * (r1[i] + offset[i])
         geometry = (r1[i], ri, hi, heighti, cos0, sin0, offset[i], clearance, speed[i])
-        direction = 1.0 if speed[i] > 0.0 else -1.0
         # Crank angles where the flywheel angle is 0 or pi: there sin_c, cos_c = +-(sin0, cos0).
         first_cross = start + _turns(phase[i] - start)
         second_cross = start + _turns(phase[i] + math.pi - start)
