@@ -179,6 +179,32 @@ def _evaluate(count, sines, cosines, forces, torques, slopes, r1, r, h, height, 
 
 
 @_jit
+def _edges(edges, r, h, height, cutting_length, start):
+    """
+    Write the crank angles (from start on) where the ram meets the workpiece's edges.
+
+    With their sin and cos, in closed form, into edges' rows; return how many (0, 2 or 4).
+    """
+    count = 0
+    if cutting_length > 0.0:
+        for side in (1.0, -1.0):
+            tangent = side * 0.5 * cutting_length / height
+            secant = math.sqrt(1.0 + tangent * tangent)
+            cosine = tangent * h / (r * secant)
+            if abs(cosine) <= 1.0:
+                spread = math.acos(cosine)
+                sine = math.sqrt((1.0 - cosine) * (1.0 + cosine))
+                shift = math.atan(tangent)
+                for turn_sign in (1.0, -1.0):
+                    # phi_c = +-spread - atan(tangent), by the angle-difference formulas.
+                    edges[count, 0] = start + _turns(turn_sign * spread - shift - start)
+                    edges[count, 1] = (turn_sign * sine - cosine * tangent) / secant
+                    edges[count, 2] = (cosine + turn_sign * sine * tangent) / secant
+                    count += 1
+    return count
+
+
+@_jit
 def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
                 flywheel_inertia, lever_inertia, ram_mass, gravity_moment, cutting_force,
                 ram_friction, cutting_length, cut_samples, return_samples, tolerance,
@@ -199,11 +225,25 @@ def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
     # The intervals to look into; whether an interval lies inside a piece (all but between).
     marks = np.empty(capacity, np.int64)
     inside = np.ones(capacity, np.bool_)
+    # The workpiece's edges in the crank angle (angle, sin, cos; before sorting), and the
+    # lever geometry and crank phase they and cos0, sin0 were computed for: sweeps often
+    # repeat them from one configuration to the next, and then reuse them.
+    edges = np.empty((4, 3))
+    edge_count = 0
+    last_r = last_h = last_height = last_phase = math.nan
+    cos0 = sin0 = half_gap = return_density = ratio = cos_gap = 0.0
     for i in range(first, last):
-        cos0, sin0 = math.cos(phase[i]), math.sin(phase[i])
         ri, hi, heighti = r[i], h[i], height[i]
-        half_gap = math.asin(ri / hi)
-        return_density = max(1.0, _RETURN_DENSITY * math.sqrt(hi / (hi - ri)))
+        if phase[i] != last_phase:
+            last_phase = phase[i]
+            cos0, sin0 = math.cos(last_phase), math.sin(last_phase)
+        if ri != last_r or hi != last_h or heighti != last_height:
+            last_r, last_h, last_height = ri, hi, heighti
+            half_gap = math.asin(ri / hi)
+            return_density = max(1.0, _RETURN_DENSITY * math.sqrt(hi / (hi - ri)))
+            ratio = ri / hi
+            cos_gap = math.sqrt((1.0 - ratio) * (1.0 + ratio))
+            edge_count = _edges(edges, ri, hi, heighti, cutting_length, -half_gap)
         needed = cut_samples + int(math.ceil(return_samples * return_density)) + 32 + _LANES
         if needed > kept.shape[0]:
             kept = np.empty((needed, 10))
@@ -212,34 +252,20 @@ def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
             marks, inside = np.empty(needed, np.int64), np.ones(needed, np.bool_)
         start = -half_gap
         turn = math.pi + half_gap
-        ratio = ri / hi
-        cos_gap = math.sqrt((1.0 - ratio) * (1.0 + ratio))
         # At both reversals sin(phi_c) = -r/h; cos(phi_c) = +-sqrt(1 - (r/h)^2).
         bounds[0, 0], bounds[0, 1], bounds[0, 2] = start, -ratio, cos_gap
         bounds[1, 0], bounds[1, 1], bounds[1, 2] = turn, -ratio, -cos_gap
         bounds[2, 0], bounds[2, 1], bounds[2, 2] = start + _TWO_PI, -ratio, cos_gap
         count = 3
         direction = 1.0 if speed[i] > 0.0 else -1.0
-        if cutting_length > 0.0:
-            for side in (1.0, -1.0):
-                tangent = side * 0.5 * cutting_length / heighti
-                secant = math.sqrt(1.0 + tangent * tangent)
-                cosine = tangent * hi / (ri * secant)
-                if abs(cosine) <= 1.0:
-                    spread = math.acos(cosine)
-                    sine = math.sqrt((1.0 - cosine) * (1.0 + cosine))
-                    shift = math.atan(tangent)
-                    for turn_sign in (1.0, -1.0):
-                        # phi_c = +-spread - atan(tangent), by the angle-difference formulas.
-                        edge = start + _turns(turn_sign * spread - shift - start)
-                        # Only the cutting stroke's edges switch the load (ram friction alone
-                        # on the other stroke; x_c < 0 from the start to the turn).
-                        if (edge > turn) if direction > 0.0 else (edge < turn):
-                            continue
-                        bounds[count, 0] = edge
-                        bounds[count, 1] = (turn_sign * sine - cosine * tangent) / secant
-                        bounds[count, 2] = (cosine + turn_sign * sine * tangent) / secant
-                        count += 1
+        for j in range(edge_count):
+            # Only the cutting stroke's edges switch the load (ram friction alone on the
+            # other stroke; x_c < 0 from the start to the turn).
+            if (edges[j, 0] > turn) if direction > 0.0 else (edges[j, 0] < turn):
+                continue
+            bounds[count, 0], bounds[count, 1], bounds[count, 2] = (edges[j, 0], edges[j, 1],
+                                                                    edges[j, 2])
+            count += 1
         for j in range(3, count):  # insertion sort: at most two edges
             value, value_sin, value_cos = bounds[j, 0], bounds[j, 1], bounds[j, 2]
             k = j
