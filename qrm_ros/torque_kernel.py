@@ -450,9 +450,13 @@ def peak_torques(r1, r, h, height, phase, offset, speed, flywheel_inertia, lever
     size = offset.size
     result = np.empty(size)
     blocks = (size + _BLOCK - 1) // _BLOCK
+    # One block at a time to whichever thread is free (not equal shares handed out at the
+    # start): a thread slowed by other work on its core then takes fewer blocks.
+    chunk_size = numba.set_parallel_chunksize(1)
     for block in numba.prange(blocks):
         _peak_block(result, block * _BLOCK, min(size, (block + 1) * _BLOCK), r1, r, h, height,
                     phase, offset, speed, flywheel_inertia, lever_inertia, ram_mass,
                     gravity_moment, cutting_force, ram_friction, cutting_length, cut_samples,
                     return_samples, tolerance, max_steps)
+    numba.set_parallel_chunksize(chunk_size)
     return result
