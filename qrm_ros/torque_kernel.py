@@ -439,24 +439,34 @@ def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
             'float64[::1], float64[::1], float64[::1], float64, float64, float64, float64, '
             'float64, float64, float64, int64, int64, float64, int64)', cache=True,
             nogil=True, parallel=True, error_model='numpy', fastmath={'contract'})
+def _peak_torques(r1, r, h, height, phase, offset, speed, flywheel_inertia, lever_inertia,
+                  ram_mass, gravity_moment, cutting_force, ram_friction, cutting_length,
+                  cut_samples, return_samples, tolerance, max_steps):
+    """Peak |input torque| (N m) of flat configuration arrays: peak_torques' loop."""
+    size = offset.size
+    result = np.empty(size)
+    blocks = (size + _BLOCK - 1) // _BLOCK
+    for block in numba.prange(blocks):
+        _peak_block(result, block * _BLOCK, min(size, (block + 1) * _BLOCK), r1, r, h, height,
+                    phase, offset, speed, flywheel_inertia, lever_inertia, ram_mass,
+                    gravity_moment, cutting_force, ram_friction, cutting_length, cut_samples,
+                    return_samples, tolerance, max_steps)
+    return result
+
+
 def peak_torques(r1, r, h, height, phase, offset, speed, flywheel_inertia, lever_inertia,
                  ram_mass, gravity_moment, cutting_force, ram_friction, cutting_length,
                  cut_samples, return_samples, tolerance, max_steps):
     """
     Peak |input torque| (N m) of flat configuration arrays; samples per stroke.
 
-    Blocks of configurations are shared among numba's threads (numba.set_num_threads).
+    Blocks of configurations are shared among numba's threads (numba.set_num_threads), one
+    at a time to whichever thread is free rather than equal shares handed out at the start:
+    a thread slowed by other work on its core then takes fewer blocks. (Set here, outside
+    the compiled loop: set inside, it would keep the loop from numba's cache.)
     """
-    size = offset.size
-    result = np.empty(size)
-    blocks = (size + _BLOCK - 1) // _BLOCK
-    # One block at a time to whichever thread is free (not equal shares handed out at the
-    # start): a thread slowed by other work on its core then takes fewer blocks.
-    chunk_size = numba.set_parallel_chunksize(1)
-    for block in numba.prange(blocks):
-        _peak_block(result, block * _BLOCK, min(size, (block + 1) * _BLOCK), r1, r, h, height,
-                    phase, offset, speed, flywheel_inertia, lever_inertia, ram_mass,
-                    gravity_moment, cutting_force, ram_friction, cutting_length, cut_samples,
-                    return_samples, tolerance, max_steps)
-    numba.set_parallel_chunksize(chunk_size)
-    return result
+    with numba.parallel_chunksize(1):
+        return _peak_torques(r1, r, h, height, phase, offset, speed, flywheel_inertia,
+                             lever_inertia, ram_mass, gravity_moment, cutting_force,
+                             ram_friction, cutting_length, cut_samples, return_samples,
+                             tolerance, max_steps)
