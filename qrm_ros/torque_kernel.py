@@ -78,8 +78,8 @@ def _turns(angle):
 
 
 @_jit
-def _refine(low, high, low_slope, high_slope, low_sin, low_cos, high_sin, high_cos, force,
-            best, tolerance, max_steps, geometry, inertia):
+def _refine(low, high, low_torque, high_torque, low_slope, high_slope, low_sin, low_cos,
+            high_sin, high_cos, force, best, tolerance, max_steps, geometry, inertia):
     """
     Return max(best, |torque| at the slope's root in [low, high]): Brent's method (zeroin).
 
@@ -89,9 +89,35 @@ def _refine(low, high, low_slope, high_slope, low_sin, low_cos, high_sin, high_c
     cos come from rotating the previous point's by the step (no sin or cos calls once the
     steps are below 0.3 rad).
     """
-    a, fa, sin_a, cos_a = low, low_slope, low_sin, low_cos
-    b, fb, sin_b, cos_b = high, high_slope, high_sin, high_cos
-    c, fc, sin_c, cos_c = a, fa, sin_a, cos_a
+    # The first point: where the cubic through both ends' torques and slopes peaks (its
+    # slope, a quadratic in the fraction t of the bracket, changes sign once in (0, 1)).
+    width = high - low
+    mean = (high_torque - low_torque) / width
+    square = 3.0 * (low_slope + high_slope - 2.0 * mean)
+    linear = 2.0 * (3.0 * mean - 2.0 * low_slope - high_slope)
+    root = math.sqrt(max(linear * linear - 4.0 * square * low_slope, 0.0))
+    half_sum = -0.5 * (linear + math.copysign(root, linear))
+    fraction = low_slope / half_sum
+    if not 0.0 < fraction < 1.0:
+        fraction = half_sum / square
+        if not 0.0 < fraction < 1.0:
+            fraction = low_slope / (low_slope - high_slope)  # the secant's
+    fraction = min(max(fraction, 0.01), 0.99)
+    step = fraction * width
+    sin_b, cos_b = _rotate(low_sin, low_cos, step)
+    norm = 1.5 - 0.5 * (sin_b * sin_b + cos_b * cos_b)  # back onto the circle
+    sin_b *= norm
+    cos_b *= norm
+    b = low + step
+    torque, fb = _torque(sin_b, cos_b, *geometry, force, *inertia)
+    best = max(best, abs(torque))
+    # Brent's state: b that point, c the end across the root, a the other end.
+    if (fb > 0.0) == (low_slope > 0.0):
+        a, fa, sin_a, cos_a = low, low_slope, low_sin, low_cos
+        c, fc, sin_c, cos_c = high, high_slope, high_sin, high_cos
+    else:
+        a, fa, sin_a, cos_a = high, high_slope, high_sin, high_cos
+        c, fc, sin_c, cos_c = low, low_slope, low_sin, low_cos
     d = e = b - a
     for _ in range(max_steps):
         if (fb > 0.0) == (fc > 0.0):
@@ -157,6 +183,7 @@ def _keep(kept, brackets, best, force, low, low_torque, low_slope, low_sin, low_
             kept[brackets, 4], kept[brackets, 5] = force, bound
             kept[brackets, 6], kept[brackets, 7] = low_sin, low_cos
             kept[brackets, 8], kept[brackets, 9] = high_sin, high_cos
+            kept[brackets, 10], kept[brackets, 11] = low_torque, high_torque
             return brackets + 1
     return brackets
 
@@ -218,7 +245,7 @@ def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
     piece_force = np.empty(8)
     # Brackets kept from the samples: low, high, their slopes, force, bound, their sin, cos.
     capacity = cut_samples + return_samples + 32 + _LANES
-    kept = np.empty((capacity, 10))
+    kept = np.empty((capacity, 12))
     # Samples of the revolution: angle, sin, cos, force; torque and slope.
     angles, sines, cosines = np.empty(capacity), np.empty(capacity), np.empty(capacity)
     forces, torques, slopes = np.empty(capacity), np.empty(capacity), np.empty(capacity)
@@ -246,7 +273,7 @@ def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
             edge_count = _edges(edges, ri, hi, heighti, cutting_length, -half_gap)
         needed = cut_samples + int(math.ceil(return_samples * return_density)) + 32 + _LANES
         if needed > kept.shape[0]:
-            kept = np.empty((needed, 10))
+            kept = np.empty((needed, 12))
             angles, sines, cosines = np.empty(needed), np.empty(needed), np.empty(needed)
             forces, torques, slopes = np.empty(needed), np.empty(needed), np.empty(needed)
             marks, inside = np.empty(needed, np.int64), np.ones(needed, np.bool_)
@@ -429,8 +456,9 @@ def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
             if kept[b, 5] <= best:
                 break
             kept[b, 5] = -1.0
-            best = _refine(kept[b, 0], kept[b, 1], kept[b, 2], kept[b, 3], kept[b, 6],
-                           kept[b, 7], kept[b, 8], kept[b, 9], kept[b, 4], best, tolerance,
+            best = _refine(kept[b, 0], kept[b, 1], kept[b, 10], kept[b, 11], kept[b, 2],
+                           kept[b, 3], kept[b, 6], kept[b, 7], kept[b, 8], kept[b, 9],
+                           kept[b, 4], best, tolerance,
                            max_steps, geometry, inertia)
         result[i] = best
 
