@@ -16,19 +16,25 @@ Compiled (numba) search of the peak input torque under the ideal speed drive.
 
 motor_drive.peak_input_torque's loop, one configuration at a time, in the crank angle
 phi_c (no coupling atan2). The revolution is split where the ram load switches (the two
-reversals and the workpiece's edges, in closed form as motor_drive._load_switch_angles,
-their sin and cos too); each smooth piece carries its own constant ram force, taken at a
-point inside it. The torque and its slope (dynamics.speed_drive_torque_of, compiled here)
-are sampled on each piece at evenly spread crank angles (sin and cos by rotation, put back
-onto the unit circle) and at the coupling's two crossings (flywheel angle 0 or pi, where the
-speed ratio changes fastest near |offset| = r1); piece ends are taken with the piece's own
-force (the one-sided limits at a workpiece edge). Where the slope changes sign a bracket is
-kept if the ends and slopes allow a peak of |torque| above the best value so far; where
-both slopes agree but the torque moved against them (a minimum and a maximum hide there)
-the interval is halved until the change shows. The brackets are solved, largest bound
-first, by Brent's method on the slope. Blocks of configurations run on numba's threads.
-Loading is as for qrm_ros.peak_kernel: machine code compiled on the first import for its
-one signature (about 5 s, with peak_kernel's) and cached, then 0.3 s to load.
+reversals and the cutting stroke's workpiece edges, in closed form as
+motor_drive._load_switch_angles, their sin and cos too; the other stroke's edges switch
+nothing); each smooth piece carries its own constant ram force, taken at a point inside it.
+Consecutive configurations that repeat the lever geometry or crank phase reuse these. The
+samples come first: on each piece evenly spread crank angles (sin and cos by rotation, put
+back onto the unit circle) and the coupling's two crossings (flywheel angle 0 or pi, where
+the speed ratio changes fastest near |offset| = r1); piece ends with the piece's own force
+(the one-sided limits at a workpiece edge). Then the torque and its slope
+(dynamics.speed_drive_torque_of, compiled here) at all of them in one loop that LLVM
+vectorises (SIMD lanes across samples). Then, in one branch-free pass, the intervals where
+the slope changes sign, or where both slopes agree but the torque moved against them (a
+minimum and a maximum hide there: halved until the change shows), and of those a bracket
+is kept if the ends and slopes allow a peak of |torque| above the best sample. The
+brackets are solved, largest bound first, by Brent's method on the slope, started where
+the cubic through the ends' torques and slopes peaks and stopped once the torque's
+possible gain is below its round-off. Blocks of configurations go to numba's threads one
+at a time. Loading is as for qrm_ros.peak_kernel: machine code compiled on the first
+import for its one signature (about 5 s, with peak_kernel's) and cached, then 0.3 s to
+load.
 """
 
 import math
@@ -83,10 +89,12 @@ def _refine(low, high, low_torque, high_torque, low_slope, high_slope, low_sin, 
     """
     Return max(best, |torque| at the slope's root in [low, high]): Brent's method (zeroin).
 
-    Inverse quadratic and secant steps where they stay well inside the bracket, bisection
-    otherwise; stops once the bracket is within tolerance (rad). Every point evaluated is
-    a true torque of the piece, so the largest |torque| seen is kept. Each point's sin and
-    cos come from rotating the previous point's by the step (no sin or cos calls once the
+    Started at the peak of the cubic through the ends' torques and slopes; then inverse
+    quadratic and secant steps where they stay well inside the bracket, bisection
+    otherwise; stops once the bracket is within tolerance (rad), or once the torque can
+    gain no more than a small part of its round-off. Every point evaluated is a true
+    torque of the piece, so the largest |torque| seen is kept. Each point's sin and cos
+    come from rotating the previous point's by the step (no sin or cos calls once the
     steps are below 0.3 rad).
     """
     # The first point: where the cubic through both ends' torques and slopes peaks (its
@@ -243,7 +251,8 @@ def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
     # Each piece's first sample and its force.
     piece_first = np.empty(8, np.int64)
     piece_force = np.empty(8)
-    # Brackets kept from the samples: low, high, their slopes, force, bound, their sin, cos.
+    # Brackets kept from the samples: low, high, their slopes, force, bound, their sin, cos,
+    # their torques.
     capacity = cut_samples + return_samples + 32 + _LANES
     kept = np.empty((capacity, 12))
     # Samples of the revolution: angle, sin, cos, force; torque and slope.
