@@ -33,7 +33,7 @@ brackets are solved, largest bound first, by Brent's method on the slope, starte
 the cubic through the ends' torques and slopes peaks and stopped once the torque's
 possible gain is below its round-off. Blocks of configurations go to numba's threads one
 at a time. Loading is as for qrm_ros.peak_kernel: machine code compiled on the first
-import for its one signature (about 5 s, with peak_kernel's) and cached, then 0.3 s to
+import for its one signature (about 8 s, with peak_kernel's) and cached, then 0.3 s to
 load.
 """
 
