@@ -248,9 +248,8 @@ def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
     inertia = (flywheel_inertia, lever_inertia, ram_mass, gravity_moment)
     # Load switches in order, with their sin and cos (closed form, no sin or cos calls).
     bounds = np.empty((8, 3))
-    # Each piece's first sample and its force.
+    # Each piece's first sample.
     piece_first = np.empty(8, np.int64)
-    piece_force = np.empty(8)
     # Brackets kept from the samples: low, high, their slopes, force, bound, their sin, cos,
     # their torques.
     capacity = cut_samples + return_samples + 32 + _LANES
@@ -358,7 +357,7 @@ def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
             position = heighti * ri * inside_cos / (hi + ri * inside_sin)
             cutting = velocity_sign < 0.0 and abs(position) <= 0.5 * cutting_length
             force = (cutting_force if cutting else 0.0) - ram_friction * velocity_sign
-            piece_first[pieces], piece_force[pieces] = samples, force
+            piece_first[pieces] = samples
             pieces += 1
             angles[samples], sines[samples], cosines[samples] = low, sin_c, cos_c
             forces[samples] = force
