@@ -199,6 +199,21 @@ def test_refuses_bad_input():
         md.peak_input_torque(PAPER, heavy, loads, 0.01, 1.0)
 
 
+def test_order_does_not_change_results():
+    """A configuration's peak is its own: the kernel's reuse of a repeated geometry or phase
+    (consecutive configurations) gives the same floats as computing them afresh."""
+    radii = kin.Geometry(0.025, np.linspace(0.02, 0.1, 40)[:, None], 0.113)
+    offsets = np.linspace(-0.0225, 0.0225, 50)[None, :]
+    loads = dyn.Loads(400.0, 20.0, 0.9 * float(np.min(radii.ram_stroke)))
+    grid = md.peak_input_torque(radii, MASS, loads, offsets, -2.0 * math.pi)
+    order = np.random.default_rng(8).permutation(grid.size)
+    crank = np.broadcast_to(radii.crank_radius, grid.shape).ravel()[order]
+    shuffled = md.peak_input_torque(kin.Geometry(0.025, crank, 0.113), MASS, loads,
+                                    np.broadcast_to(offsets, grid.shape).ravel()[order],
+                                    -2.0 * math.pi)
+    np.testing.assert_array_equal(shuffled, grid.ravel()[order])
+
+
 def test_thread_count_does_not_change_results():
     geometry, offset, speed = random_designs(20_000, 21)
     loads = dyn.Loads(400.0, 20.0, 0.8 * float(np.min(geometry.ram_stroke)))
