@@ -22,6 +22,7 @@ peaks on its own; that is what makes the per-pair figures exact to quadrature ac
 
 import bisect
 import dataclasses
+import gc
 import math
 import threading
 from typing import NamedTuple
@@ -365,6 +366,70 @@ def _float_dense(dense):
     return at
 
 
+class _Dop853(integrate.DOP853):
+    """
+    scipy's DOP853 at the stepper's tolerances, calling the right-hand side directly.
+
+    OdeSolver wraps the right-hand side (a call counting nfev, then np.asarray of its
+    result); the solver stores each result into its stage array, or keeps the last as f and
+    adds it to an array (dense output), both of which take the [speed, acceleration] list as
+    the array it made of it, so dropping the wrappers changes no number (nfev goes
+    uncounted). Construction still goes through them.
+    """
+
+    def __init__(self, rhs, time, state, bound):
+        super().__init__(rhs, time, state, bound, rtol=_RTOL, atol=_ATOL)
+        self.fun = rhs
+
+
+# The lean acceleration compiled (qrm_ros.motor_kernel, numba): [function] once loaded, [None]
+# while loading or without numba. Importing numba and loading the machine code take 0.3-1 s,
+# so the first MotorStepper of a process starts it on a thread of its own and each segment
+# takes whichever form is there (the two give the same numbers bit for bit). That thread
+# interleaves with the ticks (the node's 0.1 ms GIL switch interval) but for its C calls
+# that keep the GIL: 3-7 ms each, a few, once per process.
+_COMPILED_ACCELERATION = [None]
+_COMPILED_LOADED = threading.Event()
+_LOADER_LOCK = threading.Lock()
+_loader = []
+
+
+def _load_compiled_acceleration():
+    # The garbage collector stays off meanwhile: a full collection among numba's new objects
+    # took 60 ms with the GIL held (a stall of every other thread); they stay for the
+    # process's life, so they are frozen out of later collections (as the nodes freeze
+    # theirs before they spin).
+    collecting = gc.isenabled()
+    gc.disable()
+    try:
+        from qrm_ros import motor_kernel
+    except ImportError:  # without numba: the Python form throughout
+        pass
+    else:
+        _COMPILED_ACCELERATION[0] = motor_kernel.lean_acceleration
+    finally:
+        gc.freeze()
+        if collecting:
+            gc.enable()
+        _COMPILED_LOADED.set()
+
+
+def _start_loading_compiled_acceleration():
+    with _LOADER_LOCK:
+        if not _loader:
+            _loader.append(threading.Thread(target=_load_compiled_acceleration, daemon=True,
+                                            name='qrm_motor_kernel_loader'))
+            _loader[0].start()
+
+
+def _lean_kernel(constants):
+    """Return (function, its constants) of the lean acceleration: compiled once loaded."""
+    compiled = _COMPILED_ACCELERATION[0]
+    if compiled is None:
+        return dyn._lean_acceleration_of, constants
+    return compiled, np.array(constants)
+
+
 class MotorStepper:
     """
     The mechanism under a motor drive: the input speed is a state of the equation of motion.
@@ -402,6 +467,7 @@ class MotorStepper:
                                              input_acceleration_limit, 'rad/s^2')
         self._offset_rate_limit = _positive('offset_rate_limit', offset_rate_limit, 'm/s')
         self._set_dynamics(mass, loads, motor)
+        _start_loading_compiled_acceleration()
         self.time_resets = 0
         # Called with (start, end, dense output) of every piece of trajectory as it is made,
         # while its segment is still in force (speed_fluctuation's exact extremes).
@@ -414,7 +480,8 @@ class MotorStepper:
         self._mass = mass
         # The chain's fixed arguments: math's functions, the geometry, the masses as floats.
         self._fixed = (dyn._SCALAR_OPS, *dyn._geometry_fields(self._geometry), mass.scalars())
-        self._lean_acceleration, self._ram_motion = dyn._lean_chain(self._geometry, mass)
+        self._lean_constants = dyn._lean_constants(self._geometry, mass)
+        self._ram_motion = dyn._lean_chain(self._geometry, mass)[1]
         self._switch_angles_at = (None, None, None)
         self._loads = loads.check_against(self._geometry.ram_stroke)
         loads.scalars()
@@ -560,7 +627,8 @@ class MotorStepper:
         mode holds (one per switch kind). Closures over the segment's constants: the
         right-hand side runs about 16 times a solver step, the switch checks 6 times.
         """
-        lean_acceleration, ram_motion = self._lean_acceleration, self._ram_motion
+        kernel, constants = _lean_kernel(self._lean_constants)
+        ram_motion = self._ram_motion
         motor = self._motor
         command, reference_end, segment_reference = (self._speed_command, self._reference_end,
                                                      self._segment_reference)
@@ -593,12 +661,26 @@ class MotorStepper:
             else:
                 torque = held_torque
             offset = target if time >= offset_end else offset_at(time)
-            return lean_acceleration(offset, angle, speed, rate, torque, load)
+            return kernel(constants, offset, angle, speed, rate, torque, load)
 
-        def rhs(time, y):
-            """Right-hand side for DOP853 (y an array: its values go on as plain floats)."""
-            angle, speed = y.tolist()
-            return [speed, acceleration(float(time), angle, speed)]
+        # The solver's times are never before the segment's start: with both ramps ended by
+        # then, the reference is the command and the offset its target throughout, and the
+        # right-hand side is acceleration's steady branch, written out.
+        if max(reference_end, offset_end) > start:
+            def rhs(time, y):
+                """Right-hand side for DOP853 (y an array: its values go on as floats)."""
+                angle, speed = y.tolist()
+                return [speed, acceleration(float(time), angle, speed)]
+        elif free:
+            def rhs(time, y):
+                angle, speed = y.tolist()
+                return [speed, kernel(constants, target, angle, speed, rate,
+                                      stiffness * (command - speed), load)]
+        else:
+            def rhs(time, y):
+                angle, speed = y.tolist()
+                return [speed, kernel(constants, target, angle, speed, rate, held_torque,
+                                      load)]
 
         def switching(time, angle, speed, ram=True):
             """ram=False: 1.0 for the ram's two (a step clear of the load's switches)."""
@@ -724,8 +806,7 @@ class MotorStepper:
         # The segment's functions (not at rest: _start runs every tick while held).
         (rhs, self._acceleration_at, self._switching, self._clear,
          self._motor_holds) = self._segment_functions()
-        self._solver = integrate.DOP853(rhs, time, [angle, speed],
-                                        self._breakpoint(time), rtol=_RTOL, atol=_ATOL)
+        self._solver = _Dop853(rhs, time, [angle, speed], self._breakpoint(time))
         # The last piece stays valid up to here (a stamp just before the switch), no further.
         piece_start, _, at = self._piece
         self._piece = (piece_start, time, at) if at is not None else (time, time, None)
@@ -771,14 +852,16 @@ class MotorStepper:
             return
         solver = self._solver
         if solver.status == 'finished':
-            reference = self._reference_at(solver.t)
-            offset = self._offset_at(solver.t)
-            self._start(solver.t, float(solver.y[0]), float(solver.y[1]), reference, offset, None)
+            time = float(solver.t)
+            angle, speed = solver.y.tolist()
+            self._start(time, angle, speed, self._reference_at(time), self._offset_at(time),
+                        None)
             return
         message = solver.step()
         if solver.status == 'failed':
             raise dyn.DynamicsError(f'the motor-drive integration failed: {message}')
-        start, end = solver.t_old, solver.t
+        # Plain floats (numpy's scalars are several times slower in the arithmetic below).
+        start, end = float(solver.t_old), float(solver.t)
         dense = solver.dense_output()
         at = _float_dense(dense)
         switch = self._first_switch(at, start, end)
