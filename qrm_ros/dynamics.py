@@ -402,6 +402,49 @@ def _lean_acceleration_of(constants, offset, angle, speed, offset_rate, torque, 
     return (torque - bias) / inertia
 
 
+def _lean_efforts_of(constants, offset, angle, speed, acceleration, offset_rate, load):
+    """
+    Return the chain's Efforts fields as a tuple, at zero offset acceleration; plain floats.
+
+    (input torque, flywheel torque, lever torque, ram force, offset force) under the ram
+    load (N), constants from ``_lean_constants``: every operation of the chain that they
+    depend on, in its order (the offset acceleration's zero term kept, so even the signs of
+    zeros agree), none of the rest; the chain's numbers bit for bit (a test holds them to
+    it). Compiled by qrm_ros.motor_kernel as ``_lean_acceleration_of`` is.
+    """
+    (r1, r, h, height, phase, input_inertia, flywheel_inertia, lever_inertia, ram_mass,
+     lever_weight, r1_r1, two_r1, r_h, two_r_h, minus_r, minus_r_h, h_h_r_r, two_height,
+     minus_two_r1) = constants
+    sin_t, cos_t = math.sin(angle), math.cos(angle)
+    n = r1_r1 + offset * offset + two_r1 * offset * sin_t
+    phi_t = r1 * (r1 + offset * sin_t) / n
+    phi_d = r1 * cos_t / n
+    n2 = n * n
+    phi_tt = r1 * offset * cos_t * (offset * offset - r1_r1) / n2
+    phi_td = -r1 * (sin_t * (r1_r1 + offset * offset) + two_r1 * offset) / n2
+    phi_dd = minus_two_r1 * cos_t * (offset + r1 * sin_t) / n2
+    crank_angle = angle + math.atan2(offset * cos_t, r1 + offset * sin_t) + phase
+    sin_c, cos_c = math.sin(crank_angle), math.cos(crank_angle)
+    m = r_h + two_r_h * sin_c
+    psi_p = minus_r * (r + h * sin_c) / m
+    psi_pp = minus_r_h * cos_c * h_h_r_r / (m * m)
+    tan_l = r * cos_c / (h + r * sin_c)
+    sec2 = 1.0 + tan_l * tan_l
+    x_p = height * sec2
+    x_pp = two_height * tan_l * sec2
+    flywheel_speed = phi_t * speed + phi_d * offset_rate
+    flywheel_acc = (phi_t * acceleration + phi_d * 0.0 + phi_tt * (speed * speed)
+                    + 2.0 * phi_td * speed * offset_rate + phi_dd * offset_rate * offset_rate)
+    lever_speed = psi_p * flywheel_speed
+    lever_acc = psi_p * flywheel_acc + psi_pp * flywheel_speed * flywheel_speed
+    ram_force = ram_mass * (x_p * lever_acc + x_pp * lever_speed * lever_speed) - load
+    lever_torque = (lever_inertia * lever_acc - lever_weight * tan_l / math.sqrt(sec2)
+                    + ram_force * x_p)
+    flywheel_torque = flywheel_inertia * flywheel_acc + lever_torque * psi_p
+    return (input_inertia * acceleration + flywheel_torque * phi_t, flywheel_torque,
+            lever_torque, ram_force, flywheel_torque * phi_d)
+
+
 def _lean_chain(geometry, mass):
     """
     Return the stepper's two lean evaluations of ``dynamics._chain`` on plain floats.

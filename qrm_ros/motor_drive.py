@@ -382,19 +382,20 @@ class _Dop853(integrate.DOP853):
         self.fun = rhs
 
 
-# The lean acceleration compiled (qrm_ros.motor_kernel, numba): [function] once loaded, [None]
-# while loading or without numba. Importing numba and loading the machine code take 0.3-1 s,
-# so the first MotorStepper of a process starts it on a thread of its own and each segment
-# takes whichever form is there (the two give the same numbers bit for bit). That thread
-# interleaves with the ticks (the node's 0.1 ms GIL switch interval) but for its C calls
-# that keep the GIL: 3-7 ms each, a few, once per process.
-_COMPILED_ACCELERATION = [None]
+# The lean acceleration and efforts compiled (qrm_ros.motor_kernel, numba): [the module] once
+# loaded, [None] while loading or without numba. Importing numba and loading the machine code
+# take 0.3-1 s, so the first MotorStepper of a process starts it on a thread of its own; each
+# segment, and the efforts at each stamp, take whichever form is there (the two give the
+# same numbers bit for bit). That thread interleaves with the ticks (the node's 0.1 ms GIL
+# switch interval) but for its C calls that keep the GIL: 3-7 ms each, a few, once per
+# process.
+_COMPILED_KERNEL = [None]
 _COMPILED_LOADED = threading.Event()
 _LOADER_LOCK = threading.Lock()
 _loader = []
 
 
-def _load_compiled_acceleration():
+def _load_compiled_kernel():
     # The garbage collector stays off meanwhile: a full collection among numba's new objects
     # took 60 ms with the GIL held (a stall of every other thread); they stay for the
     # process's life, so they are frozen out of later collections (as the nodes freeze
@@ -406,7 +407,7 @@ def _load_compiled_acceleration():
     except ImportError:  # without numba: the Python form throughout
         pass
     else:
-        _COMPILED_ACCELERATION[0] = motor_kernel.lean_acceleration
+        _COMPILED_KERNEL[0] = motor_kernel
     finally:
         gc.freeze()
         if collecting:
@@ -414,20 +415,12 @@ def _load_compiled_acceleration():
         _COMPILED_LOADED.set()
 
 
-def _start_loading_compiled_acceleration():
+def _start_loading_compiled_kernel():
     with _LOADER_LOCK:
         if not _loader:
-            _loader.append(threading.Thread(target=_load_compiled_acceleration, daemon=True,
+            _loader.append(threading.Thread(target=_load_compiled_kernel, daemon=True,
                                             name='qrm_motor_kernel_loader'))
             _loader[0].start()
-
-
-def _lean_kernel(constants):
-    """Return (function, its constants) of the lean acceleration: compiled once loaded."""
-    compiled = _COMPILED_ACCELERATION[0]
-    if compiled is None:
-        return dyn._lean_acceleration_of, constants
-    return compiled, np.array(constants)
 
 
 class MotorStepper:
@@ -467,7 +460,7 @@ class MotorStepper:
                                              input_acceleration_limit, 'rad/s^2')
         self._offset_rate_limit = _positive('offset_rate_limit', offset_rate_limit, 'm/s')
         self._set_dynamics(mass, loads, motor)
-        _start_loading_compiled_acceleration()
+        _start_loading_compiled_kernel()
         self.time_resets = 0
         # Called with (start, end, dense output) of every piece of trajectory as it is made,
         # while its segment is still in force (speed_fluctuation's exact extremes).
@@ -481,6 +474,7 @@ class MotorStepper:
         # The chain's fixed arguments: math's functions, the geometry, the masses as floats.
         self._fixed = (dyn._SCALAR_OPS, *dyn._geometry_fields(self._geometry), mass.scalars())
         self._lean_constants = dyn._lean_constants(self._geometry, mass)
+        self._lean_array = np.array(self._lean_constants)  # the compiled forms take an array
         self._ram_motion = dyn._lean_chain(self._geometry, mass)[1]
         self._switch_angles_at = (None, None, None)
         self._loads = loads.check_against(self._geometry.ram_stroke)
@@ -627,7 +621,10 @@ class MotorStepper:
         mode holds (one per switch kind). Closures over the segment's constants: the
         right-hand side runs about 16 times a solver step, the switch checks 6 times.
         """
-        kernel, constants = _lean_kernel(self._lean_constants)
+        compiled = _COMPILED_KERNEL[0]
+        kernel, constants = ((dyn._lean_acceleration_of, self._lean_constants)
+                             if compiled is None else
+                             (compiled.lean_acceleration, self._lean_array))
         ram_motion = self._ram_motion
         motor = self._motor
         command, reference_end, segment_reference = (self._speed_command, self._reference_end,
@@ -960,8 +957,12 @@ class MotorStepper:
 
     def efforts(self):
         """``dynamics.Efforts`` at the present stamp (the motor's torque drives the input)."""
-        return dyn._chain(*self._fixed, self.offset, self._angle, self._speed,
-                          self.input_acceleration, self.offset_rate, 0.0, self._load).efforts
+        arguments = (self.offset, self._angle, self._speed, self.input_acceleration,
+                     self.offset_rate, self._load)
+        compiled = _COMPILED_KERNEL[0]
+        if compiled is None:
+            return dyn.Efforts(*dyn._lean_efforts_of(self._lean_constants, *arguments))
+        return dyn.Efforts(*compiled.lean_efforts(self._lean_array, *arguments))
 
     # State --------------------------------------------------------------------------------
 

@@ -14,9 +14,10 @@
 """
 Compiled (numba) right-hand side of the motor drive's equation of motion.
 
-dynamics._lean_acceleration_of, the same function compiled for floats (its constants as a
-float64 array): about a quarter of its cost in Python, the same numbers bit for bit (no
-fast-math flag, so nothing is fused or reordered; a test holds the two together).
+dynamics._lean_acceleration_of (the right-hand side's acceleration) and _lean_efforts_of (the
+efforts at a stamp), the same functions compiled for floats (their constants as a float64
+array): about a quarter of their cost in Python, the same numbers bit for bit (no fast-math
+flag, so nothing is fused or reordered; tests hold the forms together).
 motor_drive.MotorStepper imports this on a thread of its own and takes it up once loaded
 (importing numba and loading the cached machine code take about 0.3 s; the first import
 compiles, about 1 s, cached beside this file or in numba's user cache); until then, and
@@ -26,8 +27,10 @@ call can start a compilation.
 
 import numba
 
-from qrm_ros.dynamics import _lean_acceleration_of
+from qrm_ros.dynamics import _lean_acceleration_of, _lean_efforts_of
 
-lean_acceleration = numba.njit(
-    'float64(float64[::1], float64, float64, float64, float64, float64, float64)',
-    cache=True, nogil=True)(_lean_acceleration_of)
+_ARGUMENTS = '(float64[::1], float64, float64, float64, float64, float64, float64)'
+lean_acceleration = numba.njit('float64' + _ARGUMENTS, cache=True,
+                               nogil=True)(_lean_acceleration_of)
+lean_efforts = numba.njit('UniTuple(float64, 5)' + _ARGUMENTS, cache=True,
+                          nogil=True)(_lean_efforts_of)

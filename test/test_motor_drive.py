@@ -469,17 +469,42 @@ def test_the_lean_chain_gives_the_chains_numbers_bit_for_bit(mass):
             [chain.ram_position, chain.ram_velocity])
 
 
-def _compiled_acceleration():
+def _kernel():
     pytest.importorskip('numba')
     from qrm_ros import motor_kernel
-    return motor_kernel.lean_acceleration
+    return motor_kernel
+
+
+@pytest.mark.parametrize('mass', [MASS, dyn.MassProperties(
+    input_inertia=0.05, flywheel_inertia=0.0, lever_mass=3.0, lever_inertia=0.4,
+    lever_com_distance=0.2, ram_mass=12.0, gravity=9.81)])
+def test_the_lean_efforts_are_the_chains_bit_for_bit_in_python_and_compiled(mass):
+    kernel = _kernel()
+    rng = np.random.default_rng(12)
+    constants = dyn._lean_constants(GEOMETRY, mass)
+    array = np.array(constants)
+    fixed = (dyn._SCALAR_OPS, *dyn._geometry_fields(GEOMETRY), mass.scalars())
+    radius = GEOMETRY.coupling_radius
+    for index in range(30000):
+        # Exact zeros too (a shaft at rest, no ramp, no load): the signs of zeros agree.
+        offset = 0.0 if index % 5 == 0 else float(rng.uniform(-0.99, 0.99)) * radius
+        rate = 0.0 if index % 3 == 0 else float(rng.normal(0.0, 0.02))
+        speed = 0.0 if index % 7 == 0 else float(rng.normal(0.0, 20.0))
+        acceleration = 0.0 if index % 7 == 0 else float(rng.normal(0.0, 50.0))
+        load = 0.0 if index % 4 == 0 else float(rng.normal(0.0, 1500.0))
+        angle = float(rng.uniform(-40.0, 40.0))
+        arguments = (offset, angle, speed, acceleration, rate, load)
+        expected = _bits(dyn._chain(*fixed, offset, angle, speed, acceleration, rate, 0.0,
+                                    load).efforts)
+        assert _bits(dyn._lean_efforts_of(constants, *arguments)) == expected
+        assert _bits(kernel.lean_efforts(array, *arguments)) == expected
 
 
 @pytest.mark.parametrize('mass', [MASS, dyn.MassProperties(
     input_inertia=0.05, flywheel_inertia=0.0, lever_mass=3.0, lever_inertia=0.4,
     lever_com_distance=0.2, ram_mass=12.0, gravity=9.81)])
 def test_the_compiled_acceleration_gives_the_python_forms_numbers_bit_for_bit(mass):
-    compiled = _compiled_acceleration()
+    compiled = _kernel().lean_acceleration
     rng = np.random.default_rng(11)
     constants = dyn._lean_constants(GEOMETRY, mass)
     array = np.array(constants)
@@ -514,13 +539,14 @@ def _commanded_run(loads, at_tick=None):
 
 @pytest.mark.parametrize('cutting_force', [LOADS.cutting_force, 6000.0])  # 6000: saturates
 def test_the_compiled_and_python_right_hand_sides_give_the_same_run(monkeypatch, cutting_force):
-    # The stepper takes the compiled acceleration up when its loading thread is done, at the
-    # next segment: runs in either form, or switching mid-run, are the same bit for bit.
-    compiled = _compiled_acceleration()
+    # The stepper takes the compiled forms up when its loading thread is done (the right-hand
+    # side at the next segment, the efforts at once): runs in either form, or switching
+    # mid-run, are the same bit for bit.
+    compiled = _kernel()
     loads = dyn.Loads(cutting_force=cutting_force, ram_friction=LOADS.ram_friction,
                       cutting_length=LOADS.cutting_length)
     form = [compiled]
-    monkeypatch.setattr(md, '_COMPILED_ACCELERATION', form)
+    monkeypatch.setattr(md, '_COMPILED_KERNEL', form)
     in_compiled = _commanded_run(loads)
     form[0] = None
     in_python = _commanded_run(loads)
@@ -541,9 +567,9 @@ def test_without_numba_the_stepper_runs_the_python_form(monkeypatch):
             raise ImportError(f'no module named {name!r} (test)')
         return real_import(name, *arguments, **options)
     form = [None]
-    monkeypatch.setattr(md, '_COMPILED_ACCELERATION', form)
+    monkeypatch.setattr(md, '_COMPILED_KERNEL', form)
     monkeypatch.setattr(builtins, '__import__', without_numba)
-    md._load_compiled_acceleration()
+    md._load_compiled_kernel()
     assert form == [None] and md._COMPILED_LOADED.is_set()
     monkeypatch.setattr(builtins, '__import__', real_import)
     rows = _run(_stepper(), 0, 200_000_000)
