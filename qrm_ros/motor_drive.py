@@ -21,6 +21,7 @@ peaks on its own; that is what makes the per-pair figures exact to quadrature ac
 """
 
 import bisect
+import collections
 import dataclasses
 import gc
 import math
@@ -335,6 +336,12 @@ _SWITCH_ANGLE_MARGIN = 1e-6
 _NANOSECONDS = 1e9
 # A ram reversal landed on with the input slower than this (rad/s) is the shaft stopping.
 _STOP_SPEED = 1e-9
+# Solver steps taken at once, ahead of the stamps (within the segment: a switch ends them; a
+# command or a reset drops what is ahead): the same steps, so the same numbers, run back to
+# back about every 10 ticks at 1 kHz. In a running node each step then costs less than alone
+# between two ticks (warm caches): the motor node's CPU fell from 1.36-1.51 to 1.21-1.34
+# times the speed drive's in two interleaved runs against one step at a time.
+_STEPS_AHEAD = 4
 # Why a segment of the integration ended (what changed at the restart).
 _DIRECTION, _WORK, _SATURATION, _SPIN = range(4)
 
@@ -440,7 +447,8 @@ class MotorStepper:
     found on the step's dense output with brentq, and the step is cut there; a step whose
     samples keep clear of the load's switch angles (closed form) and of the motor's limit
     skips the switching functions (the same switches, found cheaper). Outputs at stamps
-    come from dense output, so the trajectory does not depend on the stamps asked for.
+    come from dense output, so the trajectory does not depend on the stamps asked for; the
+    steps are taken a few at a time ahead of the stamps, within a segment.
 
     Stall rule: when the input speed reaches zero, the load seen by each direction of motion
     is the one that motion would meet (friction against it; the cutting force if the ram
@@ -542,6 +550,8 @@ class MotorStepper:
         self._load = 0.0
         self._saturation = 0
         self._piece = (0.0, 0.0, None)
+        # Pieces of the segment made ahead of the stamps, in order: (start, end, float dense).
+        self._ahead = collections.deque()
         # A switch found in the last step, its segment not started yet: (time, angle, speed,
         # kind) once the stamps pass it.
         self._pending = None
@@ -751,6 +761,7 @@ class MotorStepper:
         """Start a segment at time with this state; choose its mode from the state."""
         self._acceleration_now = None
         self._pending = None  # a command's restart from the present stamp replaces it
+        self._ahead.clear()  # and the pieces made ahead of the stamps
         old_rate = self._offset_rate
         gap = self._offset_command - offset
         rate = math.copysign(self._offset_rate_limit, gap) if gap else 0.0
@@ -839,7 +850,11 @@ class MotorStepper:
                 f'{self._loads.ram_friction:.6g} N)')
 
     def _extend(self):
-        """Cover the next stretch of time: one solver step, cut at a switch, or a restart."""
+        """Cover the next stretch of time: the next piece made, solver steps, or a restart."""
+        ahead = self._ahead
+        if ahead:
+            self._piece = ahead.popleft()
+            return
         if self._pending is not None:
             # The stamps have passed the switch: its segment starts now (not before, so that
             # a stamp just before it reads the mode it is in: load, saturation, direction).
@@ -854,6 +869,14 @@ class MotorStepper:
             self._start(time, angle, speed, self._reference_at(time), self._offset_at(time),
                         None)
             return
+        for _ in range(_STEPS_AHEAD):
+            ahead.append(self._step(solver))
+            if self._pending is not None or solver.status == 'finished':
+                break
+        self._piece = ahead.popleft()
+
+    def _step(self, solver):
+        """Take one solver step; return its piece (cut at a switch, then pending)."""
         message = solver.step()
         if solver.status == 'failed':
             raise dyn.DynamicsError(f'the motor-drive integration failed: {message}')
@@ -863,16 +886,15 @@ class MotorStepper:
         at = _float_dense(dense)
         switch = self._first_switch(at, start, end)
         if switch is None:
-            self._piece = (start, end, at)
             if self._observer is not None:
                 self._observer(start, end, dense)
-            return
+            return start, end, at
         time, kind = switch
-        self._piece = (start, time, at)
         if self._observer is not None:
             self._observer(start, time, dense)
         angle, speed = at(time)
         self._pending = (time, angle, speed, kind)
+        return start, time, at
 
     def _first_switch(self, at, start, end):
         # np.linspace(start, end, _ROOT_SAMPLES + 1), the same numbers without its overhead.

@@ -557,6 +557,15 @@ def test_the_compiled_and_python_right_hand_sides_give_the_same_run(monkeypatch,
     assert _commanded_run(loads, load_at_two_seconds) == in_compiled
 
 
+@pytest.mark.parametrize('cutting_force', [LOADS.cutting_force, 6000.0])
+def test_steps_taken_ahead_of_the_stamps_change_nothing(monkeypatch, cutting_force):
+    loads = dyn.Loads(cutting_force=cutting_force, ram_friction=LOADS.ram_friction,
+                      cutting_length=LOADS.cutting_length)
+    ahead = _commanded_run(loads)
+    monkeypatch.setattr(md, '_STEPS_AHEAD', 1)
+    assert _commanded_run(loads) == ahead
+
+
 def test_without_numba_the_stepper_runs_the_python_form(monkeypatch):
     import builtins
     real_import = builtins.__import__
