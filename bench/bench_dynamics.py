@@ -16,9 +16,11 @@ Benchmark: vectorised efforts (samples/s), the per-tick cost of the motor steppe
 
 efforts' target is >= 1e6 samples/s. A node tick at 1 kHz is timed as the node spends it:
 the speed drive's ShaperStepper.advance_to plus the efforts of the prescribed motion, the
-motor drive's MotorStepper.advance_to plus its efforts(); advance_to alone is timed too. The
-drives run in turns, each repeat one second of ticks, and the medians of the repeats are
-compared (the machine is shared: only ratios within one run mean much).
+motor drive's MotorStepper.advance_to plus its efforts(); advance_to alone is timed too, and
+the motor tick once more with the stepper's right-hand side and efforts in their Python form
+(before the compiled form has loaded, or without numba). The drives run in turns, each
+repeat one second of ticks, and the medians of the repeats are compared (the machine is
+shared: only ratios within one run mean much).
 
     python3 dev.py run python bench/bench_dynamics.py [--samples 1000000] [--ticks 1000]
 """
@@ -31,6 +33,7 @@ import time
 import numpy as np
 
 from qrm_ros import dynamics as dyn
+from qrm_ros import motor_drive as md
 from qrm_ros.kinematics import Geometry
 from qrm_ros.motor_drive import MotorStepper, pair_efforts
 from qrm_ros.stepping import ShaperStepper
@@ -89,9 +92,19 @@ def main():
         'motor tick': ticks(MotorStepper(geometry, mass, loads, dyn.MotorDrive.small_shaper(),
                                          2 * math.pi, 0.01, 50.0, 0.01), motor_efforts),
     }
+    # The stepper's compiled right-hand side loads on a thread of its own (once per process);
+    # the ticks are timed once it is there, and once in its Python form for comparison.
+    start = time.perf_counter()
+    md._COMPILED_LOADED.wait(60.0)
+    compiled = md._COMPILED_KERNEL[0]
+    print(f'motor stepper: compiled right-hand side and efforts '
+          f'{"loaded" if compiled is not None else "unavailable (no numba)"}, waited '
+          f'{time.perf_counter() - start:.2f} s after the first stepper')
+    runs['motor tick (Python form)'] = runs['motor tick']
     timings = {name: [] for name in runs}
     for _ in range(args.repeats):
         for name, run in runs.items():
+            md._COMPILED_KERNEL[0] = None if name.endswith('(Python form)') else compiled
             start = time.perf_counter()
             run()
             timings[name].append((time.perf_counter() - start) / args.ticks * 1e6)
@@ -101,6 +114,9 @@ def main():
         print(f'{kind} at 1 kHz (medians of {args.repeats}): speed drive {speed:.1f} us, '
               f'motor drive {motor:.1f} us, ratio {motor / speed:.2f}, motor adds '
               f'{(motor - speed) / 10:.1f} % of a core')
+    python = median['motor tick (Python form)']
+    print(f'motor tick with the Python right-hand side and efforts: {python:.1f} us, ratio '
+          f'{python / median["speed tick"]:.2f} to the speed tick')
     offsets = np.linspace(-0.02, 0.02, 9)
     seconds = median_seconds(lambda: [pair_efforts(geometry, mass, loads, offset, 2 * math.pi)
                                       for offset in offsets], 3) / offsets.size

@@ -338,33 +338,129 @@ def _chain(ops, coupling_radius, crank_radius, pivot_distance, ram_height, crank
                           offset_force), inertia, ram_lever_arm, phi_t * phi_d * downstream)
 
 
+def _lean_constants(geometry, mass):
+    """
+    Return the lean chain's constants: the geometry, the masses, and their fixed groupings.
+
+    A tuple of floats in ``_lean_acceleration_of``'s order (qrm_ros.motor_kernel takes them
+    as an array); the groupings are the chain's own sub-expressions that hold the geometry
+    alone, grouped as it groups them.
+    """
+    r1, r, h = geometry.coupling_radius, geometry.crank_radius, geometry.pivot_distance
+    height = geometry.ram_height
+    fields = mass.scalars()
+    return (r1, r, h, height, geometry.crank_phase, fields['input_inertia'],
+            fields['flywheel_inertia'], fields['lever_inertia'], fields['ram_mass'],
+            fields['lever_mass'] * fields['gravity'] * fields['lever_com_distance'],
+            r1 * r1, 2.0 * r1, r * r + h * h, 2.0 * r * h, -r, -r * h, h * h - r * r,
+            2.0 * height, -2.0 * r1)
+
+
+def _lean_acceleration_of(constants, offset, angle, speed, offset_rate, torque, load):
+    """
+    Return the input acceleration (rad/s^2) from the equation of motion; plain floats.
+
+    The input torque and ram load given, at zero input and offset acceleration; constants
+    from ``_lean_constants``. The chain's own operations in its order, with what it does not
+    need left out (terms times an exact zero, the lever angle, the named tuples, the mass
+    dict), so it gives its numbers bit for bit (a test holds it to it) at under half its
+    cost. Math functions and floats only: qrm_ros.motor_kernel compiles this same function
+    (numba, no fast-math), which gives the same numbers bit for bit (a test holds it too).
+    """
+    (r1, r, h, height, phase, input_inertia, flywheel_inertia, lever_inertia, ram_mass,
+     lever_weight, r1_r1, two_r1, r_h, two_r_h, minus_r, minus_r_h, h_h_r_r, two_height,
+     minus_two_r1) = constants
+    sin_t, cos_t = math.sin(angle), math.cos(angle)
+    n = r1_r1 + offset * offset + two_r1 * offset * sin_t
+    phi_t = r1 * (r1 + offset * sin_t) / n
+    phi_d = r1 * cos_t / n
+    crank_angle = angle + math.atan2(offset * cos_t, r1 + offset * sin_t) + phase
+    sin_c, cos_c = math.sin(crank_angle), math.cos(crank_angle)
+    tan_l = r * cos_c / (h + r * sin_c)
+    n2 = n * n
+    phi_tt = r1 * offset * cos_t * (offset * offset - r1_r1) / n2
+    phi_td = -r1 * (sin_t * (r1_r1 + offset * offset) + two_r1 * offset) / n2
+    phi_dd = minus_two_r1 * cos_t * (offset + r1 * sin_t) / n2
+    m = r_h + two_r_h * sin_c
+    psi_p = minus_r * (r + h * sin_c) / m
+    psi_pp = minus_r_h * cos_c * h_h_r_r / (m * m)
+    sec2 = 1.0 + tan_l * tan_l
+    x_p = height * sec2
+    x_pp = two_height * tan_l * sec2
+    flywheel_speed = phi_t * speed + phi_d * offset_rate
+    flywheel_acc = (phi_tt * (speed * speed) + 2.0 * phi_td * speed * offset_rate
+                    + phi_dd * offset_rate * offset_rate)
+    lever_speed = psi_p * flywheel_speed
+    lever_acc = psi_p * flywheel_acc + psi_pp * flywheel_speed * flywheel_speed
+    ram_force = ram_mass * (x_p * lever_acc + x_pp * lever_speed * lever_speed)
+    lever_torque = (lever_inertia * lever_acc - lever_weight * tan_l / math.sqrt(sec2)
+                    + ram_force * x_p)
+    flywheel_torque = flywheel_inertia * flywheel_acc + lever_torque * psi_p
+    inertia = input_inertia + phi_t * phi_t * (
+        flywheel_inertia + psi_p * psi_p * (lever_inertia + ram_mass * x_p * x_p))
+    bias = flywheel_torque * phi_t - load * (x_p * psi_p * phi_t)
+    return (torque - bias) / inertia
+
+
+def _lean_efforts_of(constants, offset, angle, speed, acceleration, offset_rate, load):
+    """
+    Return the chain's Efforts fields as a tuple, at zero offset acceleration; plain floats.
+
+    (input torque, flywheel torque, lever torque, ram force, offset force) under the ram
+    load (N), constants from ``_lean_constants``: every operation of the chain that they
+    depend on, in its order (the offset acceleration's zero term kept, so even the signs of
+    zeros agree), none of the rest; the chain's numbers bit for bit (a test holds them to
+    it). Compiled by qrm_ros.motor_kernel as ``_lean_acceleration_of`` is.
+    """
+    (r1, r, h, height, phase, input_inertia, flywheel_inertia, lever_inertia, ram_mass,
+     lever_weight, r1_r1, two_r1, r_h, two_r_h, minus_r, minus_r_h, h_h_r_r, two_height,
+     minus_two_r1) = constants
+    sin_t, cos_t = math.sin(angle), math.cos(angle)
+    n = r1_r1 + offset * offset + two_r1 * offset * sin_t
+    phi_t = r1 * (r1 + offset * sin_t) / n
+    phi_d = r1 * cos_t / n
+    n2 = n * n
+    phi_tt = r1 * offset * cos_t * (offset * offset - r1_r1) / n2
+    phi_td = -r1 * (sin_t * (r1_r1 + offset * offset) + two_r1 * offset) / n2
+    phi_dd = minus_two_r1 * cos_t * (offset + r1 * sin_t) / n2
+    crank_angle = angle + math.atan2(offset * cos_t, r1 + offset * sin_t) + phase
+    sin_c, cos_c = math.sin(crank_angle), math.cos(crank_angle)
+    m = r_h + two_r_h * sin_c
+    psi_p = minus_r * (r + h * sin_c) / m
+    psi_pp = minus_r_h * cos_c * h_h_r_r / (m * m)
+    tan_l = r * cos_c / (h + r * sin_c)
+    sec2 = 1.0 + tan_l * tan_l
+    x_p = height * sec2
+    x_pp = two_height * tan_l * sec2
+    flywheel_speed = phi_t * speed + phi_d * offset_rate
+    flywheel_acc = (phi_t * acceleration + phi_d * 0.0 + phi_tt * (speed * speed)
+                    + 2.0 * phi_td * speed * offset_rate + phi_dd * offset_rate * offset_rate)
+    lever_speed = psi_p * flywheel_speed
+    lever_acc = psi_p * flywheel_acc + psi_pp * flywheel_speed * flywheel_speed
+    ram_force = ram_mass * (x_p * lever_acc + x_pp * lever_speed * lever_speed) - load
+    lever_torque = (lever_inertia * lever_acc - lever_weight * tan_l / math.sqrt(sec2)
+                    + ram_force * x_p)
+    flywheel_torque = flywheel_inertia * flywheel_acc + lever_torque * psi_p
+    return (input_inertia * acceleration + flywheel_torque * phi_t, flywheel_torque,
+            lever_torque, ram_force, flywheel_torque * phi_d)
+
+
 def _lean_chain(geometry, mass):
     """
     Return the stepper's two lean evaluations of ``dynamics._chain`` on plain floats.
 
-    acceleration(offset, angle, speed, offset_rate, torque, load): the input acceleration
-    (rad/s^2) from the equation of motion under the input torque and ram load;
-    ram_motion(offset, angle, speed, offset_rate): the ram's (position m, velocity m/s).
-    Both at zero input and offset acceleration. They are the chain's own operations in its
-    order, with what they do not need left out (terms times an exact zero, the lever angle,
-    the named tuples, the mass dict), so they give its numbers bit for bit (a test holds
-    them to it) at under half its cost, a quarter for the ram's motion; the right-hand side
-    runs about 16 times a solver step.
+    acceleration(offset, angle, speed, offset_rate, torque, load): ``_lean_acceleration_of``
+    with this geometry's and these masses' constants; ram_motion(offset, angle, speed,
+    offset_rate): the ram's (position m, velocity m/s). Both at zero input and offset
+    acceleration, the chain's numbers bit for bit (a test holds them to it); the ram's
+    motion at a quarter of its cost.
     """
-    r1, r, h = geometry.coupling_radius, geometry.crank_radius, geometry.pivot_distance
-    height, phase = geometry.ram_height, geometry.crank_phase
-    fields = mass.scalars()
-    input_inertia, flywheel_inertia = fields['input_inertia'], fields['flywheel_inertia']
-    lever_inertia, ram_mass = fields['lever_inertia'], fields['ram_mass']
-    lever_weight = fields['lever_mass'] * fields['gravity'] * fields['lever_com_distance']
-    sin, cos, sqrt, atan2 = math.sin, math.cos, math.sqrt, math.atan2
-    # Sub-expressions of the chain that hold the geometry alone, grouped as it groups them.
-    r1_r1, two_r1, r_h, two_r_h, minus_r = r1 * r1, 2.0 * r1, r * r + h * h, 2.0 * r * h, -r
-    minus_r_h, h_h_r_r, two_height = -r * h, h * h - r * r, 2.0 * height
-    minus_two_r1 = -2.0 * r1
+    (r1, r, h, height, phase, *_, r1_r1, two_r1, r_h, two_r_h, minus_r, _, _, _,
+     _) = constants = _lean_constants(geometry, mass)
+    sin, cos, atan2 = math.sin, math.cos, math.atan2
 
-    # Both start with the same lines (the coupling, the lever's angle): a call shared by
-    # them would cost about a tenth of the right-hand side.
+    # The coupling and the lever's angle as _lean_acceleration_of starts (a call shared by
+    # both would cost about a tenth of the right-hand side).
     def ram_motion(offset, angle, speed, offset_rate):
         sin_t, cos_t = sin(angle), cos(angle)
         n = r1_r1 + offset * offset + two_r1 * offset * sin_t
@@ -375,39 +471,7 @@ def _lean_chain(geometry, mass):
         flywheel_speed = r1 * (r1 + offset * sin_t) / n * speed + r1 * cos_t / n * offset_rate
         return height * tan_l, height * (1.0 + tan_l * tan_l) * (psi_p * flywheel_speed)
 
-    def acceleration(offset, angle, speed, offset_rate, torque, load):
-        sin_t, cos_t = sin(angle), cos(angle)
-        n = r1_r1 + offset * offset + two_r1 * offset * sin_t
-        phi_t = r1 * (r1 + offset * sin_t) / n
-        phi_d = r1 * cos_t / n
-        crank_angle = angle + atan2(offset * cos_t, r1 + offset * sin_t) + phase
-        sin_c, cos_c = sin(crank_angle), cos(crank_angle)
-        tan_l = r * cos_c / (h + r * sin_c)
-        n2 = n * n
-        phi_tt = r1 * offset * cos_t * (offset * offset - r1_r1) / n2
-        phi_td = -r1 * (sin_t * (r1_r1 + offset * offset) + two_r1 * offset) / n2
-        phi_dd = minus_two_r1 * cos_t * (offset + r1 * sin_t) / n2
-        m = r_h + two_r_h * sin_c
-        psi_p = minus_r * (r + h * sin_c) / m
-        psi_pp = minus_r_h * cos_c * h_h_r_r / (m * m)
-        sec2 = 1.0 + tan_l * tan_l
-        x_p = height * sec2
-        x_pp = two_height * tan_l * sec2
-        flywheel_speed = phi_t * speed + phi_d * offset_rate
-        flywheel_acc = (phi_tt * (speed * speed) + 2.0 * phi_td * speed * offset_rate
-                        + phi_dd * offset_rate * offset_rate)
-        lever_speed = psi_p * flywheel_speed
-        lever_acc = psi_p * flywheel_acc + psi_pp * flywheel_speed * flywheel_speed
-        ram_force = ram_mass * (x_p * lever_acc + x_pp * lever_speed * lever_speed)
-        lever_torque = (lever_inertia * lever_acc - lever_weight * tan_l / sqrt(sec2)
-                        + ram_force * x_p)
-        flywheel_torque = flywheel_inertia * flywheel_acc + lever_torque * psi_p
-        inertia = input_inertia + phi_t * phi_t * (
-            flywheel_inertia + psi_p * psi_p * (lever_inertia + ram_mass * x_p * x_p))
-        bias = flywheel_torque * phi_t - load * (x_p * psi_p * phi_t)
-        return (torque - bias) / inertia
-
-    return acceleration, ram_motion
+    return functools.partial(_lean_acceleration_of, constants), ram_motion
 
 
 def speed_drive_torque_of(sin_c, cos_c, r1, r, h, height, cos0, sin0, offset, clearance,

@@ -469,6 +469,122 @@ def test_the_lean_chain_gives_the_chains_numbers_bit_for_bit(mass):
             [chain.ram_position, chain.ram_velocity])
 
 
+def _kernel():
+    pytest.importorskip('numba')
+    from qrm_ros import motor_kernel
+    return motor_kernel
+
+
+@pytest.mark.parametrize('mass', [MASS, dyn.MassProperties(
+    input_inertia=0.05, flywheel_inertia=0.0, lever_mass=3.0, lever_inertia=0.4,
+    lever_com_distance=0.2, ram_mass=12.0, gravity=9.81)])
+def test_the_lean_efforts_are_the_chains_bit_for_bit_in_python_and_compiled(mass):
+    kernel = _kernel()
+    rng = np.random.default_rng(12)
+    constants = dyn._lean_constants(GEOMETRY, mass)
+    array = np.array(constants)
+    fixed = (dyn._SCALAR_OPS, *dyn._geometry_fields(GEOMETRY), mass.scalars())
+    radius = GEOMETRY.coupling_radius
+    for index in range(30000):
+        # Exact zeros too (a shaft at rest, no ramp, no load): the signs of zeros agree.
+        offset = 0.0 if index % 5 == 0 else float(rng.uniform(-0.99, 0.99)) * radius
+        rate = 0.0 if index % 3 == 0 else float(rng.normal(0.0, 0.02))
+        speed = 0.0 if index % 7 == 0 else float(rng.normal(0.0, 20.0))
+        acceleration = 0.0 if index % 7 == 0 else float(rng.normal(0.0, 50.0))
+        load = 0.0 if index % 4 == 0 else float(rng.normal(0.0, 1500.0))
+        angle = float(rng.uniform(-40.0, 40.0))
+        arguments = (offset, angle, speed, acceleration, rate, load)
+        expected = _bits(dyn._chain(*fixed, offset, angle, speed, acceleration, rate, 0.0,
+                                    load).efforts)
+        assert _bits(dyn._lean_efforts_of(constants, *arguments)) == expected
+        assert _bits(kernel.lean_efforts(array, *arguments)) == expected
+
+
+@pytest.mark.parametrize('mass', [MASS, dyn.MassProperties(
+    input_inertia=0.05, flywheel_inertia=0.0, lever_mass=3.0, lever_inertia=0.4,
+    lever_com_distance=0.2, ram_mass=12.0, gravity=9.81)])
+def test_the_compiled_acceleration_gives_the_python_forms_numbers_bit_for_bit(mass):
+    compiled = _kernel().lean_acceleration
+    rng = np.random.default_rng(11)
+    constants = dyn._lean_constants(GEOMETRY, mass)
+    array = np.array(constants)
+    radius = GEOMETRY.coupling_radius
+    for index in range(50000):
+        offset = 0.0 if index % 5 == 0 else float(rng.uniform(-0.99, 0.99)) * radius
+        rate = 0.0 if index % 3 == 0 else float(rng.normal(0.0, 0.02))
+        angle, speed = float(rng.uniform(-40.0, 40.0)), float(rng.normal(0.0, 20.0))
+        torque, load = float(rng.normal(0.0, 300.0)), float(rng.normal(0.0, 1500.0))
+        arguments = (offset, angle, speed, rate, torque, load)
+        assert _bits([compiled(array, *arguments)]) == _bits(
+            [dyn._lean_acceleration_of(constants, *arguments)])
+
+
+def _commanded_run(loads, at_tick=None):
+    """A run with ramps, an offset change and a reversal; at_tick(stamp_ns) before each."""
+    stepper = _stepper(loads)
+    rows = []
+    for start, end, step, change in (
+            (0, 1_500_000_000, 1_000_000, None),
+            (1_500_000_000, 3_000_000_000, 700_001,
+             lambda: (stepper.set_offset_command(-0.012), stepper.set_speed_command(12.0))),
+            (3_000_000_000, 5_500_000_000, 1_300_000, lambda: stepper.set_speed_command(-4.0))):
+        if change is not None:
+            change()
+        for stamp in range(start, end + 1, step):
+            if at_tick is not None:
+                at_tick(stamp)
+            rows += _run(stepper, stamp, stamp)
+    return rows
+
+
+@pytest.mark.parametrize('cutting_force', [LOADS.cutting_force, 6000.0])  # 6000: saturates
+def test_the_compiled_and_python_right_hand_sides_give_the_same_run(monkeypatch, cutting_force):
+    # The stepper takes the compiled forms up when its loading thread is done (the right-hand
+    # side at the next segment, the efforts at once): runs in either form, or switching
+    # mid-run, are the same bit for bit.
+    compiled = _kernel()
+    loads = dyn.Loads(cutting_force=cutting_force, ram_friction=LOADS.ram_friction,
+                      cutting_length=LOADS.cutting_length)
+    form = [compiled]
+    monkeypatch.setattr(md, '_COMPILED_KERNEL', form)
+    in_compiled = _commanded_run(loads)
+    form[0] = None
+    in_python = _commanded_run(loads)
+    assert in_python == in_compiled
+
+    def load_at_two_seconds(stamp):
+        form[0] = compiled if stamp >= 2_000_000_000 else None
+    assert _commanded_run(loads, load_at_two_seconds) == in_compiled
+
+
+@pytest.mark.parametrize('cutting_force', [LOADS.cutting_force, 6000.0])
+def test_steps_taken_ahead_of_the_stamps_change_nothing(monkeypatch, cutting_force):
+    loads = dyn.Loads(cutting_force=cutting_force, ram_friction=LOADS.ram_friction,
+                      cutting_length=LOADS.cutting_length)
+    ahead = _commanded_run(loads)
+    monkeypatch.setattr(md, '_STEPS_AHEAD', 1)
+    assert _commanded_run(loads) == ahead
+
+
+def test_without_numba_the_stepper_runs_the_python_form(monkeypatch):
+    import builtins
+    real_import = builtins.__import__
+
+    def without_numba(name, *arguments, **options):
+        if name == 'numba' or name.startswith('numba.') or (
+                name == 'qrm_ros' and 'motor_kernel' in (arguments[2] or ())):
+            raise ImportError(f'no module named {name!r} (test)')
+        return real_import(name, *arguments, **options)
+    form = [None]
+    monkeypatch.setattr(md, '_COMPILED_KERNEL', form)
+    monkeypatch.setattr(builtins, '__import__', without_numba)
+    md._load_compiled_kernel()
+    assert form == [None] and md._COMPILED_LOADED.is_set()
+    monkeypatch.setattr(builtins, '__import__', real_import)
+    rows = _run(_stepper(), 0, 200_000_000)
+    assert rows[-1][1] > 0.0
+
+
 @pytest.mark.parametrize('cutting_force, cutting_length', [
     (LOADS.cutting_force, LOADS.cutting_length), (LOADS.cutting_force, GEOMETRY.ram_stroke),
     (6000.0, LOADS.cutting_length)])  # the last: the motor saturates, then the shaft stalls
