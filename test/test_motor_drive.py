@@ -35,6 +35,10 @@ from synthetic_run import dense_revolution
 
 GEOMETRY = Geometry.paper()
 MASS = dyn.MassProperties.small_shaper()
+# The masses the lean forms are checked with: the small shaper's, and one without a flywheel.
+LEAN_MASSES = [MASS, dyn.MassProperties(
+    input_inertia=0.05, flywheel_inertia=0.0, lever_mass=3.0, lever_inertia=0.4,
+    lever_com_distance=0.2, ram_mass=12.0, gravity=9.81)]
 LOADS = dyn.Loads.small_shaper()
 
 
@@ -447,21 +451,26 @@ def test_the_float_dense_output_is_scipys_bit_for_bit():
             assert _bits(at(time)) == _bits(expected) == _bits(dense(time))
 
 
-@pytest.mark.parametrize('mass', [MASS, dyn.MassProperties(
-    input_inertia=0.05, flywheel_inertia=0.0, lever_mass=3.0, lever_inertia=0.4,
-    lever_com_distance=0.2, ram_mass=12.0, gravity=9.81)])
+def _random_states(seed, count, offset_fraction, angle_span):
+    """Yield (offset, offset rate, angle, speed, torque, load), exact zeros among them."""
+    rng = np.random.default_rng(seed)
+    radius = GEOMETRY.coupling_radius
+    for index in range(count):
+        offset = (0.0 if index % 5 == 0 else
+                  float(rng.uniform(-offset_fraction, offset_fraction)) * radius)
+        rate = 0.0 if index % 3 == 0 else float(rng.normal(0.0, 0.02))
+        angle, speed = float(rng.uniform(-angle_span, angle_span)), float(rng.normal(0.0, 20.0))
+        torque, load = float(rng.normal(0.0, 300.0)), float(rng.normal(0.0, 1500.0))
+        yield offset, rate, angle, speed, torque, load
+
+
+@pytest.mark.parametrize('mass', LEAN_MASSES)
 def test_the_lean_chain_gives_the_chains_numbers_bit_for_bit(mass):
     # The stepper's right-hand side and switch checks: the chain's formula, not a second one.
-    rng = np.random.default_rng(9)
     stepper = _stepper()
     fixed = (dyn._SCALAR_OPS, *dyn._geometry_fields(GEOMETRY), mass.scalars())
     acceleration, ram_motion = dyn._lean_chain(GEOMETRY, mass)
-    radius = GEOMETRY.coupling_radius
-    for index in range(20000):
-        offset = 0.0 if index % 5 == 0 else float(rng.uniform(-0.9, 0.9)) * radius
-        rate = 0.0 if index % 3 == 0 else float(rng.normal(0.0, 0.02))
-        angle, speed = float(rng.uniform(-4.0, 4.0)), float(rng.normal(0.0, 20.0))
-        torque, load = float(rng.normal(0.0, 300.0)), float(rng.normal(0.0, 1500.0))
+    for offset, rate, angle, speed, torque, load in _random_states(9, 20000, 0.9, 4.0):
         chain = dyn._chain(*fixed, offset, angle, speed, 0.0, rate, 0.0, 0.0)
         assert _bits([acceleration(offset, angle, speed, rate, torque, load)]) == _bits(
             [stepper._acceleration(chain, torque, load)])
@@ -475,9 +484,7 @@ def _kernel():
     return motor_kernel
 
 
-@pytest.mark.parametrize('mass', [MASS, dyn.MassProperties(
-    input_inertia=0.05, flywheel_inertia=0.0, lever_mass=3.0, lever_inertia=0.4,
-    lever_com_distance=0.2, ram_mass=12.0, gravity=9.81)])
+@pytest.mark.parametrize('mass', LEAN_MASSES)
 def test_the_lean_efforts_are_the_chains_bit_for_bit_in_python_and_compiled(mass):
     kernel = _kernel()
     rng = np.random.default_rng(12)
@@ -500,20 +507,12 @@ def test_the_lean_efforts_are_the_chains_bit_for_bit_in_python_and_compiled(mass
         assert _bits(kernel.lean_efforts(array, *arguments)) == expected
 
 
-@pytest.mark.parametrize('mass', [MASS, dyn.MassProperties(
-    input_inertia=0.05, flywheel_inertia=0.0, lever_mass=3.0, lever_inertia=0.4,
-    lever_com_distance=0.2, ram_mass=12.0, gravity=9.81)])
+@pytest.mark.parametrize('mass', LEAN_MASSES)
 def test_the_compiled_acceleration_gives_the_python_forms_numbers_bit_for_bit(mass):
     compiled = _kernel().lean_acceleration
-    rng = np.random.default_rng(11)
     constants = dyn._lean_constants(GEOMETRY, mass)
     array = np.array(constants)
-    radius = GEOMETRY.coupling_radius
-    for index in range(50000):
-        offset = 0.0 if index % 5 == 0 else float(rng.uniform(-0.99, 0.99)) * radius
-        rate = 0.0 if index % 3 == 0 else float(rng.normal(0.0, 0.02))
-        angle, speed = float(rng.uniform(-40.0, 40.0)), float(rng.normal(0.0, 20.0))
-        torque, load = float(rng.normal(0.0, 300.0)), float(rng.normal(0.0, 1500.0))
+    for offset, rate, angle, speed, torque, load in _random_states(11, 50000, 0.99, 40.0):
         arguments = (offset, angle, speed, rate, torque, load)
         assert _bits([compiled(array, *arguments)]) == _bits(
             [dyn._lean_acceleration_of(constants, *arguments)])
