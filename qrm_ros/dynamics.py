@@ -445,18 +445,16 @@ def _lean_efforts_of(constants, offset, angle, speed, acceleration, offset_rate,
             lever_torque, ram_force, flywheel_torque * phi_d)
 
 
-def _lean_chain(geometry, mass):
+def _lean_ram_motion(constants):
     """
-    Return the stepper's two lean evaluations of ``dynamics._chain`` on plain floats.
+    Return ram_motion(offset, angle, speed, offset_rate): the ram's (position m, velocity m/s).
 
-    acceleration(offset, angle, speed, offset_rate, torque, load): ``_lean_acceleration_of``
-    with this geometry's and these masses' constants; ram_motion(offset, angle, speed,
-    offset_rate): the ram's (position m, velocity m/s). Both at zero input and offset
-    acceleration, the chain's numbers bit for bit (a test holds them to it); the ram's
-    motion at a quarter of its cost.
+    The stepper's switch checks' lean evaluation of ``dynamics._chain`` on plain floats,
+    constants from ``_lean_constants``: at zero input and offset acceleration, the chain's
+    numbers bit for bit (a test holds them to it) at a quarter of its cost.
     """
     (r1, r, h, height, phase, *_, r1_r1, two_r1, r_h, two_r_h, minus_r, _, _, _,
-     _) = constants = _lean_constants(geometry, mass)
+     _) = constants
     sin, cos, atan2 = math.sin, math.cos, math.atan2
 
     # The coupling and the lever's angle as _lean_acceleration_of starts (a call shared by
@@ -471,7 +469,7 @@ def _lean_chain(geometry, mass):
         flywheel_speed = r1 * (r1 + offset * sin_t) / n * speed + r1 * cos_t / n * offset_rate
         return height * tan_l, height * (1.0 + tan_l * tan_l) * (psi_p * flywheel_speed)
 
-    return functools.partial(_lean_acceleration_of, constants), ram_motion
+    return ram_motion
 
 
 def speed_drive_torque_of(sin_c, cos_c, r1, r, h, height, cos0, sin0, offset, clearance,

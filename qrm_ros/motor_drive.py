@@ -485,7 +485,7 @@ class MotorStepper:
         self._fixed = (dyn._SCALAR_OPS, *dyn._geometry_fields(self._geometry), mass.scalars())
         self._lean_constants = dyn._lean_constants(self._geometry, mass)
         self._lean_array = np.array(self._lean_constants)  # the compiled forms take an array
-        self._ram_motion = dyn._lean_chain(self._geometry, mass)[1]
+        self._ram_motion = dyn._lean_ram_motion(self._lean_constants)
         self._switch_angles_at = (None, None, None)
         self._loads = loads.check_against(self._geometry.ram_stroke)
         loads.scalars()

@@ -469,10 +469,12 @@ def test_the_lean_chain_gives_the_chains_numbers_bit_for_bit(mass):
     # The stepper's right-hand side and switch checks: the chain's formula, not a second one.
     stepper = _stepper()
     fixed = (dyn._SCALAR_OPS, *dyn._geometry_fields(GEOMETRY), mass.scalars())
-    acceleration, ram_motion = dyn._lean_chain(GEOMETRY, mass)
+    constants = dyn._lean_constants(GEOMETRY, mass)
+    ram_motion = dyn._lean_ram_motion(constants)
     for offset, rate, angle, speed, torque, load in _random_states(9, 20000, 0.9, 4.0):
         chain = dyn._chain(*fixed, offset, angle, speed, 0.0, rate, 0.0, 0.0)
-        assert _bits([acceleration(offset, angle, speed, rate, torque, load)]) == _bits(
+        assert _bits([dyn._lean_acceleration_of(constants, offset, angle, speed, rate, torque,
+                                                load)]) == _bits(
             [stepper._acceleration(chain, torque, load)])
         assert _bits(ram_motion(offset, angle, speed, rate)) == _bits(
             [chain.ram_position, chain.ram_velocity])
