@@ -18,14 +18,18 @@ The node feeds every published sample; when a cutting stroke begins, the pair be
 complete and is measured with the same method as the offline analysis
 (strokes.find_stroke_pairs) and compared with the core's theory for the offset and speed in
 force. The node only wraps the returned reports in DiagnosticStatus messages. ``collect``
-and ``measure`` split ``add`` in two, so a caller on a timer can hand the measurement (about
-a millisecond at a thousand samples a pair) to another thread: ``collect`` only copies the
-completed samples.
+and ``measure`` split ``add`` in two, so a caller on a timer can hand the measurement to
+another thread: ``collect`` only copies the completed samples. The samples are kept in
+typed arrays and measured as numpy views of them: no Python loop over the samples (a pair
+of 4000 samples took 1.3 ms to measure with them, and that thread's time holds a 4 kHz
+node's ticks back).
 """
 
 from array import array
 import math
 from typing import Dict, List, NamedTuple, Optional
+
+import numpy as np
 
 from qrm_ros.kinematics import Geometry, steady_theory, SteadyTheory
 from qrm_ros.strokes import find_stroke_pairs, measure_pair_efforts, PairEffortsMeasured
@@ -51,7 +55,7 @@ class CompletedSamples(NamedTuple):
     """The samples of one or more completed stroke pairs, copied out of the buffer."""
 
     stamp_ns: int                 # the sample that completed the pair
-    sample_stamps_ns: List[int]
+    sample_stamps_ns: array       # 'q': node-clock ns, one per sample
     columns: Dict[str, array]     # _SAMPLE_FIELDS -> values, one per stamp
 
 
@@ -106,7 +110,7 @@ class StrokeMonitor:
 
     def clear(self) -> None:
         """Forget the samples (after a reset, a pause or a clock jump: no pair spans it)."""
-        self._stamp_ns: List[int] = []
+        self._stamp_ns = array('q')
         self._columns = {name: array('d') for name in _SAMPLE_FIELDS}
         self._last_velocity_positive: Optional[bool] = None
 
@@ -136,7 +140,7 @@ class StrokeMonitor:
         # A cutting stroke beginning ends the pair before it: measure only then.
         completed = None
         if self._last_velocity_positive and not positive:
-            completed = CompletedSamples(stamp_ns, list(self._stamp_ns),
+            completed = CompletedSamples(stamp_ns, array('q', self._stamp_ns),
                                          {name: array('d', column)
                                           for name, column in self._columns.items()})
             # Keep the two samples around the reversal just found: the next pair starts
@@ -157,31 +161,32 @@ class StrokeMonitor:
         Touches no buffer, only the theory cache: one thread may measure while another
         collects (the node's timer collects, its pair thread measures).
         """
-        origin = completed.sample_stamps_ns[0]
-        time = [(ns - origin) / _NANOSECONDS for ns in completed.sample_stamps_ns]
-        columns = completed.columns
+        stamps = np.frombuffer(completed.sample_stamps_ns, dtype=np.int64)
+        origin = int(stamps[0])
+        # Exact differences, then one division each (float(ns - origin) / 1e9, as in Python).
+        time = (stamps - origin) / _NANOSECONDS
+        columns = {name: np.frombuffer(column) for name, column in completed.columns.items()}
         pairs = find_stroke_pairs(time, columns['ram_position'], columns['ram_velocity'])
         pair_efforts = measure_pair_efforts(time, columns['input_speed'],
                                             columns['input_torque'], columns['offset_force'],
                                             pairs)
         figures = {**pairs._asdict(), **pair_efforts._asdict()}
-        return [self._report(completed, origin, pairs, figures, index)
+        return [self._report(completed.stamp_ns, columns, origin, pairs, figures, index)
                 for index in range(len(pairs.cutting_time))]
 
-    def _report(self, completed, origin, pairs, figures, index):
-        stamp_ns, columns = completed.stamp_ns, completed.columns
+    def _report(self, stamp_ns, columns, origin, pairs, figures, index):
         first, last = int(pairs.first_sample[index]), int(pairs.last_sample[index])
         offsets = columns['offset'][first:last + 1]
         speeds = columns['input_speed'][first:last + 1]
-        offset, speed = offsets[-1], speeds[-1]
+        offset, speed = float(offsets[-1]), float(speeds[-1])
         return PairReport(
             stamp_ns=stamp_ns,
             pair_start=origin / _NANOSECONDS + float(pairs.cutting_start[index]),
             pair_end=origin / _NANOSECONDS + float(pairs.return_end[index]),
             coupling_offset=offset, input_speed=speed,
-            offset_steady=(min(offsets) == max(offsets)
-                           and not any(columns['offset_rate'][first:last])),
-            input_speed_steady=min(speeds) == max(speeds),
+            offset_steady=bool(offsets.min() == offsets.max()
+                               and not columns['offset_rate'][first:last].any()),
+            input_speed_steady=bool(speeds.min() == speeds.max()),
             measured={name: float(figures[name][index]) for name in MEASURED_FIGURES},
             theory=self.theory(offset, speed) if speed != 0.0 else {})
 

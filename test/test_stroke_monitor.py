@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 from qrm_ros.kinematics import Geometry, state, stroke_times, time_ratio
 from qrm_ros.stroke_monitor import MEASURED_FIGURES, StrokeMonitor
+from qrm_ros.strokes import find_stroke_pairs, measure_pair_efforts
 
 NS = 1_000_000_000
 GEOMETRY = Geometry.paper()
@@ -85,3 +86,45 @@ def test_collect_then_measure_reports_as_add_does_and_owns_its_samples():
     assert len(split) == len(whole) >= 2
     for one, other in zip(split, whole):
         assert one == other
+
+
+def test_numpy_views_measure_as_python_floats_do_bit_for_bit():
+    """Wall-clock stamps (1.8e18 ns), jittered: the same figures as the offline path's lists."""
+    rng = np.random.default_rng(7)
+    start_ns = 1_795_000_000 * NS + 123_456_789
+    monitor = StrokeMonitor(GEOMETRY)
+    stamps, samples, completed = [], [], None
+    offsets = [0.012 + (1e-5 * (index // 1500)) for index in range(10000)]
+    for index in range(10000):  # 2.5 turns of 4 kHz samples
+        stamp = start_ns + index * 250_000 + int(rng.integers(-40_000, 40_000))
+        sample = state(GEOMETRY, offsets[index], 2 * math.pi * (stamp - start_ns) / NS,
+                       2 * math.pi)
+        values = (float(sample.ram_position), float(sample.ram_velocity), offsets[index],
+                  1e-3 * (index % 3 == 0), 2 * math.pi, 5.0 + index * 1e-3, -2.0)
+        stamps.append(stamp)
+        samples.append(values)
+        completed = monitor.collect(stamp, *values) or completed
+    assert completed is not None
+    reports = monitor.measure(completed)
+    first_sample = stamps.index(completed.sample_stamps_ns[0])
+    kept = slice(first_sample, first_sample + len(completed.sample_stamps_ns))
+    origin = stamps[first_sample]
+    time = [(ns - origin) / 1e9 for ns in stamps[kept]]  # Python ints and floats
+    column = {name: [values[index] for values in samples[kept]]
+              for index, name in enumerate(('ram_position', 'ram_velocity', 'offset',
+                                            'offset_rate', 'input_speed', 'input_torque',
+                                            'offset_force'))}
+    pairs = find_stroke_pairs(time, column['ram_position'], column['ram_velocity'])
+    efforts = measure_pair_efforts(time, column['input_speed'], column['input_torque'],
+                                   column['offset_force'], pairs)
+    figures = {**pairs._asdict(), **efforts._asdict()}
+    assert len(reports) == len(pairs.cutting_time) >= 1
+    for index, report in enumerate(reports):
+        assert report.measured == {name: float(figures[name][index])
+                                   for name in MEASURED_FIGURES}
+        first, last = int(pairs.first_sample[index]), int(pairs.last_sample[index])
+        offsets_in = column['offset'][first:last + 1]
+        assert report.offset_steady is (min(offsets_in) == max(offsets_in)
+                                        and not any(column['offset_rate'][first:last]))
+        assert report.coupling_offset == offsets_in[-1]
+        assert report.pair_start == origin / 1e9 + float(pairs.cutting_start[index])
