@@ -66,6 +66,11 @@ __all__ = ['JOINT_NAMES', 'PARAMETERS', 'ShaperSimNode', 'main', 'refusal_reason
 _WARNING_PERIOD = 1.0  # s, throttle for repeated warnings
 # s: the longest the pair thread may hold the GIL while a tick waits for it.
 PAIR_THREAD_SWITCH_INTERVAL = 1e-4
+# Hz: above this publish rate a marker frame goes out one marker per tick (after a tick that
+# only builds it). Building and converting a whole frame takes 0.3-0.4 ms in a running node
+# (rclpy's conversion holds the GIL): a 1 ms period absorbs that, a 0.25 ms one (4 kHz) does
+# not, and the next tick came a period late at every frame.
+MARKER_SLICING_RATE = 1000.0
 # s: the whole marker array is sent at least this often (a viewer started later sees the
 # still parts within it), the moving markers alone in between.
 MARKER_REFRESH_PERIOD = 1.0
@@ -156,6 +161,9 @@ class ShaperSimNode(Node):
                                                        MIN_PUBLISHER_DEPTH)
         self._marker_period_ns = 0
         self._next_markers_ns = 0
+        # A frame's markers still to publish, one a tick (above MARKER_SLICING_RATE).
+        self._marker_slices = []
+        self._slice_markers = self._values['publish_rate'] > MARKER_SLICING_RATE
         self._published_stamp_ns = None  # the markers draw the latest published sample
         self._clear_markers = False
         # What the still markers last sent show (offset, reversed, frame, loads), and when (s).
@@ -564,39 +572,60 @@ class ShaperSimNode(Node):
 
         Not on a timer of their own: one firing just before a tick was due made the tick
         late by the markers' conversion (up to 0.75 ms in a running node); right after a
-        tick they use the time to the next one. Each goes out within one tick period of
-        when it is due (so at most once per tick).
+        tick they use the time to the next one. Each frame is built within one tick period of
+        when it is due (so at most once per tick); above MARKER_SLICING_RATE its markers then
+        go out one a tick, and the next frame waits for them (at 4 kHz, a moving frame's four
+        markers take 1.25 ms of a 33 ms period at 30 Hz).
         """
         self._marker_period_ns = round(1e9 / rate) if rate > 0.0 else 0
         self._next_markers_ns = 0
 
     def _publish_markers_if_due(self, stamp_ns):
+        if self._marker_slices:  # a frame under way: its next marker, the next frame waits
+            self._marker_publisher.publish(self._marker_slices.pop())
+            return
         period, due = self._marker_period_ns, self._next_markers_ns
         if period and (stamp_ns >= due or stamp_ns < due - period):  # due, or time went back
             # The next a period after this one's due time (the rate kept on average), or
             # after now when the first, a period behind or after the clock went back.
             late = stamp_ns - due
             self._next_markers_ns = (due if 0 <= late < period else stamp_ns) + period
-            self.publish_markers()
+            if self._slice_markers:  # built now, sent from the next tick on
+                frame = self._marker_frame()
+                self._marker_slices = [
+                    MarkerArray(markers=[marker]) for markers in reversed(frame or ())
+                    for marker in reversed(markers.markers)]
+            else:
+                self.publish_markers()
 
     def publish_markers(self):
         """
-        Publish the mechanism as markers at the latest published sample (its stamp).
+        Publish the mechanism as markers at the latest published sample (its stamp), now.
 
         Returns False before the first sample. After a reset a DELETEALL goes first, so no
         stale part is left behind. The workpiece is drawn while there is a cutting load. The
         whole array goes out when what the still markers show changes (offset, direction,
         frame, loads) and at least every MARKER_REFRESH_PERIOD (for a viewer that starts
         later); in between only the moving markers, which keeps the conversion's hold on the
-        GIL off the ticks (see linkage_markers).
+        GIL off the ticks (see linkage_markers). Above MARKER_SLICING_RATE the timer sends the
+        same frame one marker per tick instead (what this one supersedes is dropped).
         """
+        self._marker_slices = []
+        frame = self._marker_frame()
+        for markers in frame or ():
+            self._marker_publisher.publish(markers)
+        return frame is not None
+
+    def _marker_frame(self):
+        """Return the MarkerArrays of the latest published sample, in order (None: none)."""
         stepper = self._stepper
         stamp_ns = self._published_stamp_ns
         if stamp_ns is None:
-            return False
+            return None
         frame_id = self._values['frame_id']
+        frame = []
         if self._clear_markers:
-            self._marker_publisher.publish(delete_all_marker_array(stamp_ns, frame_id))
+            frame.append(delete_all_marker_array(stamp_ns, frame_id))
             self._clear_markers = False
             self._still_markers = None
         still = (stepper.offset, stepper.input_speed < 0.0, frame_id, self._loads)
@@ -605,10 +634,10 @@ class ShaperSimNode(Node):
                        and now - self._still_markers_sent < MARKER_REFRESH_PERIOD)
         if not moving_only:
             self._still_markers, self._still_markers_sent = still, now
-        self._marker_publisher.publish(linkage_marker_array(
+        frame.append(linkage_marker_array(
             self._geometry, stepper.offset, stepper.input_angle, stamp_ns, frame_id,
             input_speed=stepper.input_speed, loads=self._loads, moving_only=moving_only))
-        return True
+        return frame
 
     def _report_stall(self, stepper, stamp_ns):
         """

@@ -26,13 +26,14 @@ import time
 import pytest
 from qrm_ros.kinematics import peak_speed_ratio, speed_ratio, state, time_ratio
 from qrm_ros import shaper_sim
-from qrm_ros.linkage_markers import MARKER_KEYS, MOVING_KEYS
+from qrm_ros.linkage_markers import linkage_marker_array, MARKER_KEYS, MOVING_KEYS
 from qrm_ros.shaper_sim import JOINT_NAMES, PARAMETERS, ShaperSimNode
 from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterType, ParameterValue
 from rcl_interfaces.srv import DescribeParameters, SetParameters
 import rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.serialization import deserialize_message, serialize_message
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, Trigger
@@ -459,6 +460,46 @@ def test_markers_follow_ticks_at_their_rate_and_survive_the_clock_going_back(har
         assert 0 <= stamp - (marker_stamps[0] + index * NS / 30) < 1.2e6
     run_ticks(h.shaper, 10 * NS, 0.2, rate=1000.0, jitter_ns=100_000)  # sim time restarted
     h.wait_for(lambda: len(arrays) >= 66, what='markers going on after the clock went back')
+
+
+def test_above_the_slicing_rate_a_frame_goes_out_one_marker_a_tick(harness):
+    """The same frames as in one array, each marker in a tick of its own after the build."""
+    rate = 2 * shaper_sim.MARKER_SLICING_RATE
+    h = harness(spin_shaper=False, publish_rate=rate, marker_rate=50.0, coupling_offset=0.012)
+    arrays = []
+    h.probe.create_subscription(MarkerArray, 'linkage_markers', arrays.append, 1000)
+    stamps = run_ticks(h.shaper, 50 * NS, 0.1, rate=rate, jitter_ns=0)
+    h.wait_for(lambda: len(h.joint_states) == len(stamps), what='the joint states')
+    assert h.shaper._on_reset(Trigger.Request(), Trigger.Response()).success
+    stamps += run_ticks(h.shaper, 60 * NS, 0.02, rate=rate, jitter_ns=0)
+    frames = len(MARKER_KEYS) + 4 * len(MOVING_KEYS) + 1 + len(MARKER_KEYS)
+    h.wait_for(lambda: len(arrays) >= frames, what='five frames, one marker a message')
+    assert all(len(array.markers) == 1 for array in arrays)
+    markers = [array.markers[0] for array in arrays]
+    stamp_ns = [m.header.stamp.sec * NS + m.header.stamp.nanosec for m in markers]
+    # Grouped by the sample they draw: whole, four moving ones, then DELETEALL and whole.
+    groups = []
+    for stamp, marker in zip(stamp_ns, markers):
+        if not groups or groups[-1][0] != stamp:
+            groups.append((stamp, []))
+        groups[-1][1].append(marker)
+    keys = [[(m.ns, m.id) for m in group if m.action != Marker.DELETEALL]
+            for _, group in groups]
+    assert keys[:6] == [list(MARKER_KEYS)] + [list(MOVING_KEYS)] * 4 + [list(MARKER_KEYS)]
+    assert [m.action for m in groups[5][1]][0] == Marker.DELETEALL
+    # Every marker as the unsliced frame at that sample has it (the published input angle).
+    states = {m.header.stamp.sec * NS + m.header.stamp.nanosec: m for m in h.joint_states}
+    for (stamp, group), moving in zip(groups[:5], [False] + [True] * 4):
+        angle = states[stamp].position[0]
+        expected = linkage_marker_array(h.shaper.geometry, 0.012, angle, stamp,
+                                        h.shaper.get_parameter('frame_id').value,
+                                        input_speed=2 * math.pi, loads=h.shaper._loads,
+                                        moving_only=moving).markers
+        # (as received: the colours' float32 on the wire)
+        assert group == [deserialize_message(serialize_message(m), Marker) for m in expected]
+    # Each marker a tick after the one before; the frames 1/50 s apart from the first.
+    ticks = [stamps.index(stamp) for stamp, _ in groups]
+    assert [b - a for a, b in zip(ticks, ticks[1:4])] == [int(rate / 50)] * 3
 
 
 def test_markers_show_the_workpiece_while_there_is_a_cutting_load(harness):
