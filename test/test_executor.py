@@ -355,6 +355,7 @@ def test_the_node_publishes_on_simulated_time(probe, kind):
     try:
         probe.wait_for(lambda: clock_publisher.get_subscription_count() > 0,
                        what='shaper_sim subscribing to /clock')
+        probe.wait_for_discovery()
         time.sleep(0.3)
         assert not probe.messages, 'joint states before any /clock'
         advance(150, SIM_START_NS)

@@ -91,13 +91,27 @@ class Probe:
         rclpy.init(context=self.context)
         self.node = Node('process_probe', context=self.context)
         self.messages = []
-        self.node.create_subscription(JointState, 'joint_states', self.messages.append, 1000)
+        self.joint_states = self.node.create_subscription(
+            JointState, 'joint_states', self.messages.append, 1000)
         self.set_client = self.node.create_client(SetParameters, '/shaper_sim/set_parameters')
         self.get_client = self.node.create_client(GetParameters, '/shaper_sim/get_parameters')
         self.spinner = BackgroundSpinner(self.context, self.node)
 
     def wait_for(self, predicate, timeout=15.0, what='condition'):
         wait_for(predicate, timeout, what)
+
+    def wait_for_discovery(self):
+        """
+        Wait until the node's joint states and parameter services are matched here.
+
+        Discovery goes on for a while after a node's first endpoint is seen (a node has
+        dozens), and on a loaded 2-core machine its bursts held a new node's timer back for
+        a quarter of a second: a test that counts samples starts after it.
+        """
+        self.wait_for(lambda: self.joint_states.get_publisher_count() > 0,
+                      what="the node's joint states matched")
+        for client in (self.set_client, self.get_client):
+            assert client.wait_for_service(timeout_sec=15.0), f'{client.srv_name} not found'
 
     def call(self, client, request):
         return call(client, request, timeout=15.0)
