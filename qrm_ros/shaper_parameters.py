@@ -28,12 +28,17 @@ from qrm_ros.dynamics import Loads, MassProperties, MotorDrive, parameter_names
 from qrm_ros.kinematics import Geometry, KinematicsError
 from qrm_ros.names import DRIVES, MOTOR_PREFIX
 
-__all__ = ['AtLeast', 'DoubleRange', 'DRIVES', 'GEOMETRY_NAMES', 'MOTOR_PREFIX', 'NonEmptyText',
-           'OneOf', 'ParameterSpec', 'PARAMETERS', 'PositiveLength', 'SymmetricRange', 'View',
-           'allowed_text',
-           'default_values', 'refusal_reason', 'shown']
+__all__ = ['AtLeast', 'DoubleRange', 'DRIVES', 'GEOMETRY_NAMES', 'MARKER_SLICING_RATE',
+           'MOTOR_PREFIX', 'NonEmptyText', 'OneOf', 'ParameterSpec', 'PARAMETERS',
+           'PositiveLength', 'SymmetricRange', 'View', 'allowed_text', 'default_values',
+           'refusal_reason', 'shown']
 
 GEOMETRY_NAMES = Geometry.field_names()
+# Hz: above this publish rate the node sends a marker frame one marker per tick, after a tick
+# that only builds it. Building and converting a whole frame takes 0.3-0.4 ms in a running
+# node (rclpy's conversion holds the GIL): a 1 ms period absorbs that, a 0.25 ms one (4 kHz)
+# does not, and the next tick came a period late at every frame.
+MARKER_SLICING_RATE = 1000.0
 _PAPER = Geometry.paper()
 
 
@@ -291,7 +296,8 @@ PARAMETERS = {
     'marker_rate': ParameterSpec(
         30.0, 'Hz', 'Rate of the linkage_markers MarkerArray (the mechanism drawn for RViz and '
         'Foxglove, at the latest published sample); 0 turns it off. Sent right after a tick, '
-        'so at most publish_rate.', False, DoubleRange(0.0, 1000.0),
+        f'so at most publish_rate; above a publish_rate of {MARKER_SLICING_RATE:.0f} Hz one '
+        'marker a tick.', False, DoubleRange(0.0, 1000.0),
         apply=lambda node, value: node.set_marker_rate(value)),
     'frame_id': ParameterSpec(
         'shaper_base', '', 'frame_id of the published joint_states and ram/twist headers. '

@@ -46,7 +46,8 @@ from qrm_ros.names import (CUTTING_SPEED_STATUS, DIAGNOSTICS_TOPIC, DRIVE_STATUS
 from qrm_ros.ros_process import (executor_kind, init_rclpy, new_executor, RCLError,
                                  rcl_error_text, spin_until_stopped, StopRequest)
 from qrm_ros.shaper_parameters import (allowed_text, default_values, GEOMETRY_NAMES,
-                                       PARAMETERS, refusal_reason, shown, View)
+                                       MARKER_SLICING_RATE, PARAMETERS, refusal_reason, shown,
+                                       View)
 from qrm_ros.stepping import ShaperStepper, wrap_angle
 from qrm_ros.stroke_monitor import StrokeMonitor
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
@@ -66,11 +67,6 @@ __all__ = ['JOINT_NAMES', 'PARAMETERS', 'ShaperSimNode', 'main', 'refusal_reason
 _WARNING_PERIOD = 1.0  # s, throttle for repeated warnings
 # s: the longest the pair thread may hold the GIL while a tick waits for it.
 PAIR_THREAD_SWITCH_INTERVAL = 1e-4
-# Hz: above this publish rate a marker frame goes out one marker per tick (after a tick that
-# only builds it). Building and converting a whole frame takes 0.3-0.4 ms in a running node
-# (rclpy's conversion holds the GIL): a 1 ms period absorbs that, a 0.25 ms one (4 kHz) does
-# not, and the next tick came a period late at every frame.
-MARKER_SLICING_RATE = 1000.0
 # s: the whole marker array is sent at least this often (a viewer started later sees the
 # still parts within it), the moving markers alone in between.
 MARKER_REFRESH_PERIOD = 1.0
