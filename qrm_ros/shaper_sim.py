@@ -363,6 +363,7 @@ class ShaperSimNode(Node):
             self.command_offset()  # from the reset state, toward the held cutting speed
         self._monitor.clear()
         self._clear_markers = True  # DELETEALL before the next markers
+        self._marker_slices = []  # the rest of a frame from before: the DELETEALL clears it
         response.success = True
         response.message = (f'reset: input angle 0 rad, input speed {speed!r} rad/s, '
                             f'offset {offset!r} m')

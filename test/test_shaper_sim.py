@@ -500,6 +500,14 @@ def test_above_the_slicing_rate_a_frame_goes_out_one_marker_a_tick(harness):
     # Each marker a tick after the one before; the frames 1/50 s apart from the first.
     ticks = [stamps.index(stamp) for stamp, _ in groups]
     assert [b - a for a, b in zip(ticks, ticks[1:4])] == [int(rate / 50)] * 3
+    # A reset in the middle of a frame drops its rest: the next message is the DELETEALL.
+    h.wait_for(lambda: len(arrays) == frames, what='no more markers')
+    run_ticks(h.shaper, 70 * NS, 2 / rate, rate=rate, jitter_ns=0)  # a frame, one marker out
+    assert h.shaper._on_reset(Trigger.Request(), Trigger.Response()).success
+    run_ticks(h.shaper, 71 * NS, 3 / rate, rate=rate, jitter_ns=0)
+    h.wait_for(lambda: len(arrays) >= frames + 3, what='a marker, then the next frame')
+    assert [m.action for array in arrays[frames:frames + 3] for m in array.markers] == [
+        Marker.ADD, Marker.DELETEALL, Marker.ADD]
 
 
 def test_markers_show_the_workpiece_while_there_is_a_cutting_load(harness):
