@@ -45,6 +45,11 @@ def installed_executable(name):
     return shutil.which(name)
 
 
+def stamp_ns(message):
+    """Return a stamped message's header stamp in integer nanoseconds."""
+    return message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec
+
+
 def wait_for(predicate, timeout=10.0, what='condition'):
     """Poll predicate until true; fail the test after timeout seconds, naming what it awaited."""
     deadline = time.monotonic() + timeout

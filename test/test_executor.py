@@ -41,8 +41,8 @@ from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, Trigger
 from visualization_msgs.msg import MarkerArray
 
-from ros_probe import wait_for
-from test_shaper_sim_process import NS, Process, Probe, stamp_ns, wrapped
+from ros_probe import stamp_ns, wait_for
+from test_shaper_sim_process import NS, Process, Probe, wrapped
 
 KINDS = ['events', 'single']
 SIM_START_NS = 1000 * NS  # the first /clock value the tests send

@@ -19,6 +19,7 @@ timer does exactly that with the node clock), so those checks are deterministic 
 services, pause and simulated time go through a spinning executor.
 """
 
+import itertools
 import math
 import threading
 import time
@@ -39,7 +40,7 @@ from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, Trigger
 from visualization_msgs.msg import Marker, MarkerArray
 
-from ros_probe import call
+from ros_probe import call, stamp_ns
 from shaper_harness import NS, pair_values, run_ticks
 
 R1, R, H_PIVOT = 0.025, 0.0505, 0.113
@@ -288,7 +289,7 @@ def test_published_state_is_the_core_closed_form_at_the_stamp(harness):
     geometry = h.shaper.geometry
     for message, stamp in zip(h.joint_states, stamps):
         assert list(message.name) == list(JOINT_NAMES)
-        assert message.header.stamp.sec * NS + message.header.stamp.nanosec == stamp
+        assert stamp_ns(message) == stamp
         assert message.header.frame_id == 'shaper_base'
         angle, flywheel, lever, ram, offset = message.position
         speed, flywheel_speed, lever_speed, ram_velocity, offset_rate = message.velocity
@@ -381,7 +382,7 @@ def test_use_sim_time_stamps_follow_clock(harness):
         published.append(stamp)
         time.sleep(0.002)
     assert len(h.joint_states) >= 20, 'no joint states on simulated time'
-    stamps = [m.header.stamp.sec * NS + m.header.stamp.nanosec for m in h.joint_states]
+    stamps = [stamp_ns(m) for m in h.joint_states]
     assert all(s in published for s in stamps)
     assert stamps == sorted(stamps)
 
@@ -451,8 +452,7 @@ def test_markers_follow_ticks_at_their_rate_and_survive_the_clock_going_back(har
     h.probe.create_subscription(MarkerArray, 'linkage_markers', arrays.append, 1000)
     stamps = run_ticks(h.shaper, 50 * NS, 2.0, rate=1000.0, jitter_ns=100_000)
     h.wait_for(lambda: len(arrays) >= 60, what='two seconds of markers')
-    marker_stamps = [array.markers[0].header.stamp.sec * NS
-                     + array.markers[0].header.stamp.nanosec for array in arrays]
+    marker_stamps = [stamp_ns(array.markers[0]) for array in arrays]
     assert set(marker_stamps) <= set(stamps)  # each drawn at a published sample
     # 30 Hz on average, each within a tick period (1 ms, jitter 0.1 ms) of its due time.
     assert len(marker_stamps) == 60
@@ -476,19 +476,14 @@ def test_above_the_slicing_rate_a_frame_goes_out_one_marker_a_tick(harness):
     h.wait_for(lambda: len(arrays) >= frames, what='five frames, one marker a message')
     assert all(len(array.markers) == 1 for array in arrays)
     markers = [array.markers[0] for array in arrays]
-    stamp_ns = [m.header.stamp.sec * NS + m.header.stamp.nanosec for m in markers]
     # Grouped by the sample they draw: whole, four moving ones, then DELETEALL and whole.
-    groups = []
-    for stamp, marker in zip(stamp_ns, markers):
-        if not groups or groups[-1][0] != stamp:
-            groups.append((stamp, []))
-        groups[-1][1].append(marker)
+    groups = [(stamp, list(group)) for stamp, group in itertools.groupby(markers, stamp_ns)]
     keys = [[(m.ns, m.id) for m in group if m.action != Marker.DELETEALL]
             for _, group in groups]
     assert keys[:6] == [list(MARKER_KEYS)] + [list(MOVING_KEYS)] * 4 + [list(MARKER_KEYS)]
     assert [m.action for m in groups[5][1]][0] == Marker.DELETEALL
     # Every marker as the unsliced frame at that sample has it (the published input angle).
-    states = {m.header.stamp.sec * NS + m.header.stamp.nanosec: m for m in h.joint_states}
+    states = {stamp_ns(m): m for m in h.joint_states}
     for (stamp, group), moving in zip(groups[:5], [False] + [True] * 4):
         angle = states[stamp].position[0]
         expected = linkage_marker_array(h.shaper.geometry, 0.012, angle, stamp,

@@ -42,7 +42,8 @@ from rclpy.qos import qos_profile_parameters
 from sensor_msgs.msg import JointState
 from std_srvs.srv import SetBool, Trigger
 
-from ros_probe import BackgroundSpinner, call, installed_executable, stop_process, wait_for
+from ros_probe import (BackgroundSpinner, call, installed_executable, stamp_ns, stop_process,
+                       wait_for)
 
 
 NS = 1_000_000_000
@@ -139,10 +140,6 @@ def probe():
     made = Probe()
     yield made
     made.close()
-
-
-def stamp_ns(message):
-    return message.header.stamp.sec * NS + message.header.stamp.nanosec
 
 
 def wrapped(angle):
