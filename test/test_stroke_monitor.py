@@ -18,7 +18,7 @@ import math
 import numpy as np
 import pytest
 from qrm_ros.kinematics import Geometry, state, stroke_times, time_ratio
-from qrm_ros.stroke_monitor import MEASURED_FIGURES, StrokeMonitor
+from qrm_ros.stroke_monitor import _SAMPLE_FIELDS, MEASURED_FIGURES, StrokeMonitor
 from qrm_ros.strokes import find_stroke_pairs, measure_pair_efforts
 
 NS = 1_000_000_000
@@ -111,9 +111,7 @@ def test_numpy_views_measure_as_python_floats_do_bit_for_bit():
     origin = stamps[first_sample]
     time = [(ns - origin) / 1e9 for ns in stamps[kept]]  # Python ints and floats
     column = {name: [values[index] for values in samples[kept]]
-              for index, name in enumerate(('ram_position', 'ram_velocity', 'offset',
-                                            'offset_rate', 'input_speed', 'input_torque',
-                                            'offset_force'))}
+              for index, name in enumerate(_SAMPLE_FIELDS)}  # collect's argument order
     pairs = find_stroke_pairs(time, column['ram_position'], column['ram_velocity'])
     efforts = measure_pair_efforts(time, column['input_speed'], column['input_torque'],
                                    column['offset_force'], pairs)
