@@ -359,29 +359,29 @@ def report(results, args):
                       in zip(results[variant, rate], results[base, rate])]
             print(f'CPU at {rate:6.0f} Hz, {variant:11s} / {base:11s}: {spread(ratios)}')
     for column, what in enumerate(('missed', 'late')):
-        tops = {}
-        for variant in args.variants:
-            # The highest rate whose median over repeats stays <= 1 % (and every lower one's):
-            # one noisy measurement at a low rate does not sink it, as it does a repeat's top.
-            tops[variant] = 0.0
-            for rate in sorted(args.rates):
-                if statistics.median(found[column] for found in results[variant, rate]) \
-                        > SUSTAINED_MISSED_FRACTION:
-                    break
-                tops[variant] = rate
+        # The highest rate whose median over repeats stays <= 1 % (and every lower one's):
+        # one noisy measurement at a low rate does not sink it, as it does a repeat's top.
+        tops = {variant: sustained_top(args.rates, lambda rate: statistics.median(
+                    found[column] for found in results[variant, rate]))
+                for variant in args.variants}
         for variant, top in tops.items():
             print(f'highest rate with a median <= 1 % {what} ticks, {variant:11s}: {top:6.0f} Hz'
                   + (f' ({top / tops["bare"]:.2f} x bare)' if tops.get('bare') else ''))
         for variant in args.variants:
-            highest = []
-            for index in range(args.repeat):
-                top = 0.0
-                for rate in sorted(args.rates):
-                    if results[variant, rate][index][column] > SUSTAINED_MISSED_FRACTION:
-                        break
-                    top = rate
-                highest.append(top)
+            highest = [sustained_top(args.rates,
+                                     lambda rate: results[variant, rate][index][column])
+                       for index in range(args.repeat)]
             print(f'highest rate with <= 1 % {what} ticks, {variant:11s}: {spread(highest)} Hz')
+
+
+def sustained_top(rates, fraction_at):
+    """Return the highest rate with fraction_at(rate) <= 1 %, and every lower rate's (0: none)."""
+    top = 0.0
+    for rate in sorted(rates):
+        if fraction_at(rate) > SUSTAINED_MISSED_FRACTION:
+            break
+        top = rate
+    return top
 
 
 if __name__ == '__main__':
