@@ -451,6 +451,11 @@ def test_the_float_dense_output_is_scipys_bit_for_bit():
             assert _bits(at(time)) == _bits(expected) == _bits(dense(time))
 
 
+def _chain_fixed(mass):
+    """The chain's fixed arguments on floats, as the stepper holds them (motor_drive)."""
+    return (dyn._SCALAR_OPS, *dyn._geometry_fields(GEOMETRY), mass.scalars())
+
+
 def _random_states(seed, count, offset_fraction, angle_span):
     """Yield (offset, offset rate, angle, speed, torque, load), exact zeros among them."""
     rng = np.random.default_rng(seed)
@@ -468,7 +473,7 @@ def _random_states(seed, count, offset_fraction, angle_span):
 def test_the_lean_chain_gives_the_chains_numbers_bit_for_bit(mass):
     # The stepper's right-hand side and switch checks: the chain's formula, not a second one.
     stepper = _stepper()
-    fixed = (dyn._SCALAR_OPS, *dyn._geometry_fields(GEOMETRY), mass.scalars())
+    fixed = _chain_fixed(mass)
     constants = dyn._lean_constants(GEOMETRY, mass)
     ram_motion = dyn._lean_ram_motion(constants)
     for offset, rate, angle, speed, torque, load in _random_states(9, 20000, 0.9, 4.0):
@@ -492,7 +497,7 @@ def test_the_lean_efforts_are_the_chains_bit_for_bit_in_python_and_compiled(mass
     rng = np.random.default_rng(12)
     constants = dyn._lean_constants(GEOMETRY, mass)
     array = np.array(constants)
-    fixed = (dyn._SCALAR_OPS, *dyn._geometry_fields(GEOMETRY), mass.scalars())
+    fixed = _chain_fixed(mass)
     radius = GEOMETRY.coupling_radius
     for index in range(30000):
         # Exact zeros too (a shaft at rest, no ramp, no load): the signs of zeros agree.
@@ -619,9 +624,8 @@ def test_a_change_while_held_applies_to_the_held_state():
     other = dyn.MassProperties(input_inertia=0.05, flywheel_inertia=0.0, lever_mass=3.0,
                                lever_inertia=0.4, lever_com_distance=0.2, ram_mass=12.0)
     stepper.set_dynamics(mass=other)
-    chain = dyn._chain(dyn._SCALAR_OPS, *dyn._geometry_fields(GEOMETRY), other.scalars(),
-                       stepper.offset, stepper.input_angle, stepper.input_speed, 0.0,
-                       stepper.offset_rate, 0.0, 0.0)
+    chain = dyn._chain(*_chain_fixed(other), stepper.offset, stepper.input_angle,
+                       stepper.input_speed, 0.0, stepper.offset_rate, 0.0, 0.0)
     assert stepper.input_acceleration == stepper._acceleration(chain, stepper.motor_torque,
                                                                stepper.ram_load)
 
