@@ -16,17 +16,18 @@ The shaper_sim node: the mechanism stepped in time, published as joint states.
 
 A thin adapter: ShaperStepper (qrm_ros.stepping) integrates the input angle and moves the
 offset; the kinematics core gives every other state in closed form; StrokeMonitor
-(qrm_ros.stroke_monitor) measures each completed stroke pair for /diagnostics, on a thread
-of the node's own so that no tick waits for it; the parameters, their rules and effects are
-data (qrm_ros.shaper_parameters). This module only turns parameters into descriptors,
+(qrm_ros.stroke_monitor) measures each completed stroke pair for /diagnostics, a step at a
+time after the ticks so that no tick waits for it; the parameters, their rules and effects
+are data (qrm_ros.shaper_parameters). This module only turns parameters into descriptors,
 commands into stepper calls and states into messages.
 """
 
 from array import array
-from concurrent.futures import ThreadPoolExecutor
+from collections import deque
 import difflib
 import math
 import sys
+import threading
 import time
 
 from builtin_interfaces.msg import Time
@@ -65,8 +66,12 @@ from visualization_msgs.msg import MarkerArray
 __all__ = ['JOINT_NAMES', 'PARAMETERS', 'ShaperSimNode', 'main', 'refusal_reason']
 
 _WARNING_PERIOD = 1.0  # s, throttle for repeated warnings
-# s: the longest the pair thread may hold the GIL while a tick waits for it.
-PAIR_THREAD_SWITCH_INTERVAL = 1e-4
+# s: the longest another thread of the node (the motor kernel's loader, the theory's reply
+# reader) may hold the GIL while a tick waits for it (Python's default is 5 ms).
+GIL_SWITCH_INTERVAL = 1e-4
+# Stroke-pair steps run after a tick until this fraction of the timer's period has gone
+# since the tick began (at least one step a tick): the rest absorbs the host's noise.
+PAIR_STEP_SHARE = 0.5
 # s: the whole marker array is sent at least this often (a viewer started later sees the
 # still parts within it), the moving markers alone in between.
 MARKER_REFRESH_PERIOD = 1.0
@@ -102,14 +107,17 @@ class ShaperSimNode(Node):
     def __init__(self, **node_options):
         super().__init__(SIM_NODE_NAME, **node_options)
         self._theory = BackgroundTheory()
-        # Completed stroke pairs are measured and reported here, off the timer's thread:
-        # a pair of thousands of samples takes milliseconds, which a tick must not wait for.
-        self._pair_thread = ThreadPoolExecutor(max_workers=1, thread_name_prefix='pairs')
+        # Completed stroke pairs, measured and reported a step at a time after the ticks
+        # (_run_pair_steps): a pair of thousands of samples takes about a millisecond, which
+        # no tick may wait for. Not on a thread: there a pair held a 4 kHz node's ticks
+        # back for its whole length (the GIL), whatever the switch interval.
+        self._pair_jobs = deque()
+        self._pair_lock = threading.Lock()  # one caller steps the jobs at a time
+        self._pair_step_budget_ns = 0
+        self._pair_steps_waited = False  # the last tick ran no step: the next runs one
         self._pair_reports_published = 0
-        # A Python thread keeps the GIL for up to the switch interval (5 ms by default)
-        # while the timer's callback waits for it; a short one bounds that wait.
-        if sys.getswitchinterval() > PAIR_THREAD_SWITCH_INTERVAL:
-            sys.setswitchinterval(PAIR_THREAD_SWITCH_INTERVAL)
+        if sys.getswitchinterval() > GIL_SWITCH_INTERVAL:
+            sys.setswitchinterval(GIL_SWITCH_INTERVAL)
         try:
             self._set_up()
         except Exception:
@@ -174,6 +182,7 @@ class ShaperSimNode(Node):
         self.add_on_set_parameters_callback(self._check_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
         self._timer = self.create_timer(1.0 / self._values['publish_rate'], self._on_timer)
+        self._pair_step_budget_ns = round(PAIR_STEP_SHARE * 1e9 / self._values['publish_rate'])
         if self._values['cutting_speed_target']:
             self.command_offset()
         self.get_logger().info(
@@ -398,6 +407,7 @@ class ShaperSimNode(Node):
     def _on_timer(self):
         if self._paused:  # the held state, still drawn for a viewer that starts now
             self._publish_markers_if_due(self.get_clock().now().nanoseconds)
+            self._run_pair_steps(time.monotonic_ns())
             return
         stamp_ns = self.get_clock().now().nanoseconds
         if stamp_ns == 0:
@@ -412,6 +422,7 @@ class ShaperSimNode(Node):
         Returns False when nothing was published: a zero stamp (simulated time not started),
         a repeated stamp, or a non-finite state (never published).
         """
+        started_ns = time.monotonic_ns()
         stepper = self._stepper
         if stamp_ns <= 0 or stamp_ns == stepper.stamp_ns:
             return False
@@ -471,15 +482,50 @@ class ShaperSimNode(Node):
                                           joint_efforts[-1])
         if completed is not None:
             # What the report depends on is taken now, as it stands at the pair's end.
-            self._pair_thread.submit(self._report_pairs, completed, self._setting,
-                                     self._setting_since_ns,
-                                     self._values['cutting_speed_target'],
-                                     self._values['cutting_speed_definition'])
+            self._pair_jobs.append(self._report_pairs(
+                completed, self._setting, self._setting_since_ns,
+                self._values['cutting_speed_target'], self._values['cutting_speed_definition']))
+        self._run_pair_steps(started_ns)
         return True
 
+    def _run_pair_steps(self, started_ns, budget_ns=None):
+        """
+        Run stroke-pair steps, oldest pair first, while there is budget left.
+
+        The budget is budget_ns since started_ns (by default PAIR_STEP_SHARE of the timer's
+        period). A tick that used the budget up itself runs none, unless the tick before ran none
+        either: the pairs always progress. Skipped while wait_for_pair_reports steps them.
+        """
+        jobs = self._pair_jobs
+        if not jobs or not self._pair_lock.acquire(blocking=False):
+            return
+        try:
+            budget_ns = self._pair_step_budget_ns if budget_ns is None else budget_ns
+            ran = False
+            while jobs:
+                if (time.monotonic_ns() - started_ns >= budget_ns
+                        and (ran or not self._pair_steps_waited)):
+                    self._pair_steps_waited = not ran
+                    return
+                try:
+                    next(jobs[0])
+                except StopIteration:
+                    jobs.popleft()
+                ran = True
+            self._pair_steps_waited = False
+        finally:
+            self._pair_lock.release()
+
     def wait_for_pair_reports(self, timeout=None):
-        """Wait until every pair completed so far is reported (for tests and tools)."""
-        self._pair_thread.submit(lambda: None).result(timeout)
+        """Report every pair completed so far, now, in this thread (for tests and tools)."""
+        if not self._pair_lock.acquire(timeout=-1 if timeout is None else timeout):
+            raise TimeoutError('the stroke pairs are being reported by another caller')
+        try:
+            while self._pair_jobs:
+                for _ in self._pair_jobs.popleft():
+                    pass
+        finally:
+            self._pair_lock.release()
 
     @property
     def pair_reports_published(self):
@@ -487,12 +533,16 @@ class ShaperSimNode(Node):
         return self._pair_reports_published
 
     def _report_pairs(self, completed, setting, setting_since_ns, target, definition):
-        """Measure and publish completed stroke pairs (on the pair thread)."""
+        """Measure and publish completed stroke pairs, a step per next() (_run_pair_steps)."""
         try:
-            for report in self._monitor.measure(completed):
-                self._publish_pair(report, setting, setting_since_ns, target, definition)
+            for report in (yield from self._monitor.measure_steps(completed)):
+                yield
+                message = self._pair_message(report, setting, setting_since_ns, target,
+                                             definition)
+                yield
+                self._diagnostics_publisher.publish(message)
                 self._pair_reports_published += 1
-        except Exception as error:  # noqa: B902 said, not lost in the thread's future
+        except Exception as error:  # noqa: B902 said; the ticks and later pairs go on
             self.get_logger().error(f'stroke pair at {completed.stamp_ns} ns not reported: '
                                     f'{type(error).__name__}: {error}')
 
@@ -528,7 +578,7 @@ class ShaperSimNode(Node):
                         'none: no steady running at this setting (stopped or stalled)')
 
     def destroy_node(self):
-        self._pair_thread.shutdown(wait=True)  # its reports go out before the publisher does
+        self.wait_for_pair_reports()  # they go out before the publisher does
         self._theory.close()
         return super().destroy_node()
 
@@ -683,7 +733,8 @@ class ShaperSimNode(Node):
         message.header.stamp = self.get_clock().now().to_msg()
         self._diagnostics_publisher.publish(message)
 
-    def _publish_pair(self, report, setting, setting_since_ns, target, definition):
+    def _pair_message(self, report, setting, setting_since_ns, target, definition):
+        """Return a pair's report as the DiagnosticArray to publish."""
         key_values = [KeyValue(key=key, value=repr(value))
                       for key, value in report.values().items() if math.isfinite(value)]
         key_values.append(KeyValue(key='offset_steady', value=str(report.offset_steady).lower()))
@@ -711,7 +762,7 @@ class ShaperSimNode(Node):
             values=key_values)
         message = DiagnosticArray(status=[status])
         message.header.stamp = _stamp(report.stamp_ns)
-        self._diagnostics_publisher.publish(message)
+        return message
 
 
 def main(args=None):

@@ -18,11 +18,11 @@ The node feeds every published sample; when a cutting stroke begins, the pair be
 complete and is measured with the same method as the offline analysis
 (strokes.find_stroke_pairs) and compared with the core's theory for the offset and speed in
 force. The node only wraps the returned reports in DiagnosticStatus messages. ``collect``
-and ``measure`` split ``add`` in two, so a caller on a timer can hand the measurement to
-another thread: ``collect`` only copies the completed samples. The samples are kept in
-typed arrays and measured as numpy views of them, with no Python loop over the samples: a
-4000-sample pair takes 0.6 ms instead of 1.3, and that thread's time held a 4 kHz node's
-ticks back.
+and ``measure`` split ``add`` in two, so a caller on a timer can measure later:
+``collect`` only copies the completed samples, and ``measure_steps`` measures them a step
+at a time between ticks. The samples are kept in typed arrays and measured as numpy views
+of them, with no Python loop over the samples: a 4000-sample pair takes 0.6 ms instead of
+1.3.
 """
 
 from array import array
@@ -32,7 +32,8 @@ from typing import Dict, List, NamedTuple, Optional
 import numpy as np
 
 from qrm_ros.kinematics import Geometry, steady_theory, SteadyTheory
-from qrm_ros.strokes import find_stroke_pairs, measure_pair_efforts, PairEffortsMeasured
+from qrm_ros.strokes import (pair_effort_steps, PairEffortsMeasured, run_steps, Steps,
+                             stroke_pair_steps)
 
 __all__ = ['BUFFER_LIMIT', 'CompletedSamples', 'MEASURED_FIGURES', 'PairReport',
            'StrokeMonitor']
@@ -155,24 +156,37 @@ class StrokeMonitor:
             del column[:index]
 
     def measure(self, completed: CompletedSamples) -> List[PairReport]:
-        """
-        Measure the pairs in samples from ``collect`` and compare them with the theory.
+        """Measure the pairs in samples from ``collect`` and compare them with the theory."""
+        return run_steps(self.measure_steps(completed))
 
-        Touches no buffer, only the theory cache: one thread may measure while another
-        collects (the node's timer collects, its pair thread measures).
+    def measure_steps(self, completed: CompletedSamples) -> Steps[List[PairReport]]:
+        """
+        ``measure`` in steps (strokes.run_steps), each some tens of microseconds.
+
+        A node's timer runs steps after each tick, in the time left before the next: a
+        whole pair at once held a 4 kHz node's ticks back for its length, on a thread of its
+        own too (the GIL). Touches no buffer, only the theory cache, so it may run between
+        ``collect`` calls.
         """
         stamps = np.frombuffer(completed.sample_stamps_ns, dtype=np.int64)
         origin = int(stamps[0])
         # Exact differences, then one division each (float(ns - origin) / 1e9, as in Python).
         time = (stamps - origin) / _NANOSECONDS
         columns = {name: np.frombuffer(column) for name, column in completed.columns.items()}
-        pairs = find_stroke_pairs(time, columns['ram_position'], columns['ram_velocity'])
-        pair_efforts = measure_pair_efforts(time, columns['input_speed'],
-                                            columns['input_torque'], columns['offset_force'],
-                                            pairs)
+        yield
+        pairs = yield from stroke_pair_steps(time, columns['ram_position'],
+                                             columns['ram_velocity'])
+        yield
+        pair_efforts = yield from pair_effort_steps(
+            time, columns['input_speed'], columns['input_torque'], columns['offset_force'],
+            pairs)
         figures = {**pairs._asdict(), **pair_efforts._asdict()}
-        return [self._report(completed.stamp_ns, columns, origin, pairs, figures, index)
-                for index in range(len(pairs.cutting_time))]
+        reports = []
+        for index in range(len(pairs.cutting_time)):
+            yield
+            reports.append(self._report(completed.stamp_ns, columns, origin, pairs, figures,
+                                        index))
+        return reports
 
     def _report(self, stamp_ns, columns, origin, pairs, figures, index):
         first, last = int(pairs.first_sample[index]), int(pairs.last_sample[index])

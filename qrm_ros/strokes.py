@@ -21,17 +21,36 @@ velocities, so reversals, mid-stroke points and speed peaks are located between 
 
 Sign convention: a stroke whose ram velocity is negative (toward -x) is a cutting stroke; a
 pair is a cutting stroke followed by a return stroke.
+
+The two measurements also come in steps (``stroke_pair_steps``, ``pair_effort_steps``:
+generators whose return value is the result, each step some tens of microseconds for a
+pair of thousands of samples), so that a node's timer can measure between its ticks; the
+plain functions run the same steps at once.
 """
 
-from typing import NamedTuple, Sequence, Tuple, Union
+from typing import Generator, NamedTuple, Sequence, Tuple, TypeVar, Union
 
 import numpy as np
 
 __all__ = ['PairEffortsMeasured', 'StrokePairs', 'find_reversals', 'find_stroke_pairs',
-           'measure_pair_efforts']
+           'measure_pair_efforts', 'pair_effort_steps', 'run_steps', 'stroke_pair_steps']
 
 # Sampled values: a sequence of floats or a numpy array.
 ArrayLike = Union[Sequence[float], np.ndarray]
+Result = TypeVar('Result')
+# A computation in steps: each next() runs one; its return value is the result.
+Steps = Generator[None, None, Result]
+# Newton iterations of the mid-stroke crossing per step.
+_NEWTON_ITERATIONS_PER_STEP = 2
+
+
+def run_steps(steps: Steps[Result]) -> Result:
+    """Run a computation in steps to its end and return its result."""
+    while True:
+        try:
+            next(steps)
+        except StopIteration as done:
+            return done.value
 
 
 class StrokePairs(NamedTuple):
@@ -116,15 +135,17 @@ def _interval_peak_speed(t, x, v):
     return np.maximum(np.maximum(np.abs(v[:-1]), np.abs(v[1:])), extremum)
 
 
-def _mid_stroke_speeds(t, x, v):
-    """Return times and |velocity| where the ram passes x = 0 (lever vertical)."""
+def _mid_stroke_speed_steps(t, x, v):
+    """Find times and |velocity| where the ram passes x = 0 (lever vertical), in steps."""
     k = np.nonzero((x[:-1] >= 0.0) != (x[1:] >= 0.0))[0]
     step = t[k + 1] - t[k]
     x0, x1, v0, v1 = x[k], x[k + 1], v[k], v[k + 1]
     with np.errstate(divide='ignore', invalid='ignore'):
         s = np.clip(np.nan_to_num(x0 / (x0 - x1), nan=0.5), 0.0, 1.0)
     a, b, c = _hermite_velocity_coefficients(step, x0, x1, v0, v1)
-    for _ in range(8):  # Newton on the cubic; the ram crosses x = 0 at near-peak speed.
+    for iteration in range(8):  # Newton on the cubic; the ram crosses x = 0 at near-peak speed.
+        if iteration % _NEWTON_ITERATIONS_PER_STEP == 0:
+            yield
         slope = ((a * s + b) * s + c) * step
         with np.errstate(divide='ignore', invalid='ignore'):
             update = _hermite_position(s, step, x0, x1, v0, v1) / slope
@@ -135,6 +156,12 @@ def _mid_stroke_speeds(t, x, v):
 def find_stroke_pairs(time: ArrayLike, ram_position: ArrayLike,
                       ram_velocity: ArrayLike) -> StrokePairs:
     """Every complete cutting + return stroke pair in a sampled run, with its measurements."""
+    return run_steps(stroke_pair_steps(time, ram_position, ram_velocity))
+
+
+def stroke_pair_steps(time: ArrayLike, ram_position: ArrayLike,
+                      ram_velocity: ArrayLike) -> Steps[StrokePairs]:
+    """find_stroke_pairs in steps."""
     t = np.asarray(time, dtype=float)
     x = np.asarray(ram_position, dtype=float)
     v = np.asarray(ram_velocity, dtype=float)
@@ -144,13 +171,15 @@ def find_stroke_pairs(time: ArrayLike, ram_position: ArrayLike,
     when, cut_begins, interval = find_reversals(t, x, v)
     starts = np.nonzero(cut_begins[:-2] & ~cut_begins[1:-1] & cut_begins[2:])[0]
     cut_start, cut_end, ret_end = when[starts], when[starts + 1], when[starts + 2]
+    yield
 
     peak = _interval_peak_speed(t, x, v)
     cumulative_max = _segment_max(peak, interval)
     peak_cut = cumulative_max[starts]
     peak_ret = cumulative_max[starts + 1]
 
-    cross_time, cross_speed = _mid_stroke_speeds(t, x, v)
+    cross_time, cross_speed = yield from _mid_stroke_speed_steps(t, x, v)
+    yield
     mid_cut = _first_between(cross_time, cross_speed, cut_start, cut_end)
     mid_ret = _first_between(cross_time, cross_speed, cut_end, ret_end)
     cutting_time, return_time = cut_end - cut_start, ret_end - cut_end
@@ -234,6 +263,13 @@ def measure_pair_efforts(time: ArrayLike, input_speed: ArrayLike, input_torque: 
     the sample spacing: these are measurements, compared with the exact theory of
     qrm_ros.dynamics. The mean input speed is the angle swept over the pair's time.
     """
+    return run_steps(pair_effort_steps(time, input_speed, input_torque, offset_force, pairs))
+
+
+def pair_effort_steps(time: ArrayLike, input_speed: ArrayLike, input_torque: ArrayLike,
+                      offset_force: ArrayLike, pairs: StrokePairs
+                      ) -> Steps[PairEffortsMeasured]:
+    """measure_pair_efforts in steps."""
     t = np.asarray(time, dtype=float)
     speed = np.asarray(input_speed, dtype=float)
     torque = np.asarray(input_torque, dtype=float)
@@ -249,14 +285,21 @@ def measure_pair_efforts(time: ArrayLike, input_speed: ArrayLike, input_torque: 
 
     duration = end - start
     energy = over_pair(torque * speed)
+    yield
+    torque_squared = over_pair(torque * torque)
+    yield
+    angle = over_pair(speed)
+    yield
     torque_high, torque_low = _window_extremes(t, torque, start, end)
+    yield
     force_high, force_low = _window_extremes(t, force, start, end)
+    yield
     speed_high, speed_low = _window_extremes(t, speed, start, end)
     with np.errstate(divide='ignore', invalid='ignore'):
         return PairEffortsMeasured(
             peak_input_torque=np.maximum(torque_high, -torque_low),
-            rms_input_torque=np.sqrt(over_pair(torque * torque) / duration),
+            rms_input_torque=np.sqrt(torque_squared / duration),
             mean_input_power=energy / duration,
             energy_per_pair=energy,
             peak_offset_force=np.maximum(force_high, -force_low),
-            speed_fluctuation=(speed_high - speed_low) / np.abs(over_pair(speed) / duration))
+            speed_fluctuation=(speed_high - speed_low) / np.abs(angle / duration))

@@ -21,7 +21,6 @@ services, pause and simulated time go through a spinning executor.
 
 import itertools
 import math
-import threading
 import time
 
 import pytest
@@ -247,24 +246,83 @@ def test_diagnostics_match_the_closed_form_for_a_steady_offset(harness, offset, 
                                                        * values['return_time'])
 
 
-def test_a_tick_does_not_wait_for_the_stroke_pair_measurement(harness):
-    """A pair is measured on the node's pair thread; the tick that completed it goes on."""
+def _ticks_of_pair_steps(shaper):
+    """Record, for every stroke-pair step the node runs, how many ticks came before it."""
+    ticks, steps_at = [0], []
+    publish_at, measure_steps = shaper.publish_at, shaper._monitor.measure_steps
+
+    def counted_publish_at(stamp_ns):
+        ticks[0] += 1
+        return publish_at(stamp_ns)
+
+    def recorded_steps(completed):
+        steps = measure_steps(completed)
+        while True:
+            steps_at.append(ticks[0])
+            try:
+                next(steps)
+            except StopIteration as done:
+                return done.value
+            yield
+
+    shaper.publish_at = counted_publish_at
+    shaper._monitor.measure_steps = recorded_steps
+    return steps_at
+
+
+def test_a_stroke_pair_is_measured_a_step_at_a_time_between_ticks(harness):
+    """Out of time after a tick, a pair waits; it still moves a step every other tick."""
     h = harness(spin_shaper=False)
-    release, measured = threading.Event(), []
-    measure = h.shaper._monitor.measure
+    shaper = h.shaper
+    shaper._pair_step_budget_ns = 0  # every tick out of time
+    steps_at = _ticks_of_pair_steps(shaper)
+    completed = []
+    collect = shaper._monitor.collect
 
-    def held_measure(completed):
-        assert release.wait(10.0), 'the ticks did not finish while a measurement was held'
-        measured.append(completed.stamp_ns)
-        return measure(completed)
+    def kept_collect(*sample):
+        result = collect(*sample)
+        if result is not None:
+            completed.append(result)
+        return result
 
-    h.shaper._monitor.measure = held_measure
-    # Two pairs completed, both measurements held.
-    run_ticks(h.shaper, 5000 * NS, 3.5, wait_for_reports=False)
-    assert not measured and not h.diagnostics
-    release.set()
-    h.wait_for(lambda: len(h.diagnostics) >= 2, what='the held pairs reported')
-    assert len(measured) >= 2
+    shaper._monitor.collect = kept_collect
+    # Samples completed at about 1, 2 and 3 s (the first holds no whole pair); every step
+    # has run before 3.5 s.
+    run_ticks(shaper, 5000 * NS, 3.5, wait_for_reports=False)
+    assert len(completed) == 3 and shaper.pair_reports_published == 2
+    # Never two steps in one tick, and while steps wait, one every other tick.
+    gaps = [later - earlier for earlier, later in zip(steps_at, steps_at[1:])]
+    assert len(steps_at) > 3 * 8 and min(gaps) == 2
+    assert sum(gap > 2 for gap in gaps) == len(completed) - 1  # between the samples' steps
+    # The reports are those of the whole measurement at once, figure for figure.
+    h.wait_for(lambda: len(h.diagnostics) == 2, what='both pairs reported')
+    assert shaper._monitor.measure(completed[0]) == []
+    for message, samples in zip(h.diagnostics, completed[1:]):
+        whole, = shaper._monitor.measure(samples)
+        values = pair_values(message)
+        assert {name: values[name] for name in whole.measured} == whole.measured
+
+
+def test_a_pair_within_the_budget_is_reported_by_the_tick_that_completed_it(harness):
+    h = harness(spin_shaper=False)
+    shaper = h.shaper
+    shaper._pair_step_budget_ns = 10 ** 12
+    steps_at = _ticks_of_pair_steps(shaper)
+    # Samples completed at about 1 s (no whole pair) and 2 s (one): each measured at once.
+    run_ticks(shaper, 5000 * NS, 2.5, wait_for_reports=False)
+    assert shaper.pair_reports_published == 1 and len(set(steps_at)) == 2
+
+
+def test_pairs_are_still_reported_while_paused(harness):
+    h = harness(spin_shaper=False)
+    shaper = h.shaper
+    shaper._pair_step_budget_ns = 0
+    run_ticks(shaper, 5000 * NS, 2.0, wait_for_reports=False)  # a pair completed at 1.94 s
+    assert shaper.pair_reports_published == 0  # its steps wait, one every other tick
+    shaper._on_pause(SetBool.Request(data=True), SetBool.Response())
+    for _ in range(200):
+        shaper._on_timer()
+    assert shaper.pair_reports_published == 1
 
 
 def test_a_moving_offset_is_flagged_and_nothing_is_ever_non_finite(harness):

@@ -70,10 +70,10 @@ def test_clear_forgets_a_partial_pair_and_a_moving_offset_is_flagged():
 
 
 def test_collect_then_measure_reports_as_add_does_and_owns_its_samples():
-    """The node's split (collect on the timer, measure on its pair thread) changes nothing."""
+    """The node's split (collect on the timer, measured in steps between) changes nothing."""
     whole = feed(StrokeMonitor(GEOMETRY), 0.012, 2 * math.pi, 3.5)
     monitor = StrokeMonitor(GEOMETRY)
-    completed = []
+    completed, stepping, stepped = [], [], []
     for index in range(3500):
         stamp = NS + index * NS // 1000
         sample = state(GEOMETRY, 0.012, 2 * math.pi * (stamp - NS) / NS, 2 * math.pi)
@@ -81,11 +81,19 @@ def test_collect_then_measure_reports_as_add_does_and_owns_its_samples():
                                 0.012, 0.0, 2 * math.pi, 0.0, 0.0)
         if found is not None:
             completed.append(found)
+            stepping.append(monitor.measure_steps(found))
+        if stepping:  # one step a sample, while the buffer moves on
+            try:
+                next(stepping[0])
+            except StopIteration as done:
+                stepped += done.value
+                stepping.pop(0)
+    assert not stepping
     # Measured only now, after the monitor's buffer moved on: the copies are the pairs'.
     split = [report for found in completed for report in monitor.measure(found)]
-    assert len(split) == len(whole) >= 2
-    for one, other in zip(split, whole):
-        assert one == other
+    assert len(split) == len(stepped) == len(whole) >= 2
+    for one, other, third in zip(split, whole, stepped):
+        assert one == other == third
 
 
 def test_numpy_views_measure_as_python_floats_do_bit_for_bit():
