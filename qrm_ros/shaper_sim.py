@@ -474,7 +474,9 @@ class ShaperSimNode(Node):
         twist.twist.linear.x = sample.ram_velocity
         self._twist_publisher.publish(twist)
         self._published_stamp_ns = stamp_ns
-        self._publish_markers_if_due(stamp_ns)
+        # The speed drive's sample is the core's state: the markers need not recompute it.
+        self._publish_markers_if_due(stamp_ns, None if isinstance(stepper, MotorStepper)
+                                     else sample)
         self._note_setting(stepper, stamp_ns)
         completed = self._monitor.collect(stamp_ns, sample.ram_position, sample.ram_velocity,
                                           stepper.offset, stepper.offset_rate,
@@ -627,7 +629,7 @@ class ShaperSimNode(Node):
         self._marker_period_ns = round(1e9 / rate) if rate > 0.0 else 0
         self._next_markers_ns = 0
 
-    def _publish_markers_if_due(self, stamp_ns):
+    def _publish_markers_if_due(self, stamp_ns, sample=None):
         if self._marker_slices:  # a frame under way: its next marker, the next frame waits
             self._marker_publisher.publish(self._marker_slices.pop())
             return
@@ -638,12 +640,12 @@ class ShaperSimNode(Node):
             late = stamp_ns - due
             self._next_markers_ns = (due if 0 <= late < period else stamp_ns) + period
             if self._slice_markers:  # built now, sent from the next tick on
-                frame = self._marker_frame()
+                frame = self._marker_frame(sample)
                 self._marker_slices = [
                     MarkerArray(markers=[marker]) for markers in reversed(frame or ())
                     for marker in reversed(markers.markers)]
             else:
-                self.publish_markers()
+                self._publish_frame(sample)
 
     def publish_markers(self):
         """
@@ -657,14 +659,21 @@ class ShaperSimNode(Node):
         GIL off the ticks (see linkage_markers). Above MARKER_SLICING_RATE the timer sends the
         same frame one marker per tick instead (what this one supersedes is dropped).
         """
+        return self._publish_frame(None)
+
+    def _publish_frame(self, sample):
         self._marker_slices = []
-        frame = self._marker_frame()
+        frame = self._marker_frame(sample)
         for markers in frame or ():
             self._marker_publisher.publish(markers)
         return frame is not None
 
-    def _marker_frame(self):
-        """Return the MarkerArrays of the latest published sample, in order (None: none)."""
+    def _marker_frame(self, sample=None):
+        """
+        Return the MarkerArrays of the latest published sample, in order (None: none).
+
+        sample: the core's state (kinematics.state) at the stepper's present one, if known.
+        """
         stepper = self._stepper
         stamp_ns = self._published_stamp_ns
         if stamp_ns is None:
@@ -683,7 +692,8 @@ class ShaperSimNode(Node):
             self._still_markers, self._still_markers_sent = still, now
         frame.append(linkage_marker_array(
             self._geometry, stepper.offset, stepper.input_angle, stamp_ns, frame_id,
-            input_speed=stepper.input_speed, loads=self._loads, moving_only=moving_only))
+            input_speed=stepper.input_speed, mechanism_state=sample, loads=self._loads,
+            moving_only=moving_only))
         return frame
 
     def _report_stall(self, stepper, stamp_ns):

@@ -124,6 +124,22 @@ def test_the_moving_markers_alone_are_those_that_move_at_a_fixed_offset():
         assert changed == (key in MOVING_KEYS), key
 
 
+def test_a_state_with_speeds_draws_the_same_points_as_none():
+    """The node hands over its published sample (kinematics.state with its rates): same bits."""
+    rng = np.random.default_rng(3)
+
+    def points(**state):
+        array = linkage_marker_array(GEOMETRY, offset, angle, 0, 'f', **state)
+        return [(m.pose.position.x, m.pose.position.y, [_xy(p) for p in m.points])
+                for m in array.markers]
+    for _ in range(200):
+        offset = float(rng.uniform(-0.02, 0.02))
+        angle = float(rng.uniform(-math.pi, math.pi))
+        sample = kin.state(GEOMETRY, offset, angle, float(rng.uniform(-50.0, 50.0)),
+                           float(rng.uniform(-9.0, 9.0)), float(rng.uniform(-0.01, 0.01)))
+        assert points(mechanism_state=sample) == points()
+
+
 def test_keys_header_and_well_formed_markers():
     stamp = 1_234_567_891_011
     first = linkage_marker_array(GEOMETRY, 0.0, 0.5, stamp, 'shaper_base')
