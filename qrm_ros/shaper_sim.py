@@ -69,8 +69,8 @@ _WARNING_PERIOD = 1.0  # s, throttle for repeated warnings
 # s: the longest another thread of the node (the motor kernel's loader, the theory's reply
 # reader) may hold the GIL while a tick waits for it (Python's default is 5 ms).
 GIL_SWITCH_INTERVAL = 1e-4
-# Stroke-pair steps run after a tick until this fraction of the timer's period has gone
-# since the tick began (at least one step a tick): the rest absorbs the host's noise.
+# Stroke-pair steps run after a tick while less than this fraction of the timer's period has
+# gone since the tick began: the rest absorbs the host's noise.
 PAIR_STEP_SHARE = 0.5
 # s: the whole marker array is sent at least this often (a viewer started later sees the
 # still parts within it), the moving markers alone in between.
@@ -490,19 +490,19 @@ class ShaperSimNode(Node):
         self._run_pair_steps(started_ns)
         return True
 
-    def _run_pair_steps(self, started_ns, budget_ns=None):
+    def _run_pair_steps(self, started_ns):
         """
         Run stroke-pair steps, oldest pair first, while there is budget left.
 
-        The budget is budget_ns since started_ns (by default PAIR_STEP_SHARE of the timer's
-        period). A tick that used the budget up itself runs none, unless the tick before ran none
+        The budget is PAIR_STEP_SHARE of the timer's period since started_ns (the tick's
+        start). A tick that used it up itself runs none, unless the tick before ran none
         either: the pairs always progress. Skipped while wait_for_pair_reports steps them.
         """
         jobs = self._pair_jobs
         if not jobs or not self._pair_lock.acquire(blocking=False):
             return
         try:
-            budget_ns = self._pair_step_budget_ns if budget_ns is None else budget_ns
+            budget_ns = self._pair_step_budget_ns
             ran = False
             while jobs:
                 if (time.monotonic_ns() - started_ns >= budget_ns
