@@ -51,6 +51,7 @@ from qrm_ros.shaper_parameters import (allowed_text, default_values, GEOMETRY_NA
                                        View)
 from qrm_ros.stepping import ShaperStepper, wrap_angle
 from qrm_ros.stroke_monitor import StrokeMonitor
+from qrm_ros.strokes import run_steps
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 from rcl_interfaces.srv import SetParameters, SetParametersAtomically
 import rclpy
@@ -524,8 +525,7 @@ class ShaperSimNode(Node):
             raise TimeoutError('the stroke pairs are being reported by another caller')
         try:
             while self._pair_jobs:
-                for _ in self._pair_jobs.popleft():
-                    pass
+                run_steps(self._pair_jobs.popleft())
         finally:
             self._pair_lock.release()
 
