@@ -57,6 +57,7 @@ from qrm_ros.effort_theory import (EFFORT_FIGURES, Setting, steady_effort_theory
 from qrm_ros.names import (absolute_topic, GEOMETRY_METADATA, JOINT_NAMES, JOINT_STATE_TYPE,
                            MOTOR_DRIVE, PARAMETER_EVENTS_TOPIC, PARAMETERS_METADATA,
                            SIM_NODE_NAME, SPEED_DRIVE)
+from qrm_ros.stepping import NANOSECONDS_PER_SECOND
 from qrm_ros.strokes import find_stroke_pairs, measure_pair_efforts
 
 JOINT_STATES_TOPIC = absolute_topic(names.JOINT_STATES_TOPIC)
@@ -91,7 +92,6 @@ _BAD_NANOSEC = 'an invalid stamp (nanosec of 10^9 or more)'
 # as a sample without its efforts (the motion kept).
 IN_FILE, IN_MESSAGE, IN_EFFORTS = 'file', 'message', 'efforts'
 _LOSS_VERBS = {IN_FILE: 'lost', IN_MESSAGE: 'excluded', IN_EFFORTS: 'used without their efforts'}
-_NS = 1_000_000_000
 
 
 class AnalysisError(Exception):
@@ -258,12 +258,12 @@ def _drive_changes(run: Run, stored: Optional[Dict[str, str]],
                        if p.name in DRIVE_PARAMETERS]
             if event.node.rsplit('/', 1)[-1] != SIM_NODE_NAME or not changed:
                 continue
-            stamp = event.stamp.sec * _NS + event.stamp.nanosec
+            stamp = event.stamp.sec * NANOSECONDS_PER_SECOND + event.stamp.nanosec
         except Exception:  # noqa: B902 a damaged event is no change we can know of
             continue
         values.update(changed)
         drive, problem = _drive_of_values(values, geometry)
-        spans.append(DriveSpan((stamp - origin_ns) / _NS, drive, problem))
+        spans.append(DriveSpan((stamp - origin_ns) / NANOSECONDS_PER_SECOND, drive, problem))
     return tuple(spans)
 
 
@@ -464,7 +464,7 @@ class _Decoder:
         if len(decoded.effort) not in (0, len(joint_names)):
             _reject(self.rejected, 'efforts neither absent nor one per joint name', log_time)
             return None
-        if decoded.header.stamp.nanosec >= _NS:
+        if decoded.header.stamp.nanosec >= NANOSECONDS_PER_SECOND:
             _reject(self.rejected, _BAD_NANOSEC, log_time)
             return None
         return decoded, order
@@ -500,8 +500,8 @@ class _Decoder:
                 velocities[rows] = block[:, layout.velocity].copy().view('<f8')[:, columns]
                 if layout.effort is not None:
                     efforts[rows] = block[:, layout.effort].copy().view('<f8')[:, columns]
-                stamps[rows] = sec * _NS + nanosec
-                valid = nanosec < _NS
+                stamps[rows] = sec * NANOSECONDS_PER_SECOND + nanosec
+                valid = nanosec < NANOSECONDS_PER_SECOND
                 usable[rows[valid]] = True
                 for row in rows[~valid]:
                     _reject(self.rejected, _BAD_NANOSEC, int(times[row]))
@@ -512,7 +512,7 @@ class _Decoder:
             decoded, order = found
             columns = slice(None) if order is None else order
             stamp = decoded.header.stamp
-            stamps[row] = stamp.sec * _NS + stamp.nanosec
+            stamps[row] = stamp.sec * NANOSECONDS_PER_SECOND + stamp.nanosec
             positions[row] = np.asarray(decoded.position, dtype=float)[columns]
             velocities[row] = np.asarray(decoded.velocity, dtype=float)[columns]
             if len(decoded.effort):
@@ -540,7 +540,7 @@ class _Decoder:
         if (isinstance(order, str) or len(decoded.position) != len(joint_names)
                 or len(decoded.velocity) != len(joint_names)
                 or len(decoded.effort) not in (0, len(joint_names))
-                or decoded.header.stamp.nanosec >= _NS):
+                or decoded.header.stamp.nanosec >= NANOSECONDS_PER_SECOND):
             return None
         return _learn_layout(data, decoded, order)
 
@@ -599,7 +599,9 @@ def _decode_in_parallel(path: str, parts: List[Optional[slice]], progress) -> Li
 
 
 def _seconds(log_time: Optional[int], start: Optional[int]) -> Optional[float]:
-    return None if log_time is None or start is None else (log_time - start) / _NS
+    if log_time is None or start is None:
+        return None
+    return (log_time - start) / NANOSECONDS_PER_SECOND
 
 
 def _combine(path: str, run: Run, geometry: kin.Geometry, parts: List[_Part]) -> Recording:
@@ -673,7 +675,7 @@ def _combine(path: str, run: Run, geometry: kin.Geometry, parts: List[_Part]) ->
     if stamps.size < MIN_SEGMENT_SAMPLES:
         raise AnalysisError(f'{path} holds {stamps.size} usable {JOINT_STATES_TOPIC} messages: '
                             'too few to find any stroke' + _loss_clause(losses, run))
-    time = (stamps - stamps[0]) / _NS
+    time = (stamps - stamps[0]) / NANOSECONDS_PER_SECOND
     with_efforts = not np.isnan(effort).all()
     samples = Samples(time, position[:, 0], velocity[:, 0], position[:, 1], velocity[:, 1],
                       position[:, 3], velocity[:, 3], position[:, 4], velocity[:, 4],

@@ -50,6 +50,7 @@ from qrm_ros.design_table import add_geometry_arguments  # noqa: E402
 from qrm_ros.linkage import COLOURS, linkage_points, linkage_sizes, workpiece_span  # noqa: E402
 from qrm_ros.names import (absolute_topic, JOINT_NAMES, JOINT_STATE_TYPE,  # noqa: E402
                            JOINT_STATES_TOPIC, PARAMETERS_METADATA)
+from qrm_ros.stepping import NANOSECONDS_PER_SECOND  # noqa: E402
 
 __all__ = ['AnimationError', 'FORMATS', 'FRAME_SIZE', 'FramePlan', 'LinkageFigure',
            'MAX_FRAMES', 'MAX_GIF_FPS', 'MP4_MISSING', 'check_output', 'check_rates',
@@ -73,7 +74,6 @@ MP4_MISSING = ('writing MP4 needs the optional imageio-ffmpeg package: pip insta
 INPUT_SHAFT, RAM, OFFSET = JOINT_NAMES[0], JOINT_NAMES[3], JOINT_NAMES[4]
 # Frame times are a float sum; recorded stamps are whole nanoseconds apart.
 _TIME_SLACK = 1e-12
-_NS = 1_000_000_000
 
 
 class AnimationError(Exception):
@@ -366,7 +366,7 @@ def read_efforts(path, samples):
             if first_message:
                 return None
             continue
-        stamp = decoded.header.stamp.sec * _NS + decoded.header.stamp.nanosec
+        stamp = decoded.header.stamp.sec * NANOSECONDS_PER_SECOND + decoded.header.stamp.nanosec
         if zero is None and len(decoded.position) == len(names) == len(decoded.velocity):
             position = dict(zip(names, decoded.position))
             velocity = dict(zip(names, decoded.velocity))
@@ -377,7 +377,8 @@ def read_efforts(path, samples):
         values.append(float(decoded.effort[names.index(INPUT_SHAFT)]))
     if zero is None:
         return None
-    time = (np.asarray(stamps, dtype=np.int64) - zero) / _NS  # as the analysis computes it
+    # As the analysis computes it.
+    time = (np.asarray(stamps, dtype=np.int64) - zero) / NANOSECONDS_PER_SECOND
     order = np.argsort(time, kind='stable')
     time, values = time[order], np.asarray(values)[order]
     found = np.clip(np.searchsorted(time, samples.time), 0, time.size - 1)

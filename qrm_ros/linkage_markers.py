@@ -41,9 +41,10 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from qrm_ros import kinematics as kin
 from qrm_ros.linkage import COLOURS, linkage_points, linkage_sizes, workpiece_span
+from qrm_ros.stepping import NANOSECONDS_PER_SECOND
 
 __all__ = ['LINK_BARS', 'MARKER_KEYS', 'MOVING_KEYS', 'delete_all_marker_array', 'label_text',
-           'linkage_marker_array']
+           'linkage_marker_array', 'stamp_message']
 
 # (namespace, id) of every marker, in the order of the array.
 MARKER_KEYS = (
@@ -63,11 +64,12 @@ def _colour(name, alpha=None):
     return ColorRGBA(r=red, g=green, b=blue, a=opaque if alpha is None else alpha)
 
 
-def _stamp(stamp):
+def stamp_message(stamp):
+    """Return a builtin_interfaces Time for a stamp in integer nanoseconds (a Time as it is)."""
     if isinstance(stamp, Time):
         return stamp
-    nanoseconds = int(stamp)
-    return Time(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
+    seconds, nanoseconds = divmod(int(stamp), NANOSECONDS_PER_SECOND)
+    return Time(sec=seconds, nanosec=nanoseconds)
 
 
 def _point(xy, z=0.0):
@@ -192,7 +194,7 @@ def linkage_marker_array(geometry, offset, input_angle, stamp, frame_id, *, inpu
     built = _markers(geometry)
     offset = float(offset)
     points = linkage_points(geometry, offset, input_angle, mechanism_state, built.sizes)
-    built.header.stamp = _stamp(stamp)
+    built.header.stamp = stamp_message(stamp)
     built.header.frame_id = frame_id
     _set(built.slot.points[1], points.slot_end)
     tool_root = (points.ram_block[0] - 0.5 * built.sizes.ram_length, points.ram_block[1])
@@ -222,5 +224,5 @@ def linkage_marker_array(geometry, offset, input_angle, stamp, frame_id, *, inpu
 
 def delete_all_marker_array(stamp=0, frame_id=''):
     """Return a MarkerArray that clears every marker (send it on reset, before new ones)."""
-    header = Header(stamp=_stamp(stamp), frame_id=frame_id)
+    header = Header(stamp=stamp_message(stamp), frame_id=frame_id)
     return MarkerArray(markers=[Marker(header=header, action=Marker.DELETEALL)])

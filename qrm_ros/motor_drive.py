@@ -35,7 +35,8 @@ from qrm_ros import dynamics as dyn
 from qrm_ros.kinematics import (_flat_design, check_offset, Geometry,
                                 input_angle_for_flywheel_angle, KinematicsError,
                                 reversal_flywheel_angles, state, TWO_PI)
-from qrm_ros.stepping import _finite, _positive, _ramp, checked_limits, wrap_angle
+from qrm_ros.stepping import (_finite, _positive, _ramp, checked_limits, NANOSECONDS_PER_SECOND,
+                              wrap_angle)
 
 __all__ = ['MotorStepper', 'PairEfforts', 'Simulation', 'SpeedFluctuation',
            'energy_method_inertia', 'input_inertia_for_speed_fluctuation', 'pair_efforts',
@@ -333,7 +334,6 @@ _ROOT_SAMPLES = 5
 # exact beyond about 1e-8 rad (sqrt(eps): a workpiece as long as the stroke touches zero
 # at a reversal).
 _SWITCH_ANGLE_MARGIN = 1e-6
-_NANOSECONDS = 1e9
 # A ram reversal landed on with the input slower than this (rad/s) is the shaft stopping.
 _STOP_SPEED = 1e-9
 # Solver steps taken at once, ahead of the stamps (within the segment: a switch ends them; a
@@ -951,7 +951,7 @@ class MotorStepper:
             self._new_base(stamp_ns)
             return
         self._stamp_ns = stamp_ns
-        time = (stamp_ns - self._base_ns) / _NANOSECONDS
+        time = (stamp_ns - self._base_ns) / NANOSECONDS_PER_SECOND
         self._time = time
         self._acceleration_now = None
         if self._spin == 0:
@@ -1102,14 +1102,15 @@ def simulate(geometry, mass, loads, motor, offset, input_speed, duration, sample
     stepper.integrate_to(0)
     stepper.set_speed_command(input_speed)
     count = int(math.floor(duration * sample_rate + 1e-9)) + 1
-    stamps = np.round(np.arange(count) * (_NANOSECONDS / sample_rate)).astype(np.int64)
+    step_ns = NANOSECONDS_PER_SECOND / sample_rate
+    stamps = np.round(np.arange(count) * step_ns).astype(np.int64)
     rows = []
     for stamp in stamps:
         stepper.integrate_to(int(stamp))
         rows.append((stepper.input_angle, stepper.input_speed, stepper.input_acceleration,
                      stepper.motor_torque, *stepper.efforts(), stepper.stalled))
     table = np.array(rows, dtype=float)
-    return Simulation(time=stamps / _NANOSECONDS, input_angle=np.unwrap(table[:, 0]),
+    return Simulation(time=stamps / NANOSECONDS_PER_SECOND, input_angle=np.unwrap(table[:, 0]),
                       input_speed=table[:, 1], input_acceleration=table[:, 2],
                       motor_torque=table[:, 3], efforts=dyn.Efforts(*table[:, 4:9].T),
                       stalled=table[:, 9].astype(bool))
@@ -1240,7 +1241,8 @@ def _revolution(geometry, mass, loads, motor, offset, input_speed, start_speed):
     stepper.restore(0, 0.0, start_speed, offset, speed_reference=input_speed)
     tracker = _RevolutionTracker(stepper)
     stepper._observer = tracker.piece
-    step_ns = max(1, int(round(2.0 * math.pi / input_speed / _DRIVE_STAMPS * _NANOSECONDS)))
+    step_ns = max(1, int(round(2.0 * math.pi / input_speed / _DRIVE_STAMPS
+                               * NANOSECONDS_PER_SECOND)))
     stamp = 0
     while tracker.end_time is None:
         stamp += step_ns

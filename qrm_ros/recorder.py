@@ -55,6 +55,7 @@ from qrm_ros.names import (DIAGNOSTICS_TOPIC, GEOMETRY_METADATA, JOINT_STATES_TO
 from qrm_ros.ros_process import (executor_kind, ExecutorChoiceError, init_rclpy,
                                  MESSAGE_INFO_SIGNATURE, message_and_info, new_executor,
                                  RCLError, rcl_error_text, spin_until_stopped, StopRequest)
+from qrm_ros.stepping import NANOSECONDS_PER_SECOND
 
 NODE_NAME = RECORDER_NODE_NAME
 DEFAULT_TOPICS = [JOINT_STATES_TOPIC, RAM_TWIST_TOPIC, SPEED_COMMAND_TOPIC, DIAGNOSTICS_TOPIC,
@@ -165,9 +166,9 @@ class Recorder(Node):
                         'that the file has no geometry metadata yet (it keeps trying).',
             dynamic_typing=True, **read_only))
         self.settings = self._validated_settings()
+        chunk_duration_ns = round(self.settings['max_chunk_duration'] * NANOSECONDS_PER_SECOND)
         self.run_file = McapRunFile(self.settings['output'],
-                                    COMPRESSIONS[self.settings['compression']],
-                                    int(round(self.settings['max_chunk_duration'] * 1e9)))
+                                    COMPRESSIONS[self.settings['compression']], chunk_duration_ns)
         self._wanted = {self.resolve_topic_name(topic): topic
                         for topic in self.settings['topics']}
         self._recorded_topics = {}

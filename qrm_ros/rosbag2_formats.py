@@ -28,6 +28,8 @@ import re
 
 from ament_index_python.packages import get_package_share_directory, PackageNotFoundError
 
+from qrm_ros.stepping import NANOSECONDS_PER_SECOND
+
 __all__ = ['DEFINITION_DELIMITER', 'find_message_definition', 'offered_qos_profiles_yaml',
            'qos_profile_yaml_lines', 'rosbag2_metadata_yaml', 'NO_QOS_PROFILES']
 
@@ -104,9 +106,8 @@ def find_message_definition(type_name, share_directory=get_package_share_directo
 # --- QoS metadata --------------------------------------------------------------------------
 
 def _duration_yaml(duration, indent):
-    nanoseconds = duration.nanoseconds
-    return (f'{indent}  sec: {nanoseconds // 1_000_000_000}\n'
-            f'{indent}  nsec: {nanoseconds % 1_000_000_000}')
+    seconds, nanoseconds = divmod(duration.nanoseconds, NANOSECONDS_PER_SECOND)
+    return f'{indent}  sec: {seconds}\n{indent}  nsec: {nanoseconds}'
 
 
 def qos_profile_yaml_lines(profile):

@@ -30,7 +30,6 @@ import sys
 import threading
 import time
 
-from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import TwistStamped
 from qrm_ros.cutting_speed_hold import CUTTING_SPEED_FIGURES, hold_offset
@@ -39,7 +38,7 @@ from qrm_ros.dynamics import (efforts, Loads, MassProperties, MotorDrive, parame
 from qrm_ros.effort_theory import BackgroundTheory, Setting, THEORY_FIGURES
 from qrm_ros.motor_drive import MotorStepper
 from qrm_ros.kinematics import Geometry
-from qrm_ros.linkage_markers import delete_all_marker_array, linkage_marker_array
+from qrm_ros.linkage_markers import delete_all_marker_array, linkage_marker_array, stamp_message
 from qrm_ros.names import (CUTTING_SPEED_STATUS, DIAGNOSTICS_TOPIC, DRIVE_STATUS,
                            JOINT_NAMES, JOINT_STATES_TOPIC, LINKAGE_MARKERS_TOPIC,
                            RAM_TWIST_TOPIC, SIM_NODE_NAME, SPEED_COMMAND_TOPIC,
@@ -49,7 +48,7 @@ from qrm_ros.ros_process import (executor_kind, init_rclpy, new_executor, RCLErr
 from qrm_ros.shaper_parameters import (allowed_text, default_values, GEOMETRY_NAMES,
                                        MARKER_SLICING_RATE, PARAMETERS, refusal_reason, shown,
                                        View)
-from qrm_ros.stepping import ShaperStepper, wrap_angle
+from qrm_ros.stepping import NANOSECONDS_PER_SECOND, ShaperStepper, wrap_angle
 from qrm_ros.stroke_monitor import StrokeMonitor
 from qrm_ros.strokes import run_steps
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
@@ -88,10 +87,6 @@ SERVICE_QOS = qos_profile_parameters
 _PAPER = Geometry.paper()
 # Overrides rclpy declares itself; not this node's to report as unknown.
 _RCLPY_PARAMETERS = ('use_sim_time', 'start_type_description_service')
-
-
-def _stamp(nanoseconds):
-    return Time(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
 
 
 def _coerce_integers_to_doubles(parameters):
@@ -183,7 +178,8 @@ class ShaperSimNode(Node):
         self.add_on_set_parameters_callback(self._check_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
         self._timer = self.create_timer(1.0 / self._values['publish_rate'], self._on_timer)
-        self._pair_step_budget_ns = round(PAIR_STEP_SHARE * 1e9 / self._values['publish_rate'])
+        self._pair_step_budget_ns = round(PAIR_STEP_SHARE * NANOSECONDS_PER_SECOND
+                                          / self._values['publish_rate'])
         if self._values['cutting_speed_target']:
             self.command_offset()
         self.get_logger().info(
@@ -458,7 +454,7 @@ class ShaperSimNode(Node):
                 throttle_duration_sec=_WARNING_PERIOD)
             return False
         # The messages are built once; each tick only fills in its values.
-        seconds, nanoseconds = divmod(stamp_ns, 1_000_000_000)
+        seconds, nanoseconds = divmod(stamp_ns, NANOSECONDS_PER_SECOND)
         frame_id = self._values['frame_id']
         joint_state = self._joint_state
         joint_state.header.stamp.sec = seconds
@@ -564,7 +560,7 @@ class ShaperSimNode(Node):
 
     def _effort_theory(self, report, setting, setting_since_ns):
         """Return the pair's effort theory as key-values, and a word on where it stands."""
-        if report.pair_start * 1e9 < setting_since_ns:
+        if report.pair_start * NANOSECONDS_PER_SECOND < setting_since_ns:
             return [], 'none: the setting changed during the pair'
         stepper, mass, loads, motor, offset, speed = setting
         theory, problem = self._theory.lookup(Setting(
@@ -626,7 +622,7 @@ class ShaperSimNode(Node):
         go out one a tick, and the next frame waits for them (at 4 kHz, a moving frame's four
         markers take 1.25 ms of a 33 ms period at 30 Hz).
         """
-        self._marker_period_ns = round(1e9 / rate) if rate > 0.0 else 0
+        self._marker_period_ns = round(NANOSECONDS_PER_SECOND / rate) if rate > 0.0 else 0
         self._next_markers_ns = 0
 
     def _publish_markers_if_due(self, stamp_ns, sample=None):
@@ -720,7 +716,7 @@ class ShaperSimNode(Node):
         status = DiagnosticStatus(level=level, name=DRIVE_STATUS, hardware_id=SIM_NODE_NAME,
                                   message=text, values=values)
         message = DiagnosticArray(status=[status])
-        message.header.stamp = _stamp(stamp_ns)
+        message.header.stamp = stamp_message(stamp_ns)
         self._diagnostics_publisher.publish(message)
 
     def _publish_hold_status(self):
@@ -771,7 +767,7 @@ class ShaperSimNode(Node):
                      f'{steady}'),
             values=key_values)
         message = DiagnosticArray(status=[status])
-        message.header.stamp = _stamp(report.stamp_ns)
+        message.header.stamp = stamp_message(report.stamp_ns)
         return message
 
 

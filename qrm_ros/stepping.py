@@ -42,7 +42,7 @@ from typing import Optional
 from qrm_ros.kinematics import (check_offset, Geometry, KinematicsError, MechanismState,
                                 state)
 
-__all__ = ['checked_limits', 'ShaperStepper', 'wrap_angle']
+__all__ = ['checked_limits', 'NANOSECONDS_PER_SECOND', 'ShaperStepper', 'wrap_angle']
 
 # 2 pi split into the nearest double and the remainder. Measured, it makes no difference to
 # long-run precision (bench/bench_angle_precision.py: ~2.5e-16 rad per revolution either
@@ -51,7 +51,9 @@ __all__ = ['checked_limits', 'ShaperStepper', 'wrap_angle']
 _TWO_PI_HIGH = 2.0 * math.pi
 _TWO_PI_LOW = 2.4492935982947064e-16
 _BELOW_PI = math.nextafter(math.pi, 0.0)
-_NANOSECONDS = 1e9
+# Stamps are integer nanoseconds. A stamp difference divided by it is float(ns) / 1e9, the
+# same double, for any difference under 2**53 ns (104 days).
+NANOSECONDS_PER_SECOND = 1_000_000_000
 
 
 def wrap_angle(angle: float) -> float:
@@ -201,7 +203,7 @@ class ShaperStepper:
         if stamp_ns < previous:
             self.time_resets += 1
             return
-        duration = (stamp_ns - previous) / _NANOSECONDS
+        duration = (stamp_ns - previous) / NANOSECONDS_PER_SECOND
         speed, angle_change = _ramp(self._input_speed, self._speed_command,
                                     self._acceleration_limit, duration)
         offset, _ = _ramp(self._offset, self._offset_command, self._offset_rate_limit,

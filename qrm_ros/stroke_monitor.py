@@ -32,6 +32,7 @@ from typing import Dict, List, NamedTuple, Optional
 import numpy as np
 
 from qrm_ros.kinematics import Geometry, steady_theory, SteadyTheory
+from qrm_ros.stepping import NANOSECONDS_PER_SECOND
 from qrm_ros.strokes import (pair_effort_steps, PairEffortsMeasured, run_steps, Steps,
                              stroke_pair_steps)
 
@@ -49,7 +50,6 @@ MEASURED_FIGURES = ('cutting_time', 'return_time', 'time_ratio', 'peak_cutting_s
 _SAMPLE_FIELDS = ('ram_position', 'ram_velocity', 'offset', 'offset_rate', 'input_speed',
                   'input_torque', 'offset_force')
 _THEORY_CACHE_LIMIT = 64
-_NANOSECONDS = 1e9
 
 
 class CompletedSamples(NamedTuple):
@@ -171,7 +171,7 @@ class StrokeMonitor:
         stamps = np.frombuffer(completed.sample_stamps_ns, dtype=np.int64)
         origin = int(stamps[0])
         # Exact differences, then one division each (float(ns - origin) / 1e9, as in Python).
-        time = (stamps - origin) / _NANOSECONDS
+        time = (stamps - origin) / NANOSECONDS_PER_SECOND
         columns = {name: np.frombuffer(column) for name, column in completed.columns.items()}
         yield
         pairs = yield from stroke_pair_steps(time, columns['ram_position'],
@@ -193,10 +193,11 @@ class StrokeMonitor:
         offsets = columns['offset'][first:last + 1]
         speeds = columns['input_speed'][first:last + 1]
         offset, speed = float(offsets[-1]), float(speeds[-1])
+        origin_seconds = float(origin) / NANOSECONDS_PER_SECOND
         return PairReport(
             stamp_ns=stamp_ns,
-            pair_start=origin / _NANOSECONDS + float(pairs.cutting_start[index]),
-            pair_end=origin / _NANOSECONDS + float(pairs.return_end[index]),
+            pair_start=origin_seconds + float(pairs.cutting_start[index]),
+            pair_end=origin_seconds + float(pairs.return_end[index]),
             coupling_offset=offset, input_speed=speed,
             offset_steady=bool(offsets.min() == offsets.max()
                                and not columns['offset_rate'][first:last].any()),
