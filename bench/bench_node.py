@@ -251,10 +251,7 @@ class Probe:
 
 
 def measure(variant, rate, window, probe, quiet_limit, profile_path=None):
-    """
-    Return the missed and late fractions, CPU in % of a core, other load in cores and the joint
-    states received, over a window.
-    """
+    """(missed and late fractions, CPU in % of a core, other load in cores, stamps received)."""
     command = [sys.executable, os.path.abspath(__file__), '--publisher', variant, str(rate)]
     command += [profile_path] if profile_path else []
     process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
