@@ -64,6 +64,7 @@ import time
 from qrm_ros.names import (DIAGNOSTICS_TOPIC, JOINT_NAMES, JOINT_STATES_TOPIC, RAM_TWIST_TOPIC,
                            STROKE_PAIR_STATUS)
 from qrm_ros.ros_isolation import isolate_ros_traffic
+from qrm_ros.stepping import NANOSECONDS_PER_SECOND
 
 RATES = [100.0, 1000.0, 2000.0, 3000.0, 5000.0]
 CPU_RATES = (100.0, 1000.0)
@@ -146,7 +147,7 @@ def _bare_node(rate, twist):
 
     def tick():
         now = clock.now()
-        seconds = now.nanoseconds * 1e-9
+        seconds = now.nanoseconds / NANOSECONDS_PER_SECOND
         message.header.stamp = now.to_msg()
         message.position = array('d', (seconds, seconds, seconds, seconds, seconds))
         message.velocity = array('d', (1.0, 1.0, 1.0, 1.0, 1.0))
@@ -167,14 +168,14 @@ def _start_sleeping_ticks(tick, rate):
     misses counted are what any publisher on this machine would lose to late wake-ups.
     """
     import threading
-    period = round(1e9 / rate)
+    period = round(NANOSECONDS_PER_SECOND / rate)
 
     def run():
         due = time.monotonic_ns() + period
         while True:
             wait = due - time.monotonic_ns()
             if wait > 0:
-                time.sleep(wait * 1e-9)
+                time.sleep(wait / NANOSECONDS_PER_SECOND)
             now = time.monotonic_ns()
             tick()
             due += period
@@ -204,7 +205,7 @@ def machine_busy_ns():
         fields = [int(v) for v in handle.readline().split()[1:]]
     user, nice, system, idle, iowait, irq, softirq, steal = fields[:8]
     ticks = user + nice + system + irq + softirq + steal
-    return ticks * 1e9 / os.sysconf('SC_CLK_TCK')
+    return ticks * NANOSECONDS_PER_SECOND / os.sysconf('SC_CLK_TCK')
 
 
 class Probe:
@@ -227,14 +228,16 @@ class Probe:
         self.node = rclpy.create_node('bench_probe')
         self.stamps = []
         self.theory_settled = False
-        self.node.create_subscription(
-            JointState, JOINT_STATES_TOPIC,
-            lambda m: self.stamps.append(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec),
-            QoSProfile(depth=10000))
+        self.node.create_subscription(JointState, JOINT_STATES_TOPIC, self._on_joint_state,
+                                      QoSProfile(depth=10000))
         self.node.create_subscription(DiagnosticArray, DIAGNOSTICS_TOPIC, self._on_diagnostics,
                                       QoSProfile(depth=100))
         self.executor = SingleThreadedExecutor()
         self.executor.add_node(self.node)
+
+    def _on_joint_state(self, message):
+        stamp = message.header.stamp
+        self.stamps.append(stamp.sec * NANOSECONDS_PER_SECOND + stamp.nanosec)
 
     def _on_diagnostics(self, message):
         for status in message.status:
@@ -285,8 +288,9 @@ def measure(variant, rate, window, probe, quiet_limit, profile_path=None):
         except subprocess.TimeoutExpired:
             process.kill()
             process.wait()
-    missed, late = tick_misses(stamps, 1e9 / rate)
-    return missed, late, 100.0 * cpu / (wall * 1e9), others / (wall * 1e9), len(stamps)
+    missed, late = tick_misses(stamps, NANOSECONDS_PER_SECOND / rate)
+    wall_ns = wall * NANOSECONDS_PER_SECOND
+    return missed, late, 100.0 * cpu / wall_ns, others / wall_ns, len(stamps)
 
 
 def tick_misses(stamps, period):
@@ -319,7 +323,7 @@ def quiet_measurement(variant, rate, window, probe, quiet_limit, allow_busy):
         print(f'    (machine busy: other processes used {others:.2f} cores during '
               f'{variant} {rate:.0f} Hz; retry {attempt + 1}/{RETRIES})', flush=True)
     if allow_busy or received < 2:
-        return missed, late, cpu  # none received in any try: counted as all missed
+        return missed, late, cpu  # the last try received none: counted as all missed
     return None
 
 
