@@ -46,13 +46,13 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'qrm_design = qrm_ros.entry_points:qrm_design',
-            'shaper_sim = qrm_ros.entry_points:shaper_sim',
-            'mcap_recorder = qrm_ros.entry_points:mcap_recorder',
-            'qrm_analyze = qrm_ros.entry_points:qrm_analyze',
-            'qrm_animate = qrm_ros.entry_points:qrm_animate',
-            'qrm_main = qrm_ros.entry_points:qrm_main',
-            'qrm_urdf = qrm_ros.entry_points:qrm_urdf',
+            'qrm_design = qrm_ros.cli.entry_points:qrm_design',
+            'shaper_sim = qrm_ros.cli.entry_points:shaper_sim',
+            'mcap_recorder = qrm_ros.cli.entry_points:mcap_recorder',
+            'qrm_analyze = qrm_ros.cli.entry_points:qrm_analyze',
+            'qrm_animate = qrm_ros.cli.entry_points:qrm_animate',
+            'qrm_main = qrm_ros.cli.entry_points:qrm_main',
+            'qrm_urdf = qrm_ros.cli.entry_points:qrm_urdf',
         ],
     },
 )

@@ -34,8 +34,10 @@ import time
 import numpy as np
 from PIL import Image
 
-from qrm_ros import analysis, animate, main_job
-from qrm_ros import kinematics as kin
+from qrm_ros.analysis import run_analysis as analysis
+from qrm_ros.analysis import animate
+from qrm_ros.cli import qrm_main as main_job
+from qrm_ros.core import kinematics as kin
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', 'test'))
 from synthetic_run import write_run  # noqa: E402

@@ -32,11 +32,11 @@ import time
 
 import numpy as np
 
-from qrm_ros import dynamics as dyn
-from qrm_ros import motor_drive as md
-from qrm_ros.kinematics import Geometry
-from qrm_ros.motor_drive import MotorStepper, pair_efforts
-from qrm_ros.stepping import ShaperStepper
+from qrm_ros.core import dynamics as dyn
+from qrm_ros.core import motor_drive as md
+from qrm_ros.core.kinematics import Geometry
+from qrm_ros.core.motor_drive import MotorStepper, pair_efforts
+from qrm_ros.core.stepping import ShaperStepper
 
 
 def median_seconds(function, repeats):

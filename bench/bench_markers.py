@@ -31,9 +31,9 @@ import time
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 
-from qrm_ros import kinematics as kin
-from qrm_ros.linkage_markers import linkage_marker_array
-from qrm_ros.names import JOINT_NAMES
+from qrm_ros.core import kinematics as kin
+from qrm_ros.node.linkage_markers import linkage_marker_array
+from qrm_ros.core.names import JOINT_NAMES
 
 
 def per_call_microseconds(function, calls, repeats):

@@ -14,7 +14,7 @@
 """
 Benchmark: how late 1 kHz motor-drive ticks come while the compiled forms load on a thread.
 
-The first MotorStepper of a process loads qrm_ros.motor_kernel (numba) on a thread of its
+The first MotorStepper of a process loads qrm_ros.core.motor_kernel (numba) on a thread of its
 own. Each run is a fresh process that makes its first stepper and ticks it at 1 kHz (sleep
 to the due time, the node's 0.1 ms GIL switch interval) for --ticks ticks; it prints how late
 the ticks came (the tick's start past its due time) over the first 1000 ticks, while loading,
@@ -41,9 +41,9 @@ def _lateness(values):
 
 def ticker(ticks, load):
     sys.setswitchinterval(1e-4)
-    from qrm_ros import dynamics as dyn
-    from qrm_ros import motor_drive as md
-    from qrm_ros.kinematics import Geometry
+    from qrm_ros.core import dynamics as dyn
+    from qrm_ros.core import motor_drive as md
+    from qrm_ros.core.kinematics import Geometry
     if not load:
         md._start_loading_compiled_kernel = lambda: None
     stepper = md.MotorStepper(Geometry.paper(), dyn.MassProperties.small_shaper(),

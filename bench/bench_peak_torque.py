@@ -31,9 +31,9 @@ import time
 import numba
 import numpy as np
 
-from qrm_ros import dynamics as dyn
-from qrm_ros.kinematics import Geometry, state
-from qrm_ros.motor_drive import pair_efforts, peak_input_torque
+from qrm_ros.core import dynamics as dyn
+from qrm_ros.core.kinematics import Geometry, state
+from qrm_ros.core.motor_drive import pair_efforts, peak_input_torque
 
 from bench_dynamics import median_seconds  # this folder: run as python bench/<name>.py
 

@@ -47,7 +47,7 @@ import tempfile
 import time
 
 from process_stats import cpu_seconds, machine_cpu_seconds
-from qrm_ros.ros_isolation import isolate_ros_traffic
+from qrm_ros.node.ros_isolation import isolate_ros_traffic
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 TOPICS = ('joint_states', 'ram/twist')
@@ -105,7 +105,7 @@ def floor(kind):
     import rclpy
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import JointState
-    from qrm_ros.ros_process import init_rclpy, new_executor, spin_until_stopped, StopRequest
+    from qrm_ros.node.ros_process import init_rclpy, new_executor, spin_until_stopped, StopRequest
     init_rclpy()
     node = rclpy.create_node('bench_floor')
     count = [0]
@@ -131,13 +131,13 @@ def _recorder_command(output, profile_path=None):
     command = [sys.executable]
     if profile_path:
         command += ['-m', 'cProfile', '-o', profile_path]
-    return command + ['-m', 'qrm_ros.recorder', '--ros-args', '-p', f'output:={output}',
+    return command + ['-m', 'qrm_ros.node.recorder', '--ros-args', '-p', f'output:={output}',
                       '-p', f'topics:=[{", ".join(TOPICS)}]', '-p', 'sim_wait_timeout:=60.0']
 
 
 def one_repeat(index, seconds, rate, folder, env, roles, profile_path=None):
     """Run the publisher and the subscribers `roles` once; return their figures."""
-    from qrm_ros.bag_reader import open_run
+    from qrm_ros.recording.bag_reader import open_run
     outputs, logs, processes = {}, {}, {}
 
     def start(role):
@@ -202,7 +202,7 @@ def _write_raw(messages, path):
 
 
 def _write_recorder_path(messages, path):
-    from qrm_ros.mcap_run_file import COMPRESSIONS, McapRunFile
+    from qrm_ros.recording.mcap_run_file import COMPRESSIONS, McapRunFile
     start = time.process_time()
     run_file = McapRunFile(path, COMPRESSIONS['zstd'], 1_000_000_000)
     channels = {}

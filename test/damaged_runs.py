@@ -36,7 +36,7 @@ from mcap.reader import make_reader
 from mcap.writer import CompressionType, Writer
 from rosbags.typesys import get_typestore, Stores
 
-from qrm_ros.names import GEOMETRY_METADATA, JOINT_STATE_TYPE
+from qrm_ros.core.names import GEOMETRY_METADATA, JOINT_STATE_TYPE
 
 JOINT_STATES = '/joint_states'
 ANY_OUTCOME = frozenset({0, 2, 3})

@@ -24,9 +24,9 @@ import math
 
 import numpy as np
 
-from qrm_ros import dynamics as dyn
-from qrm_ros import kinematics as kin
-from qrm_ros import names
+from qrm_ros.core import dynamics as dyn
+from qrm_ros.core import kinematics as kin
+from qrm_ros.core import names
 
 JOINT_NAMES = list(names.JOINT_NAMES)
 

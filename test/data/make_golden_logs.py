@@ -35,8 +35,8 @@ import sys
 import tempfile
 import time
 
-from qrm_ros.main_job import _start, _stop, Conductor, MainJobError, RECORDER_SETTLE_TIME
-from qrm_ros.names import RECORDER_NODE_NAME
+from qrm_ros.cli.qrm_main import _start, _stop, Conductor, MainJobError, RECORDER_SETTLE_TIME
+from qrm_ros.core.names import RECORDER_NODE_NAME
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 TWO_PI = 2 * math.pi

@@ -1,0 +1,88 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+The console scripts' entry points: a stop signal never prints a traceback.
+
+Importing a command's module (rclpy, numpy, scipy) takes a moment, longer on a loaded
+machine; a Ctrl-C or a launch system's SIGTERM in that moment would otherwise end in a
+KeyboardInterrupt traceback (or a bare kill). So each script first makes both signals a quiet
+exit, then imports its module; the long-running commands replace these handlers with their
+own clean-stop handling (qrm_ros.node.ros_process) once they are up.
+"""
+
+import importlib
+import signal
+import sys
+
+__all__ = ['mcap_recorder', 'qrm_analyze', 'qrm_animate', 'qrm_design', 'qrm_main', 'qrm_urdf',
+           'shaper_sim']
+
+EXIT_INTERRUPTED = 130  # the shell's code for a Ctrl-C
+
+
+_STOP_REQUESTS = []  # the stop signals received while starting
+
+
+def _stopped_while_starting(signal_number, frame):
+    del frame
+    _STOP_REQUESTS.append(signal_number)
+    raise SystemExit(0)  # nothing was started: a clean, quiet stop
+
+
+def _run(module_name):
+    previous = {number: signal.signal(number, _stopped_while_starting)
+                for number in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        module = importlib.import_module(module_name)
+    except Exception:
+        # The SystemExit raised inside a C extension's initialisation (scipy's, say) comes
+        # out as its ImportError: still the stop asked for, not a failure to report.
+        if _STOP_REQUESTS:
+            raise SystemExit(0) from None
+        raise
+    for number, handler in previous.items():
+        signal.signal(number, handler)
+    try:
+        return module.main()
+    except KeyboardInterrupt:  # a batch command (analysis, design table) cut short
+        print(f'{module_name.rsplit(".", 1)[-1]}: interrupted', file=sys.stderr)
+        return EXIT_INTERRUPTED
+
+
+def shaper_sim():
+    return _run('qrm_ros.node.shaper_sim')
+
+
+def mcap_recorder():
+    return _run('qrm_ros.node.recorder')
+
+
+def qrm_analyze():
+    return _run('qrm_ros.analysis.run_analysis')
+
+
+def qrm_animate():
+    return _run('qrm_ros.analysis.animate')
+
+
+def qrm_design():
+    return _run('qrm_ros.analysis.design_table')
+
+
+def qrm_main():
+    return _run('qrm_ros.cli.qrm_main')
+
+
+def qrm_urdf():
+    return _run('qrm_ros.recording.urdf_model')

@@ -1,0 +1,305 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+Stroke reversals, stroke times and peak speeds from a sampled ram trajectory.
+
+One method for every consumer (the node's live diagnostics and the offline analysis): between
+two samples the ram position is the cubic Hermite interpolant of the sampled positions and
+velocities, so reversals, mid-stroke points and speed peaks are located between samples
+(errors of order dt^3 in velocity), never snapped to them. Pure numpy, no ROS.
+
+Sign convention: a stroke whose ram velocity is negative (toward -x) is a cutting stroke; a
+pair is a cutting stroke followed by a return stroke.
+
+The two measurements also come in steps (``stroke_pair_steps``, ``pair_effort_steps``:
+generators whose return value is the result, each step some tens of microseconds for a
+pair of thousands of samples), so that a node's timer can measure between its ticks; the
+plain functions run the same steps at once.
+"""
+
+from typing import Generator, NamedTuple, Sequence, Tuple, TypeVar, Union
+
+import numpy as np
+
+__all__ = ['PairEffortsMeasured', 'StrokePairs', 'find_reversals', 'find_stroke_pairs',
+           'measure_pair_efforts', 'pair_effort_steps', 'run_steps', 'stroke_pair_steps']
+
+# Sampled values: a sequence of floats or a numpy array.
+ArrayLike = Union[Sequence[float], np.ndarray]
+Result = TypeVar('Result')
+# A computation in steps: each next() runs one; its return value is the result.
+Steps = Generator[None, None, Result]
+# Newton iterations of the mid-stroke crossing per step.
+_NEWTON_ITERATIONS_PER_STEP = 2
+
+
+def run_steps(steps: Steps[Result]) -> Result:
+    """Run a computation in steps to its end and return its result."""
+    while True:
+        try:
+            next(steps)
+        except StopIteration as done:
+            return done.value
+
+
+class StrokePairs(NamedTuple):
+    """Per completed stroke pair (arrays of equal length; times in s, speeds in m/s)."""
+
+    cutting_start: np.ndarray
+    cutting_end: np.ndarray
+    return_end: np.ndarray
+    cutting_time: np.ndarray
+    return_time: np.ndarray
+    time_ratio: np.ndarray
+    peak_cutting_speed: np.ndarray
+    peak_return_speed: np.ndarray
+    mid_cutting_speed: np.ndarray
+    mid_return_speed: np.ndarray
+    speed_ratio: np.ndarray
+    peak_speed_ratio: np.ndarray
+    # Cutting stroke length over cutting time (m/s): the cutting speed of shop tables.
+    mean_cutting_speed: np.ndarray
+    first_sample: np.ndarray
+    last_sample: np.ndarray
+
+
+def _hermite_velocity_coefficients(step, x0, x1, v0, v1):
+    """Velocity of the Hermite cubic as a quadratic in s = (t - t0) / step: a s^2 + b s + c."""
+    a = (6.0 * (x0 - x1) + 3.0 * step * (v0 + v1)) / step
+    b = (6.0 * (x1 - x0) - step * (4.0 * v0 + 2.0 * v1)) / step
+    return a, b, v0
+
+
+def _hermite_position(s, step, x0, x1, v0, v1):
+    s2, s3 = s * s, s * s * s
+    return ((2 * s3 - 3 * s2 + 1) * x0 + (s3 - 2 * s2 + s) * step * v0
+            + (-2 * s3 + 3 * s2) * x1 + (s3 - s2) * step * v1)
+
+
+def _quadratic_root_in_unit(a, b, c):
+    """Return the root in [0, 1] of a s^2 + b s + c, whose values at 0 and 1 differ in sign."""
+    with np.errstate(divide='ignore', invalid='ignore'):
+        disc = np.sqrt(np.maximum(b * b - 4.0 * a * c, 0.0))
+        q = -0.5 * (b + np.where(b >= 0.0, disc, -disc))
+        first = q / a
+        second = c / q
+        linear = -c / b
+    inside = (first >= 0.0) & (first <= 1.0)
+    root = np.where(inside, first, second)
+    root = np.where(np.abs(a) < 1e-12 * (np.abs(b) + np.abs(c)), linear, root)
+    return np.clip(np.nan_to_num(root, nan=0.0), 0.0, 1.0)
+
+
+def find_reversals(time: ArrayLike, ram_position: ArrayLike, ram_velocity: ArrayLike
+                   ) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """
+    Locate where the ram velocity changes sign, and the direction it turns to.
+
+    Returns (times, cut_begins, intervals): cut_begins is True where the ram turns from
+    moving toward +x to moving toward -x (a cutting stroke begins), False where a return
+    begins; intervals holds the index of the sample each reversal follows.
+    A velocity of exactly zero counts as positive, so a reversal landing on a sample is
+    found once.
+    """
+    t = np.asarray(time, dtype=float)
+    x = np.asarray(ram_position, dtype=float)
+    v = np.asarray(ram_velocity, dtype=float)
+    positive = v >= 0.0
+    k = np.nonzero(positive[:-1] != positive[1:])[0]
+    step = t[k + 1] - t[k]
+    a, b, c = _hermite_velocity_coefficients(step, x[k], x[k + 1], v[k], v[k + 1])
+    s = _quadratic_root_in_unit(a, b, c)
+    return t[k] + s * step, positive[k], k
+
+
+def _interval_peak_speed(t, x, v):
+    """Largest |velocity| of the Hermite interpolant on each sample interval."""
+    step = np.diff(t)
+    a, b, c = _hermite_velocity_coefficients(step, x[:-1], x[1:], v[:-1], v[1:])
+    with np.errstate(divide='ignore', invalid='ignore'):
+        s = -b / (2.0 * a)
+    interior = np.isfinite(s) & (s > 0.0) & (s < 1.0)
+    s = np.where(interior, s, 0.0)
+    extremum = np.where(interior, np.abs((a * s + b) * s + c), 0.0)
+    return np.maximum(np.maximum(np.abs(v[:-1]), np.abs(v[1:])), extremum)
+
+
+def _mid_stroke_speed_steps(t, x, v):
+    """Find times and |velocity| where the ram passes x = 0 (lever vertical), in steps."""
+    k = np.nonzero((x[:-1] >= 0.0) != (x[1:] >= 0.0))[0]
+    step = t[k + 1] - t[k]
+    x0, x1, v0, v1 = x[k], x[k + 1], v[k], v[k + 1]
+    with np.errstate(divide='ignore', invalid='ignore'):
+        s = np.clip(np.nan_to_num(x0 / (x0 - x1), nan=0.5), 0.0, 1.0)
+    a, b, c = _hermite_velocity_coefficients(step, x0, x1, v0, v1)
+    for iteration in range(8):  # Newton on the cubic; the ram crosses x = 0 at near-peak speed.
+        if iteration % _NEWTON_ITERATIONS_PER_STEP == 0:
+            yield
+        slope = ((a * s + b) * s + c) * step
+        with np.errstate(divide='ignore', invalid='ignore'):
+            update = _hermite_position(s, step, x0, x1, v0, v1) / slope
+        s = np.clip(s - np.nan_to_num(update), 0.0, 1.0)
+    return t[k] + s * step, np.abs((a * s + b) * s + c)
+
+
+def find_stroke_pairs(time: ArrayLike, ram_position: ArrayLike,
+                      ram_velocity: ArrayLike) -> StrokePairs:
+    """Every complete cutting + return stroke pair in a sampled run, with its measurements."""
+    return run_steps(stroke_pair_steps(time, ram_position, ram_velocity))
+
+
+def stroke_pair_steps(time: ArrayLike, ram_position: ArrayLike,
+                      ram_velocity: ArrayLike) -> Steps[StrokePairs]:
+    """find_stroke_pairs in steps."""
+    t = np.asarray(time, dtype=float)
+    x = np.asarray(ram_position, dtype=float)
+    v = np.asarray(ram_velocity, dtype=float)
+    empty = np.empty(0)
+    if t.size < 3:
+        return StrokePairs._make([empty] * 13 + [np.empty(0, int), np.empty(0, int)])
+    when, cut_begins, interval = find_reversals(t, x, v)
+    starts = np.nonzero(cut_begins[:-2] & ~cut_begins[1:-1] & cut_begins[2:])[0]
+    cut_start, cut_end, ret_end = when[starts], when[starts + 1], when[starts + 2]
+    yield
+
+    peak = _interval_peak_speed(t, x, v)
+    cumulative_max = _segment_max(peak, interval)
+    peak_cut = cumulative_max[starts]
+    peak_ret = cumulative_max[starts + 1]
+
+    cross_time, cross_speed = yield from _mid_stroke_speed_steps(t, x, v)
+    yield
+    mid_cut = _first_between(cross_time, cross_speed, cut_start, cut_end)
+    mid_ret = _first_between(cross_time, cross_speed, cut_end, ret_end)
+    cutting_time, return_time = cut_end - cut_start, ret_end - cut_end
+    # Ram positions at the reversals, on the same Hermite interpolant that located them.
+    step = t[interval + 1] - t[interval]
+    turn_position = _hermite_position((when - t[interval]) / step, step, x[interval],
+                                      x[interval + 1], v[interval], v[interval + 1])
+    cutting_length = turn_position[starts] - turn_position[starts + 1]
+    with np.errstate(divide='ignore', invalid='ignore'):
+        return StrokePairs(
+            cutting_start=cut_start, cutting_end=cut_end, return_end=ret_end,
+            cutting_time=cutting_time, return_time=return_time,
+            time_ratio=cutting_time / return_time,
+            peak_cutting_speed=peak_cut, peak_return_speed=peak_ret,
+            mid_cutting_speed=mid_cut, mid_return_speed=mid_ret,
+            speed_ratio=mid_ret / mid_cut, peak_speed_ratio=peak_ret / peak_cut,
+            mean_cutting_speed=cutting_length / cutting_time,
+            first_sample=interval[starts], last_sample=interval[starts + 2] + 1)
+
+
+def _segment_max(values, boundaries):
+    """Max of values from each reversal's interval up to (not including) the next one's."""
+    if boundaries.size < 2:
+        return np.empty(0)
+    return np.maximum.reduceat(values, boundaries)[:-1]
+
+
+def _first_between(times, values, start, end):
+    """Return the value at the first event inside each (start, end) window; NaN if none."""
+    if times.size == 0:
+        return np.full(start.shape, np.nan)
+    index = np.minimum(np.searchsorted(times, start, side='right'), times.size - 1)
+    found = (times[index] > start) & (times[index] < end)
+    return np.where(found, values[index], np.nan)
+
+
+class PairEffortsMeasured(NamedTuple):
+    """Per stroke pair, from sampled input torque and speed (arrays; SI units)."""
+
+    peak_input_torque: np.ndarray   # N·m, largest |input torque| in the pair
+    rms_input_torque: np.ndarray    # N·m, over the pair's time
+    mean_input_power: np.ndarray    # W, energy_per_pair / pair time
+    energy_per_pair: np.ndarray     # J, integral of input torque x input speed
+    peak_offset_force: np.ndarray   # N, largest |offset actuator force| in the pair
+    speed_fluctuation: np.ndarray   # (max - min input speed) / mean input speed
+
+
+def _cumulative_trapezoid(t, f):
+    return np.concatenate(([0.0], np.cumsum(0.5 * np.diff(t) * (f[1:] + f[:-1]))))
+
+
+def _integral_up_to(t, f, cumulative, when):
+    """Integral of the linear interpolant of f from t[0] to each time in when."""
+    k = np.clip(np.searchsorted(t, when, side='right') - 1, 0, t.size - 2)
+    step = when - t[k]
+    at = f[k] + (f[k + 1] - f[k]) * step / (t[k + 1] - t[k])
+    return cumulative[k] + 0.5 * step * (f[k] + at)
+
+
+def _window_extremes(t, f, start, end):
+    """Max and min of f over [start, end]: samples inside plus the interpolated ends."""
+    ends = np.interp(np.stack([start, end]), t, f)
+    first = np.searchsorted(t, start, side='left')
+    last = np.searchsorted(t, end, side='right')
+    high, low = np.max(ends, axis=0), np.min(ends, axis=0)
+    for index in range(start.size):
+        inside = f[first[index]:last[index]]
+        if inside.size:
+            high[index] = max(high[index], inside.max())
+            low[index] = min(low[index], inside.min())
+    return high, low
+
+
+def measure_pair_efforts(time: ArrayLike, input_speed: ArrayLike, input_torque: ArrayLike,
+                         offset_force: ArrayLike, pairs: StrokePairs) -> PairEffortsMeasured:
+    """
+    Measure the effort figures of each pair in pairs (find_stroke_pairs, same samples).
+
+    Between samples every signal is taken as linear (trapezoid integrals, the pair's ends
+    interpolated), so a load switch between two samples costs an error of order its jump x
+    the sample spacing: these are measurements, compared with the exact theory of
+    qrm_ros.core.dynamics. The mean input speed is the angle swept over the pair's time.
+    """
+    return run_steps(pair_effort_steps(time, input_speed, input_torque, offset_force, pairs))
+
+
+def pair_effort_steps(time: ArrayLike, input_speed: ArrayLike, input_torque: ArrayLike,
+                      offset_force: ArrayLike, pairs: StrokePairs
+                      ) -> Steps[PairEffortsMeasured]:
+    """measure_pair_efforts in steps."""
+    t = np.asarray(time, dtype=float)
+    speed = np.asarray(input_speed, dtype=float)
+    torque = np.asarray(input_torque, dtype=float)
+    force = np.asarray(offset_force, dtype=float)
+    start, end = pairs.cutting_start, pairs.return_end
+    if start.size == 0:
+        return PairEffortsMeasured._make([np.empty(0)] * len(PairEffortsMeasured._fields))
+
+    def over_pair(values):
+        cumulative = _cumulative_trapezoid(t, values)
+        return (_integral_up_to(t, values, cumulative, end)
+                - _integral_up_to(t, values, cumulative, start))
+
+    duration = end - start
+    energy = over_pair(torque * speed)
+    yield
+    torque_squared = over_pair(torque * torque)
+    yield
+    angle = over_pair(speed)
+    yield
+    torque_high, torque_low = _window_extremes(t, torque, start, end)
+    yield
+    force_high, force_low = _window_extremes(t, force, start, end)
+    yield
+    speed_high, speed_low = _window_extremes(t, speed, start, end)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        return PairEffortsMeasured(
+            peak_input_torque=np.maximum(torque_high, -torque_low),
+            rms_input_torque=np.sqrt(torque_squared / duration),
+            mean_input_power=energy / duration,
+            energy_per_pair=energy,
+            peak_offset_force=np.maximum(force_high, -force_low),
+            speed_fluctuation=(speed_high - speed_low) / np.abs(angle / duration))

@@ -1,0 +1,423 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+The shaper_sim node's parameters as data: default, unit, meaning, rule and effect of each.
+
+Adding a parameter is one PARAMETERS entry (plus its use). A rule says in words what it
+allows and why a value breaks it; refusal_reason() builds every refusal the same way, so
+`ros2 param set` always prints '<name> = <value> refused: <why>; allowed ...'. ROS-free:
+the node turns specs into descriptors and reasons into SetParametersResults.
+"""
+
+import math
+from typing import Callable, NamedTuple, Optional, Tuple
+
+from qrm_ros.core.cutting_speed_hold import CUTTING_SPEED_DEFINITIONS, unreachable_reason
+from qrm_ros.core.dynamics import Loads, MassProperties, MotorDrive, parameter_names
+from qrm_ros.core.kinematics import Geometry, KinematicsError
+from qrm_ros.core.names import DRIVES, MOTOR_PREFIX
+
+__all__ = ['AtLeast', 'DoubleRange', 'DRIVES', 'GEOMETRY_NAMES', 'MARKER_SLICING_RATE',
+           'MOTOR_PREFIX', 'NonEmptyText', 'OneOf', 'ParameterSpec', 'PARAMETERS',
+           'PositiveLength', 'SymmetricRange', 'View', 'allowed_text', 'default_values',
+           'refusal_reason', 'shown']
+
+GEOMETRY_NAMES = Geometry.field_names()
+# Hz: above this publish rate the node sends a marker frame one marker per tick, after a tick
+# that only builds it. Building and converting a whole frame takes 0.3-0.4 ms in a running
+# node (rclpy's conversion holds the GIL): a 1 ms period absorbs that, a 0.25 ms one (4 kHz)
+# does not, and the next tick came a period late at every frame.
+MARKER_SLICING_RATE = 1000.0
+_PAPER = Geometry.paper()
+
+
+def shown(value):
+    """Format a value as reasons print it: 0.0225, not 0.022500000000000003."""
+    return f'{value:.6g}' if isinstance(value, float) else repr(value)
+
+
+class View(NamedTuple):
+    """What a rule may look at: every value after the change, the geometry, the command."""
+
+    values: dict
+    geometry: Geometry
+    speed_command: float  # the input speed command in force after the change
+
+
+def _with_unit(unit):
+    return f' {unit}' if unit else ''
+
+
+def _double_problem(value, low, high, allowed):
+    """Why a value is not a finite double within [low, high] (None: unbounded side)."""
+    if not isinstance(value, float):
+        return f'must be a floating-point number in {allowed}'
+    if not math.isfinite(value):
+        return f'not finite; allowed range {allowed}'
+    if (low is not None and value < low) or (high is not None and value > high):
+        return f'outside the allowed range {allowed}'
+    return None
+
+
+class DoubleRange(NamedTuple):
+    """A fixed inclusive range, also published in the descriptor."""
+
+    low: float
+    high: float
+
+    def descriptor_bounds(self, geometry):
+        return self.low, self.high
+
+    def allowed(self, unit, view):
+        return f'[{shown(self.low)}, {shown(self.high)}]{_with_unit(unit)}'
+
+    def problem(self, value, unit, view):
+        return _double_problem(value, self.low, self.high, self.allowed(unit, view))
+
+
+class SymmetricRange(NamedTuple):
+    """|value| <= a limit that depends on the geometry or on another parameter."""
+
+    limit: Callable[[View], float]
+    why: Callable[[View], str]
+    fixed_by_geometry: bool  # then the descriptor can publish the range
+
+    def bounds(self, view):
+        limit = self.limit(view)
+        return -limit, limit
+
+    def descriptor_bounds(self, geometry):
+        if not self.fixed_by_geometry:
+            return None
+        return self.bounds(View({}, geometry, 0.0))
+
+    def allowed(self, unit, view):
+        low, high = self.bounds(view)
+        return f'[{shown(low)}, {shown(high)}]{_with_unit(unit)} ({self.why(view)})'
+
+    def problem(self, value, unit, view):
+        return _double_problem(value, *self.bounds(view), self.allowed(unit, view))
+
+
+class PositiveLength(NamedTuple):
+    """A geometry length: finite, > 0, and whatever else Geometry itself demands."""
+
+    extra: str = ''
+
+    def descriptor_bounds(self, geometry):
+        return None
+
+    def allowed(self, unit, view):
+        return f'a finite value > 0{_with_unit(unit)}{self.extra}'
+
+    def problem(self, value, unit, view):
+        allowed = self.allowed(unit, view)
+        return _double_problem(value, None, None, allowed) or (
+            None if value > 0.0 else f'must be {allowed}')
+
+
+class AtLeast(NamedTuple):
+    """A finite double >= minimum (> minimum if strict); minimum None: any finite double."""
+
+    minimum: Optional[float]
+    strict: bool = False
+
+    def descriptor_bounds(self, geometry):
+        return None
+
+    def allowed(self, unit, view):
+        if self.minimum is None:
+            return f'a finite value{_with_unit(unit)}'
+        relation = '>' if self.strict else '>='
+        return f'a finite value {relation} {shown(float(self.minimum))}{_with_unit(unit)}'
+
+    def problem(self, value, unit, view):
+        allowed = self.allowed(unit, view)
+        problem = _double_problem(value, None, None, allowed)
+        if problem or self.minimum is None:
+            return problem
+        below = value <= self.minimum if self.strict else value < self.minimum
+        return f'outside the allowed range {allowed}' if below else None
+
+
+class NonEmptyText(NamedTuple):
+    """A non-blank string (frame ids)."""
+
+    def descriptor_bounds(self, geometry):
+        return None
+
+    def allowed(self, unit, view):
+        return 'a non-empty string'
+
+    def problem(self, value, unit, view):
+        if isinstance(value, str) and value.strip():
+            return None
+        return f'must be {self.allowed(unit, view)}'
+
+
+class OneOf(NamedTuple):
+    """One of a few words (modes)."""
+
+    choices: Tuple[str, ...]
+
+    def descriptor_bounds(self, geometry):
+        return None
+
+    def allowed(self, unit, view):
+        return 'one of ' + ', '.join(repr(choice) for choice in self.choices)
+
+    def problem(self, value, unit, view):
+        if value in self.choices:
+            return None
+        return f'must be {self.allowed(unit, view)}'
+
+
+class ParameterSpec(NamedTuple):
+    """One parameter: default, unit, meaning, rule, extra checks and what setting it does."""
+
+    default: object
+    unit: str
+    description: str
+    read_only: bool
+    rule: object
+    # (value, view) -> why a value that passes the rule is still refused, or None.
+    checks: Tuple[Callable[[float, View], Optional[str]], ...] = ()
+    # (node, value) -> None: what a new value does beyond being stored.
+    apply: Optional[Callable[[object, object], None]] = None
+
+
+def _max_input_speed_checks():
+    def below_input_speed(value, view):
+        speed = abs(view.values['input_speed'])
+        if value < speed:
+            return (f'below |input_speed| = {shown(speed)} rad/s; lower input_speed first')
+        return None
+
+    def below_speed_command(value, view):
+        if value < abs(view.speed_command):
+            return (f'below the speed command in force ({shown(view.speed_command)} rad/s, '
+                    'from input_speed_cmd); command a lower speed first')
+        return None
+    return below_input_speed, below_speed_command
+
+
+_STRUCTURAL = 'Structural: set at start-up only.'
+
+
+def _target_reachable(value, view):
+    """Refuse a cutting speed the safe offsets cannot give at the speed command."""
+    target = view.values['cutting_speed_target']
+    if target == 0.0:
+        return None
+    return unreachable_reason(view.geometry, view.speed_command, target,
+                              view.values['cutting_speed_definition'])
+
+
+def _offset_by_hand(value, view):
+    target = view.values['cutting_speed_target']
+    if target == 0.0:
+        return None
+    return (f'the offset is commanded by cutting_speed_target = {shown(target)} m/s; set '
+            'cutting_speed_target to 0 to command coupling_offset by hand (or set both in '
+            'one atomic call)')
+
+
+PARAMETERS = {
+    'coupling_radius': ParameterSpec(
+        _PAPER.coupling_radius, 'm', 'Coupling crank radius r1: radius of the input pin in '
+        f'the yoke coupling. > 0. {_STRUCTURAL}', True, PositiveLength()),
+    'crank_radius': ParameterSpec(
+        _PAPER.crank_radius, 'm', 'Crank radius r on the flywheel (sets the ram stroke). '
+        f'0 < crank_radius < pivot_distance. {_STRUCTURAL}', True,
+        PositiveLength(' and < pivot_distance')),
+    'pivot_distance': ParameterSpec(
+        _PAPER.pivot_distance, 'm', 'Distance h from the flywheel centre down to the lever '
+        f'pivot. > crank_radius. {_STRUCTURAL}', True, PositiveLength()),
+    'ram_height': ParameterSpec(
+        _PAPER.ram_height, 'm', 'Height H of the ram line above the lever pivot: ram '
+        f'position = H tan(lever angle). > 0. {_STRUCTURAL}', True, PositiveLength()),
+    'crank_phase': ParameterSpec(
+        _PAPER.crank_phase, 'rad', 'Phase of the crank pin on the flywheel (0: a positive '
+        f'offset raises the time ratio). {_STRUCTURAL}', True, DoubleRange(-math.pi, math.pi)),
+    'coupling_offset': ParameterSpec(
+        0.0, 'm', 'Commanded coupling offset (input shaft above the flywheel axis when > 0). '
+        'The offset in force moves toward it at offset_rate_limit. |offset| <= '
+        '0.9 * coupling_radius (the coupling locks at coupling_radius).', False,
+        SymmetricRange(
+            lambda view: view.geometry.max_safe_offset,
+            lambda view: ('|offset| <= max_safe_offset = 0.9 x coupling_radius '
+                          f'{shown(view.geometry.coupling_radius)} m'), True),
+        (_offset_by_hand,), apply=lambda node, value: node.command_offset()),
+    'cutting_speed_target': ParameterSpec(
+        0.0, 'm/s', 'Cutting speed to hold (0: off, the offset follows coupling_offset). While '
+        'it is set the node commands the offset (at offset_rate_limit) that gives this '
+        'cutting speed at the input speed command in force, recomputed when the command '
+        'changes; a target out of reach within the offset safety limit is refused, and if a '
+        'later speed change puts it out of reach the nearest reachable offset is held (WARN '
+        'on /diagnostics).', False, AtLeast(0.0), (_target_reachable,),
+        apply=lambda node, value: node.command_offset()),
+    'cutting_speed_definition': ParameterSpec(
+        CUTTING_SPEED_DEFINITIONS[0], '', "What cutting_speed_target means: 'mean', the cutting "
+        "stroke's length over its time (the figure of shop tables), or 'peak', the largest "
+        'cutting speed in the stroke.', False, OneOf(CUTTING_SPEED_DEFINITIONS),
+        (_target_reachable,), apply=lambda node, value: node.command_offset()),
+    'offset_rate_limit': ParameterSpec(
+        0.005, 'm/s', 'Speed at which the offset actuator moves the offset toward its '
+        'command.', False, DoubleRange(1e-6, 1.0),
+        apply=lambda node, value: node.stepper.set_limits(offset_rate_limit=value)),
+    'max_input_speed': ParameterSpec(
+        60.0, 'rad/s', 'Largest |input speed| accepted from input_speed and '
+        'input_speed_cmd.', False, DoubleRange(1e-3, 1e4), _max_input_speed_checks()),
+    'input_speed': ParameterSpec(
+        2.0 * math.pi, 'rad/s', 'Commanded input shaft speed (at start, on reset and when '
+        'set; input_speed_cmd also commands it). Negative runs the shaper in reverse. '
+        '|input_speed| <= max_input_speed.', False,
+        SymmetricRange(lambda view: view.values['max_input_speed'],
+                       lambda view: '|input_speed| <= max_input_speed', False),
+        apply=lambda node, value: node.command_speed(value)),
+    'input_acceleration_limit': ParameterSpec(
+        20.0, 'rad/s^2', 'Acceleration at which the input shaft speed ramps toward its '
+        'command.', False, DoubleRange(1e-3, 1e5),
+        apply=lambda node, value: node.stepper.set_limits(input_acceleration_limit=value)),
+    'publish_rate': ParameterSpec(
+        100.0, 'Hz', 'Rate of the timer that steps and publishes the mechanism (node clock). '
+        'Set at start-up only.', True, DoubleRange(1.0, 1e4)),
+    'marker_rate': ParameterSpec(
+        30.0, 'Hz', 'Rate of the linkage_markers MarkerArray (the mechanism drawn for RViz and '
+        'Foxglove, at the latest published sample); 0 turns it off. Sent right after a tick, '
+        f'so at most publish_rate; above a publish_rate of {MARKER_SLICING_RATE:.0f} Hz one '
+        'marker a tick.', False, DoubleRange(0.0, 1000.0),
+        apply=lambda node, value: node.set_marker_rate(value)),
+    'frame_id': ParameterSpec(
+        'shaper_base', '', 'frame_id of the published joint_states and ram/twist headers. '
+        'Non-empty.', False, NonEmptyText()),
+}
+
+
+_MASS_MEANINGS = {
+    'input_inertia': 'Inertia J1 of the input assembly about O1 (input shaft, coupling crank, '
+                     'motor rotor and gearbox referred to the input shaft)',
+    'flywheel_inertia': 'Inertia J2 of the flywheel assembly about O2 (bull gear, crank, the '
+                        "coupling's slotted member)",
+    'lever_inertia': 'Inertia J3 of the slotted lever about its pivot O3',
+    'lever_mass': 'Lever mass m3 (for its weight)',
+    'lever_com_distance': "Distance l3 from O3 to the lever's centre of mass, toward the ram",
+    'ram_mass': 'Mass m4 of the ram with its tool head',
+    'gravity': 'Gravitational acceleration g, along -y',
+}
+_MOTOR_MEANINGS = {
+    'speed_stiffness': 'Motor torque per rad/s of input speed below its reference, referred to '
+                       'the input shaft (drive: motor): the slope of an induction motor\'s '
+                       'torque-speed curve near its operating point',
+    'max_torque': 'Largest motor torque at the input shaft (drive: motor), the pull-out '
+                  'torque there; a load that needs more stalls the machine',
+}
+_LOAD_MEANINGS = {
+    'cutting_force': 'Cutting force F_c on the ram while the tool cuts (ram moving toward -x, '
+                     '|ram position| <= cutting_length / 2)',
+    'ram_friction': 'Coulomb friction force on the ram, against its motion',
+    'cutting_length': 'Length L_c of the workpiece, centred on ram position 0; at most the ram '
+                      'stroke',
+}
+
+
+def _cutting_length_within_stroke(value, view):
+    stroke = float(view.geometry.ram_stroke)
+    if value > stroke:
+        return f'longer than the ram stroke, {shown(stroke)} m'
+    return None
+
+
+def _some_inertia(value, view):
+    if view.values['input_inertia'] + view.values['flywheel_inertia'] <= 0.0:
+        return ('input_inertia and flywheel_inertia may not both be 0 (the drive would see no '
+                'inertia)')
+    return None
+
+
+_EXTRA_CHECKS = {'cutting_length': (_cutting_length_within_stroke,),
+                 'input_inertia': (_some_inertia,), 'flywheel_inertia': (_some_inertia,)}
+
+
+def _dynamics_parameters():
+    """Declare the mass properties and the loads (all live) from the dynamics' own fields."""
+    specs = {}
+    for kind, defaults, meanings in (
+            (MassProperties, MassProperties.small_shaper(), _MASS_MEANINGS),
+            (Loads, Loads.none(), _LOAD_MEANINGS),
+            (MotorDrive, MotorDrive.small_shaper(), _MOTOR_MEANINGS)):
+        units, limits = kind.units(), kind.lower_limits()
+        for name, parameter in zip(kind.field_names(), parameter_names(kind)):
+            specs[parameter] = ParameterSpec(
+                float(getattr(defaults, name)), units[name],
+                f'{meanings[name]}. Live: the efforts follow at once.', False,
+                AtLeast(*limits[name]), _EXTRA_CHECKS.get(name, ()),
+                lambda node, value: node.update_dynamics())
+    return specs
+
+
+PARAMETERS.update(_dynamics_parameters())
+PARAMETERS['drive'] = ParameterSpec(
+    DRIVES[0], '', "How the input shaft is driven: 'speed', an ideal speed source that follows "
+    "the commanded speed at input_acceleration_limit whatever the load (the efforts are what "
+    "it must supply); 'motor', a motor whose torque follows its speed error "
+    "(motor_speed_stiffness, up to motor_max_torque), so the input speed follows the "
+    'equation of motion and fluctuates with the load. Live: the switch keeps the state.',
+    False, OneOf(DRIVES), apply=lambda node, value: node.set_drive(value))
+
+
+def default_values():
+    return {name: spec.default for name, spec in PARAMETERS.items()}
+
+
+def allowed_text(name, view):
+    """Say what a parameter accepts, in words (descriptors and refusals say the same)."""
+    spec = PARAMETERS[name]
+    return spec.rule.allowed(spec.unit, view)
+
+
+def refusal_reason(name, value, view, starting=False):
+    """
+    Why a parameter may not take a value, or None if it may.
+
+    view holds every value as it would be after the change. Read-only parameters are refused
+    while running; at start-up (starting=True) they are checked like the others. Reasons
+    name the parameter, the value and what is allowed: they are what `ros2 param set` prints.
+    """
+    spec = PARAMETERS[name]
+    refused = f'{name} = {value!r} refused: '
+    if spec.read_only and not starting:
+        return refused + _read_only_reason(name, value, view)
+    problem = spec.rule.problem(value, spec.unit, view)
+    if problem:
+        return refused + problem
+    for check in spec.checks:
+        problem = check(value, view)
+        if problem:
+            return f'{refused}{problem} (allowed range {allowed_text(name, view)})'
+    return None
+
+
+def _read_only_reason(name, value, view):
+    spec = PARAMETERS[name]
+    reason = (f'{name} is read-only (structural; set it at start-up, e.g. in '
+              f'config/shaper.yaml with --params-file); it stays {view.values[name]!r}'
+              f'{_with_unit(spec.unit)}')
+    if name in GEOMETRY_NAMES and isinstance(value, float):
+        changed = dict(view.geometry.as_dict(), **{name: value})
+        try:
+            Geometry(**changed)
+        except KinematicsError as error:
+            reason += f'; the value would also break the geometry: {error}'
+    return reason

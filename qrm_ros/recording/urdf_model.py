@@ -1,0 +1,279 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+URDF model of the shaper, generated from a geometry (``qrm_urdf``; no ROS needed).
+
+The real chain is closed; a URDF is a tree. Every moving joint hangs from ``shaper_base``
+and takes the value the node publishes under the same name, so with published joint values
+the pins meet: ``coupling_pin`` lies on the flywheel's slot (its local x axis),
+``crank_pin`` and ``ram_block`` on the lever's slot (its local y axis). The shipped
+``urdf/qrm_shaper.urdf`` is this module's output for the default geometry (a test keeps the
+two equal); regenerate it with ``qrm_urdf -o urdf/qrm_shaper.urdf``.
+
+Numbers are written with 12 significant digits, so the file is the same on every platform
+(libm may differ in the last bit) and pins meet to about 1e-13 m.
+"""
+
+import argparse
+import math
+import os
+import sys
+import tempfile
+import xml.etree.ElementTree as ET
+
+from qrm_ros.core import kinematics as kin
+from qrm_ros.analysis.design_table import add_geometry_arguments, geometry_from_arguments
+from qrm_ros.core.linkage import COLOURS, linkage_sizes
+from qrm_ros.core.names import JOINT_NAMES
+
+__all__ = ['BASE_LINK', 'ROBOT_NAME', 'URDF_FILE_NAME', 'main', 'urdf_text', 'write_urdf']
+
+ROBOT_NAME = 'qrm_shaper'
+URDF_FILE_NAME = ROBOT_NAME + '.urdf'
+BASE_LINK = 'shaper_base'
+(INPUT_SHAFT_JOINT, FLYWHEEL_JOINT, LEVER_JOINT, RAM_JOINT,
+ COUPLING_OFFSET_JOINT) = JOINT_NAMES
+# URDF requires effort and velocity limits on revolute and prismatic joints; the model has
+# no actuator limits on these, so they are written as effectively unbounded (N or N m, and
+# m/s or rad/s).
+UNBOUNDED = 1e9
+
+
+def _number(value):
+    text = format(float(value), '.12g')
+    return '0' if text == '-0' else text
+
+
+def _vector(*values):
+    return ' '.join(_number(v) for v in values)
+
+
+class _Builder:
+    """Small helpers over ElementTree for the URDF elements used here."""
+
+    def __init__(self, sizes):
+        self.robot = ET.Element('robot', name=ROBOT_NAME)
+        self.sizes = sizes
+        for name, rgba in COLOURS.items():
+            material = ET.SubElement(self.robot, 'material', name=name)
+            ET.SubElement(material, 'color', rgba=_vector(*rgba))
+
+    def link(self, name):
+        return ET.SubElement(self.robot, 'link', name=name)
+
+    def visual(self, link, shape, material, xyz=(0.0, 0.0, 0.0), rpy=(0.0, 0.0, 0.0)):
+        """Add a visual; shape is ('box', (x, y, z)) or ('cylinder', (radius, length))."""
+        visual = ET.SubElement(link, 'visual')
+        ET.SubElement(visual, 'origin', xyz=_vector(*xyz), rpy=_vector(*rpy))
+        geometry = ET.SubElement(visual, 'geometry')
+        kind, dimensions = shape
+        if kind == 'box':
+            ET.SubElement(geometry, 'box', size=_vector(*dimensions))
+        else:
+            ET.SubElement(geometry, 'cylinder', radius=_number(dimensions[0]),
+                          length=_number(dimensions[1]))
+        ET.SubElement(visual, 'material', name=material)
+
+    def bar(self, link, start, end, layer, material, width=None):
+        """Add a flat bar from start to end (x, y) on a z layer (in bar widths)."""
+        width = width or self.sizes.bar_width
+        dx, dy = end[0] - start[0], end[1] - start[1]
+        self.visual(link, ('box', (math.hypot(dx, dy), width, width)), material,
+                    xyz=(0.5 * (start[0] + end[0]), 0.5 * (start[1] + end[1]),
+                         layer * self.sizes.bar_width),
+                    rpy=(0.0, 0.0, math.atan2(dy, dx)))
+
+    def disc(self, link, radius, layer, material, xy=(0.0, 0.0), thickness=None):
+        thickness = thickness or self.sizes.bar_width
+        self.visual(link, ('cylinder', (radius, thickness)), material,
+                    xyz=(xy[0], xy[1], layer * self.sizes.bar_width))
+
+    def pin(self, link, xy=(0.0, 0.0)):
+        """Add a pin through every layer, so it shows in front of what it joins."""
+        self.disc(link, self.sizes.pin_radius, 0.5, 'pin_black', xy,
+                  thickness=6.0 * self.sizes.bar_width)
+
+    def joint(self, name, kind, parent, child, xyz=(0.0, 0.0, 0.0), axis=None, limits=None):
+        joint = ET.SubElement(self.robot, 'joint', name=name, type=kind)
+        ET.SubElement(joint, 'origin', xyz=_vector(*xyz), rpy='0 0 0')
+        ET.SubElement(joint, 'parent', link=parent)
+        ET.SubElement(joint, 'child', link=child)
+        if axis is not None:
+            ET.SubElement(joint, 'axis', xyz=_vector(*axis))
+        if limits is not None:
+            ET.SubElement(joint, 'limit', lower=_number(limits[0]), upper=_number(limits[1]),
+                          effort=_number(UNBOUNDED), velocity=_number(UNBOUNDED))
+
+    def inertial(self, link, mass, inertia_zz, xyz=(0.0, 0.0, 0.0)):
+        """
+        Planar mass properties: only izz (about the centre of mass) is modelled.
+
+        The out-of-plane moments are not part of the model and are written as 0.
+        """
+        inertial = ET.SubElement(link, 'inertial')
+        ET.SubElement(inertial, 'origin', xyz=_vector(*xyz), rpy='0 0 0')
+        ET.SubElement(inertial, 'mass', value=_number(mass))
+        ET.SubElement(inertial, 'inertia', ixx='0', ixy='0', ixz='0', iyy='0', iyz='0',
+                      izz=_number(inertia_zz))
+
+
+def _lever_inertia_about_centre(mass_properties):
+    """J3 is about the pivot and includes the mass (design note): remove m3 l3^2."""
+    centre = (mass_properties.lever_inertia
+              - mass_properties.lever_mass * mass_properties.lever_com_distance ** 2)
+    if not centre >= 0.0:
+        raise ValueError(
+            f'lever_inertia ({mass_properties.lever_inertia!r} kg m^2) must be at least '
+            'lever_mass * lever_com_distance^2 '
+            f'({mass_properties.lever_mass * mass_properties.lever_com_distance ** 2!r} kg m^2)'
+            ': it is about the pivot and includes the lever mass')
+    return centre
+
+
+def urdf_text(geometry, mass_properties=None):
+    """
+    Return the URDF (XML text) of the machine with this geometry.
+
+    ``mass_properties`` (an object with the fields of ``qrm_ros.core.dynamics.MassProperties``:
+    input_inertia, flywheel_inertia, lever_inertia, lever_mass, lever_com_distance,
+    ram_mass) adds inertial tags: izz J1 on the input crank and J2 on the flywheel (their
+    mass is not modelled; their centres stay on their axes, so it is written as 0), the
+    lever's mass at lever_com_distance with J3 moved to that centre, the ram's mass.
+    Without it the URDF is kinematic only.
+    """
+    sizes = linkage_sizes(geometry)
+    r1, r = geometry.coupling_radius, geometry.crank_radius
+    h, phase = geometry.pivot_distance, geometry.crank_phase
+    build = _Builder(sizes)
+    width = sizes.bar_width
+
+    # Fixed frame: column from the flywheel axis down to the lever pivot, bearings, ram
+    # guide (behind everything, layer -2).
+    base = build.link(BASE_LINK)
+    build.bar(base, (0.0, 0.0), (0.0, -h), -2, 'frame_grey')
+    build.disc(base, 2.0 * sizes.pin_radius, -2, 'frame_grey')
+    build.disc(base, 2.0 * sizes.pin_radius, -2, 'frame_grey', xy=(0.0, -h))
+    guide = 0.5 * (float(geometry.ram_stroke) + sizes.ram_length)
+    guide_y = sizes.ram_line_height + 0.5 * (sizes.ram_thickness + width)
+    build.bar(base, (-guide, guide_y), (guide, guide_y), -2, 'frame_grey')
+
+    # The input shaft's carriage, moved along y by the offset actuator.
+    carriage = build.link('input_carriage')
+    build.disc(carriage, 2.0 * sizes.pin_radius, 1, 'frame_grey')
+    build.joint(COUPLING_OFFSET_JOINT, 'prismatic', BASE_LINK, 'input_carriage',
+                axis=(0.0, 1.0, 0.0), limits=(-r1, r1))
+
+    input_crank = build.link('input_crank')
+    build.disc(input_crank, sizes.pin_radius * 1.6, 1, 'input_orange')
+    build.bar(input_crank, (0.0, 0.0), (r1, 0.0), 1, 'input_orange')
+    build.joint(INPUT_SHAFT_JOINT, 'continuous', 'input_carriage', 'input_crank',
+                axis=(0.0, 0.0, 1.0))
+    coupling_pin = build.link('coupling_pin')
+    build.pin(coupling_pin)
+    build.joint('coupling_pin_joint', 'fixed', 'input_crank', 'coupling_pin', xyz=(r1, 0.0, 0.0))
+
+    # Flywheel (bull gear) with the coupling's radial slot along its local x axis and the
+    # crank at the crank phase.
+    flywheel = build.link('flywheel')
+    build.disc(flywheel, sizes.flywheel_radius, -1, 'flywheel_blue')
+    build.bar(flywheel, (0.0, 0.0), (sizes.slot_length, 0.0), 0, 'slot_black',
+              width=0.6 * width)
+    build.bar(flywheel, (0.0, 0.0), (r * math.cos(phase), r * math.sin(phase)), 0,
+              'flywheel_blue')
+    build.joint(FLYWHEEL_JOINT, 'continuous', BASE_LINK, 'flywheel', axis=(0.0, 0.0, 1.0))
+    crank_pin = build.link('crank_pin')
+    build.pin(crank_pin)
+    build.joint('crank_pin_joint', 'fixed', 'flywheel', 'crank_pin',
+                xyz=(r * math.cos(phase), r * math.sin(phase), 0.0))
+
+    # Slotted lever along its local +y; its angle is positive toward +x, i.e. clockwise
+    # seen from +z: hence the axis -z.
+    lever = build.link('lever')
+    build.bar(lever, (0.0, 0.0), (0.0, sizes.lever_length), 2, 'lever_green')
+    build.joint(LEVER_JOINT, 'revolute', BASE_LINK, 'lever', xyz=(0.0, -h, 0.0),
+                axis=(0.0, 0.0, -1.0),
+                limits=(-sizes.max_lever_angle, sizes.max_lever_angle))
+
+    # Ram on its line, H above the pivot; the tool hangs from its front (-x) end.
+    ram = build.link('ram')
+    build.visual(ram, ('box', (sizes.ram_length, sizes.ram_thickness, width)), 'ram_red',
+                 xyz=(0.0, 0.0, 3 * width))
+    front = -0.5 * sizes.ram_length
+    build.bar(ram, (front, 0.0), (front, -sizes.tool_drop), 3, 'tool_yellow')
+    half_stroke = 0.5 * float(geometry.ram_stroke)
+    build.joint(RAM_JOINT, 'prismatic', BASE_LINK, 'ram', xyz=(0.0, sizes.ram_line_height, 0.0),
+                axis=(1.0, 0.0, 0.0), limits=(-half_stroke, half_stroke))
+    ram_block = build.link('ram_block')
+    build.pin(ram_block)
+    build.joint('ram_block_joint', 'fixed', 'ram', 'ram_block')
+
+    if mass_properties is not None:
+        build.inertial(input_crank, 0.0, mass_properties.input_inertia)
+        build.inertial(flywheel, 0.0, mass_properties.flywheel_inertia)
+        build.inertial(lever, mass_properties.lever_mass,
+                       _lever_inertia_about_centre(mass_properties),
+                       xyz=(0.0, mass_properties.lever_com_distance, 0.0))
+        build.inertial(ram, mass_properties.ram_mass, 0.0)
+
+    ET.indent(build.robot)
+    return ('<?xml version="1.0"?>\n'
+            '<!-- Generated by qrm_urdf (qrm_ros.recording.urdf_model) from the geometry: r1 = '
+            f'{_number(r1)} m, r = {_number(r)} m, h = {_number(h)} m, H = '
+            f'{_number(geometry.ram_height)} m, crank phase = {_number(phase)} rad. '
+            'Do not edit: regenerate. -->\n'
+            + ET.tostring(build.robot, encoding='unicode') + '\n')
+
+
+def write_urdf(path, geometry, mass_properties=None):
+    """Write the URDF atomically (a temporary file renamed), so no half file is left."""
+    text = urdf_text(geometry, mass_properties)
+    folder = os.path.dirname(os.path.abspath(path))
+    handle, temporary = tempfile.mkstemp(dir=folder, prefix='.' + os.path.basename(path))
+    try:
+        os.fchmod(handle, 0o644)  # mkstemp's 0600 would hide the model from other users
+        with os.fdopen(handle, 'w') as output:
+            output.write(text)
+        os.replace(temporary, path)
+    except BaseException:
+        os.unlink(temporary)
+        raise
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(
+        prog='qrm_urdf',
+        description='Write the URDF of the shaper for a geometry (default: the node\'s '
+                    'default geometry, the paper\'s Table 1).')
+    parser.add_argument('-o', '--output', metavar='FILE',
+                        help='write to FILE (default: standard output)')
+    add_geometry_arguments(parser)
+    args = parser.parse_args(argv)
+    try:
+        geometry = geometry_from_arguments(args)
+        if args.output:
+            write_urdf(args.output, geometry)
+        else:
+            sys.stdout.write(urdf_text(geometry))
+    except kin.KinematicsError as error:
+        print(f'qrm_urdf: error: {error}', file=sys.stderr)
+        return 2
+    except OSError as error:
+        print(f'qrm_urdf: error: {error.filename or args.output}: {error.strerror}',
+              file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

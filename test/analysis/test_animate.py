@@ -1,0 +1,532 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+qrm_animate: frames, their count and size, what each frame draws, and bad input.
+
+The drawn pins are checked against the mechanism's equations written out here
+(doc/mechanism.md) and against the recorded joint values, not against the drawing
+code's own helpers; the recordings are synthetic runs (test/synthetic_run.py) and the golden
+logs.
+"""
+
+import importlib.metadata
+import io
+import math
+import os
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from qrm_ros.analysis import run_analysis as analysis
+from qrm_ros.analysis import animate
+from qrm_ros.core import kinematics as kin
+from qrm_ros.core.linkage import COLOURS, linkage_sizes
+from qrm_ros.core.names import PARAMETERS_METADATA
+from damaged_runs import _decode, _encode, cases, put_together, take_apart
+from synthetic_run import schedule_states, write_run
+from repo_paths import TEST_DATA
+
+PAPER = kin.Geometry.paper()
+# A crank phase off zero, so a frame that forgot it would be seen.
+PHASED = kin.Geometry(PAPER.coupling_radius, PAPER.crank_radius, PAPER.pivot_distance,
+                      PAPER.ram_height, 0.3)
+GOLDEN = TEST_DATA
+PIN_TOLERANCE = 1e-9  # m
+
+
+def _input_torque(time):
+    """Efforts (N m, N) of the five joints at time (s): made up, distinct at every sample."""
+    return [40.0 * math.sin(3.0 * time) + 5.0, 0.0, 0.0, -12.0 * time, 0.0]
+
+
+EFFORTS_SCHEDULE = dict(geometry=PHASED, offsets=[0.0, 0.012], hold=1.5)
+
+
+@pytest.fixture(scope='module')
+def run_with_efforts(tmp_path_factory):
+    path = tmp_path_factory.mktemp('runs') / 'efforts.mcap'
+    write_run(path, effort=_input_torque, **EFFORTS_SCHEDULE)
+    return path
+
+
+def _gif_frames(path):
+    with Image.open(path) as image:
+        durations = []
+        for index in range(image.n_frames):
+            image.seek(index)
+            durations.append(image.info['duration'])
+        return image.n_frames, image.size, durations
+
+
+def _closed_form_points(geometry, input_angle, offset):
+    """The pins by mechanism.md's equations: O1, P, C, the ram block, the lever's end."""
+    r1, r, h = geometry.coupling_radius, geometry.crank_radius, geometry.pivot_distance
+    height = geometry.ram_height
+    flywheel = math.atan2(r1 * math.sin(input_angle) + offset, r1 * math.cos(input_angle))
+    crank = flywheel + geometry.crank_phase
+    lever = math.atan2(r * math.cos(crank), h + r * math.sin(crank))
+    lever_length = linkage_sizes(geometry).lever_length
+    return {
+        'input_centre': (0.0, offset), 'flywheel_centre': (0.0, 0.0), 'lever_pivot': (0.0, -h),
+        'coupling_pin': (r1 * math.cos(input_angle), offset + r1 * math.sin(input_angle)),
+        'crank_pin': (r * math.cos(crank), r * math.sin(crank)),
+        'ram_block': (height * math.tan(lever), height - h),
+        'lever_end': (lever_length * math.sin(lever), -h + lever_length * math.cos(lever)),
+    }
+
+
+# --- the frame plan -------------------------------------------------------------------------
+
+def test_frame_plan_shows_the_last_sample_at_or_before_each_frame():
+    time = np.arange(0, 1001) * 0.01  # 100 Hz for 10 s
+    for start, end, fps, speed in ((None, None, 25.0, 1.0), (2.0, 3.0, 10.0, 1.0),
+                                   (1.234, 9.87, 7.0, 3.5), (0.5, 0.6, 50.0, 0.1)):
+        plan = animate.frame_plan(time, start, end, fps, speed)
+        first = 0.0 if start is None else start
+        last = 10.0 if end is None else end
+        assert plan.sample.size == math.floor((last - first) * fps / speed + 1e-9) + 1
+        assert np.allclose(plan.time, first + np.arange(plan.sample.size) * speed / fps,
+                           rtol=0, atol=1e-12)
+        for frame_time, sample in zip(plan.time, plan.sample):
+            at_or_before = np.flatnonzero(time <= frame_time + 1e-12)
+            assert sample == at_or_before[-1]
+
+
+def test_frame_plan_takes_a_clock_that_jumps_back_in_stamp_order():
+    time = np.array([0.0, 0.1, 0.2, 0.05, 0.15, 0.3])  # the clock jumped back after 0.2 s
+    plan = animate.frame_plan(time, fps=20.0)
+    assert plan.time.tolist() == pytest.approx([0.0, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3])
+    assert plan.sample.tolist() == [0, 3, 1, 4, 2, 2, 5]
+
+
+@pytest.mark.parametrize('start, end, fps, speed, words', [
+    (3.0, 3.0, 25.0, 1.0, 'empty span: --end (3 s) must be after --start (3 s)'),
+    (5.0, 2.0, 25.0, 1.0, 'empty span'),
+    (-1.0, None, 25.0, 1.0, '--start -1 s is outside the recording (allowed: 0.000 to 10.000 s)'),
+    (11.0, 12.0, 25.0, 1.0, '--start 11 s is outside the recording'),
+    (float('nan'), None, 25.0, 1.0, '--start and --end must be finite'),
+    (None, None, 0.0, 1.0, '--fps must be a positive number of frames per second, got 0'),
+    (None, None, float('inf'), 1.0, '--fps must be a positive number'),
+    (None, None, 25.0, -2.0, '--speed must be a positive playback factor, got -2'),
+    (None, None, 25.0, float('nan'), '--speed must be a positive playback factor, got nan'),
+    (None, None, 50.0, 1e-3, '500001 frames (10 s of run at --fps 50 and --speed 0.001) are '
+     'too many for .mp4 (at most 180000): shorten the span'),
+])
+def test_frame_plan_refuses_what_it_cannot_show(start, end, fps, speed, words):
+    with pytest.raises(animate.AnimationError, match='^' + re.escape(words)):
+        animate.frame_plan(np.arange(0, 1001) * 0.01, start, end, fps, speed)
+
+
+def test_gif_frame_rates_are_those_a_gif_plays_exactly():
+    for fps, delay in ((50.0, 2), (25.0, 4), (20.0, 5), (12.5, 8), (100 / 7, 7), (1.0, 100),
+                       (0.5, 200)):
+        animate.check_rates(fps, 1.0, '.gif')
+        assert animate._gif_delay(fps) == delay
+    for fps in (100.0, 60.0, 30.0, 24.0, 14.0, 0.3):
+        with pytest.raises(animate.AnimationError, match='cannot be played by a GIF'):
+            animate.check_rates(fps, 1.0, '.gif')
+        animate.check_rates(fps, 1.0, '.mp4')
+
+
+# --- frames: count, size, what is drawn ------------------------------------------------------
+
+def test_gif_has_one_frame_per_planned_time_at_the_frame_size(
+        tmp_path, capsys, run_with_efforts):
+    out = tmp_path / 'run.gif'
+    code = animate.main([str(run_with_efforts), '-o', str(out), '--start', '0.5', '--end',
+                         '2.5', '--fps', '20', '--speed', '2'])
+    stdout, stderr = capsys.readouterr()
+    assert code == 0, stderr
+    count = math.floor((2.5 - 0.5) * 20 / 2) + 1
+    assert stdout.strip() == f'{out}: {count} frames, 800 x 640 px, 20 fps, {count / 20:.2f} s'
+    frames, size, durations = _gif_frames(out)
+    assert (frames, size) == ((count, animate.FRAME_SIZE))
+    assert durations == [50] * count
+    assert [p for p in os.listdir(tmp_path) if p != 'run.gif'] == []  # no temporary left
+
+
+def test_repeated_frames_keep_the_gif_playing_in_real_time(tmp_path, capsys):
+    path = tmp_path / 'run.mcap'
+    write_run(path, PAPER, [0.0], hold=1.0, rate=20.0)
+    out = tmp_path / 'slow.gif'
+    # 0.1 s of run at a tenth of real speed and 50 fps: each sample shows for 5 frames.
+    assert animate.main([str(path), '-o', str(out), '--end', '0.1', '--fps', '50',
+                         '--speed', '0.1']) == 0
+    assert '51 frames' in capsys.readouterr().out
+    frames, _, durations = _gif_frames(out)
+    assert sum(durations) == 51 * 20  # Pillow merges identical frames, adding their delays
+    assert frames == 3  # samples at 0, 0.05 and 0.1 s
+
+
+def test_drawn_pins_equal_the_mechanism_at_the_frames_sample(run_with_efforts):
+    recording = analysis.read_recording(str(run_with_efforts))
+    samples = recording.samples
+    efforts = animate.read_efforts(str(run_with_efforts), samples)
+    plan = animate.frame_plan(samples.time, fps=7.0)
+    result = analysis.analyse(recording)
+    span = slice(int(plan.sample.min()), int(plan.sample.max()) + 1)
+    figure = animate.LinkageFigure(recording.geometry, samples.time[span],
+                                   samples.ram_velocity[span], efforts[span])
+    row_at = animate.segment_at(result)
+    sizes = linkage_sizes(PHASED)
+    checked = set()
+    try:
+        for index, rgb in animate.render_frames(figure, samples, plan.sample, row_at,
+                                                efforts):
+            assert rgb.shape == (640, 800, 3) and rgb.dtype == np.uint8
+            drawn = figure.drawn_points()
+            theta, offset = samples.input_angle[index], samples.offset[index]
+            expected = _closed_form_points(PHASED, theta, offset)
+            for name in ('input_centre', 'flywheel_centre', 'lever_pivot', 'coupling_pin',
+                         'crank_pin', 'ram_block'):
+                assert np.abs(drawn[name] - expected[name]).max() <= PIN_TOLERANCE, name
+            assert np.abs(drawn['lever'] - [expected['lever_pivot'], expected['lever_end']]
+                          ).max() <= PIN_TOLERANCE
+            assert np.abs(drawn['input_crank'] - [expected['input_centre'],
+                                                  expected['coupling_pin']]).max() <= 1e-9
+            assert np.abs(drawn['crank'] - [(0, 0), expected['crank_pin']]).max() <= 1e-9
+            # and the recorded joint values (the node's, here the synthetic run's)
+            crank = samples.flywheel_angle[index] + PHASED.crank_phase
+            assert np.abs(drawn['crank_pin'] - PHASED.crank_radius * np.array(
+                [math.cos(crank), math.sin(crank)])).max() <= PIN_TOLERANCE
+            assert abs(drawn['ram_block'][0] - samples.ram_position[index]) <= PIN_TOLERANCE
+            assert np.abs(drawn['ram_centre'] - drawn['ram_block']).max() <= 1e-12
+            assert drawn['tool_tip'] == pytest.approx(
+                (samples.ram_position[index] - 0.5 * sizes.ram_length,
+                 sizes.ram_line_height - sizes.tool_drop), abs=PIN_TOLERANCE)
+            # the traces' markers are at the sample, and so is the label
+            assert drawn['cursor_time'] == samples.time[index]
+            assert drawn['velocity_dot'].tolist() == [samples.time[index],
+                                                      samples.ram_velocity[index]]
+            assert drawn['torque_dot'].tolist() == [samples.time[index], efforts[index]]
+            label = f't = {samples.time[index]:8.3f} s\noffset {offset * 1e3:+7.2f} mm'
+            assert figure.label.get_text() == label
+            row = row_at(samples.time[index])
+            assert figure.ratios.get_text() == '\n\n' + animate.ratio_text(row)
+            checked.add(offset)
+    finally:
+        figure.close()
+    # frames at both offsets and along the ramp between
+    assert {0.0, 0.012} < checked and len(checked) >= 5
+
+
+def test_frame_label_gives_the_segments_measured_ratios(run_with_efforts):
+    result = analysis.analyse(analysis.read_recording(str(run_with_efforts)))
+    row = result.rows[1]
+    assert animate.ratio_text(row) == (
+        f'TR {row["time_ratio_measured"]:.4f}  SR {row["speed_ratio_measured"]:.4f}  '
+        f'(measured, {row["stroke_pairs"]} pairs)')
+    assert animate.segment_at(result)(row['start_time']) is row
+    # on the offset ramp between the segments there is no steady segment
+    between = 0.5 * (result.rows[0]['end_time'] + row['start_time'])
+    assert animate.segment_at(result)(between) is None
+    assert animate.ratio_text(None) == 'TR, SR: no whole stroke pair at steady settings here'
+
+
+def test_console_script_is_installed_and_runs(tmp_path, run_with_efforts):
+    scripts = {entry.name: entry.value
+               for entry in importlib.metadata.entry_points(group='console_scripts')}
+    assert scripts['qrm_animate'] == 'qrm_ros.cli.entry_points:qrm_animate'
+    out = tmp_path / 'run.gif'
+    done = subprocess.run(
+        [sys.executable, '-c', 'import sys; from qrm_ros.cli import entry_points; '
+         'sys.exit(entry_points.qrm_animate())', str(run_with_efforts), '-o', str(out),
+         '--end', '0.5', '--fps', '10'], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout == f'{out}: 6 frames, 800 x 640 px, 10 fps, 0.60 s\n'
+    assert done.stderr == ''  # no progress bar when stderr is not a terminal
+
+
+def test_progress_bar_on_a_terminal(tmp_path, run_with_efforts):
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    terminal = Terminal()
+    recording = analysis.read_recording(str(run_with_efforts))
+    count = animate.write_animation(recording, str(tmp_path / 'run.gif'), end=0.5, fps=10.0,
+                                    progress_stream=terminal)
+    assert count == 6
+    shown = terminal.getvalue()
+    assert shown.startswith('\rdrawing:   0%|') and '| 0/6 [' in shown
+    assert shown.endswith(' ' * 20 + '\r')  # the bar is wiped when done (tqdm leave=False)
+
+
+# --- efforts ---------------------------------------------------------------------------------
+
+def test_efforts_are_the_recorded_input_torque_of_each_sample(run_with_efforts):
+    samples = analysis.read_recording(str(run_with_efforts)).samples
+    efforts = animate.read_efforts(str(run_with_efforts), samples)
+    schedule_time = schedule_states(**EFFORTS_SCHEDULE)[0]
+    assert efforts.tolist() == [_input_torque(t)[0] for t in schedule_time]
+
+
+def test_efforts_stay_with_their_sample_when_the_first_message_is_excluded(
+        tmp_path, run_with_efforts):
+    recorded = take_apart(run_with_efforts.read_bytes())
+    first = recorded.joint_states()[0]
+    decoded = _decode(first[4])
+    decoded.position[0] = float('nan')  # the analysis excludes it: its time zero moves on
+    first[4] = _encode(decoded)
+    path = tmp_path / 'first_excluded.mcap'
+    path.write_bytes(put_together(recorded))
+    samples = analysis.read_recording(str(path)).samples
+    assert samples.time.size == len(recorded.joint_states()) - 1
+    efforts = animate.read_efforts(str(path), samples)
+    schedule_time = schedule_states(**EFFORTS_SCHEDULE)[0]
+    assert efforts.tolist() == [_input_torque(t)[0] for t in schedule_time[1:]]
+
+
+def test_no_efforts_recorded_means_no_torque_trace():
+    path = os.path.join(GOLDEN, 'steady_positive_offset.mcap')
+    samples = analysis.read_recording(path).samples
+    assert animate.read_efforts(path, samples) is None
+
+
+def test_a_run_with_a_cutting_load_shows_the_workpiece(tmp_path, run_with_efforts):
+    recorded = take_apart(run_with_efforts.read_bytes())
+    recorded.metadata[PARAMETERS_METADATA] = {'cutting_force': '1500.0',
+                                              'cutting_length': '0.08'}
+    path = tmp_path / 'cutting.mcap'
+    path.write_bytes(put_together(recorded))
+    assert animate._cutting_length(str(path)) == 0.08
+    assert animate._cutting_length(str(run_with_efforts)) is None  # no parameters recorded
+    recorded.metadata[PARAMETERS_METADATA]['cutting_force'] = '0.0'
+    path.write_bytes(put_together(recorded))
+    assert animate._cutting_length(str(path)) is None  # no load, no workpiece
+    samples = analysis.read_recording(str(path)).samples
+    figure = animate.LinkageFigure(PHASED, samples.time, samples.ram_velocity,
+                                   cutting_length=0.08)
+    try:
+        sizes = linkage_sizes(PHASED)
+        (workpiece,) = [patch for patch in figure.axes.patches
+                        if patch.get_facecolor()[:3] == COLOURS['workpiece_brown'][:3]]
+        # the tool tip's span while the ram is within +/- cutting_length / 2 (dynamics.md)
+        assert workpiece.get_x() == pytest.approx(-0.5 * sizes.ram_length - 0.04, abs=1e-15)
+        assert workpiece.get_width() == pytest.approx(0.08, abs=1e-15)
+    finally:
+        figure.close()
+
+
+# --- the main job's tour ---------------------------------------------------------------------
+
+def test_offset_tour_shows_the_last_revolution_of_a_few_segments(tmp_path):
+    path = tmp_path / 'run.mcap'
+    offsets = [-0.01, -0.005, 0.0, 0.005, 0.01, 0.015]
+    write_run(path, PAPER, offsets, hold=1.6, offset_rate=0.05)
+    result = analysis.analyse(analysis.read_recording(str(path)))
+    assert [row['offset'] for row in result.rows] == offsets
+    indices = animate.offset_tour_samples(result, offsets=4, fps=20.0)
+    samples = result.recording.samples
+    shown = sorted(set(samples.offset[indices]))
+    assert shown == [-0.01, 0.0, 0.005, 0.015]  # first and last included, spread between
+    for offset in shown:
+        times = samples.time[indices][samples.offset[indices] == offset]
+        assert times.size == 21  # one revolution (1 s) at 20 fps, both ends
+        segment = next(s for s in result.segments if s.offset == offset)
+        assert times[-1] == samples.time[segment.end - 1]
+    out = tmp_path / 'tour.gif'
+    assert animate.write_offset_tour(result, str(out), offsets=4, fps=20.0) == str(out)
+    frames, size, _ = _gif_frames(out)
+    assert (frames, size) == (indices.size, animate.FRAME_SIZE)
+
+
+def test_offset_tour_draws_the_recorded_torque(tmp_path, run_with_efforts, monkeypatch):
+    drawn = []
+
+    class Recorded(animate.LinkageFigure):
+        def draw(self, *state, **options):
+            frame = super().draw(*state, **options)
+            drawn.append(self.drawn_points())
+            return frame
+
+    monkeypatch.setattr(animate, 'LinkageFigure', Recorded)
+    result = analysis.analyse(analysis.read_recording(str(run_with_efforts)))
+    animate.write_offset_tour(result, str(tmp_path / 'tour.gif'))
+    samples = result.recording.samples
+    indices = animate.offset_tour_samples(result)
+    efforts = animate.read_efforts(str(run_with_efforts), samples)
+    assert [d['torque_dot'].tolist() for d in drawn] == [
+        [samples.time[i], efforts[i]] for i in indices]
+
+
+def test_offset_tour_shows_each_offset_once_when_a_gap_splits_it(tmp_path):
+    path = tmp_path / 'run.mcap'
+    write_run(path, PAPER, [0.0, 0.01], hold=3.0, offset_rate=0.05)
+    recorded = take_apart(path.read_bytes())
+    joints = recorded.joint_states()
+    lost = {id(m) for m in joints[100:110]}  # 0.1 s lost 1 s into the first offset
+    recorded.messages[:] = [m for m in recorded.messages if id(m) not in lost]
+    split = tmp_path / 'split.mcap'
+    split.write_bytes(put_together(recorded))
+    result = analysis.analyse(analysis.read_recording(str(split)))
+    assert [row['offset'] for row in result.rows] == [0.0, 0.0, 0.01]
+    indices = animate.offset_tour_samples(result, offsets=4, fps=20.0)
+    samples = result.recording.samples
+    assert sorted(set(samples.offset[indices])) == [0.0, 0.01]
+    longer = result.segments[1]  # 1.9 s after the gap, against 1.0 s before it
+    assert longer.end - longer.start > result.segments[0].end - result.segments[0].start
+    first = indices[samples.offset[indices] == 0.0]
+    assert first.min() >= longer.start and first.max() == longer.end - 1
+
+
+# --- bad input and the exit codes -------------------------------------------------------------
+
+def _run(arguments, capsys):
+    code = animate.main([str(a) for a in arguments])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_file_without_joint_states_exits_2_with_one_line(tmp_path, capsys):
+    path = tmp_path / 'run.mcap'
+    write_run(path, PAPER, [0.0], hold=1.0, joint_states_topic='/other_states')
+    code, _, err = _run([path, '-o', tmp_path / 'x.gif'], capsys)
+    assert code == analysis.EXIT_BAD_INPUT
+    assert err.count('\n') == 1 and err.startswith('qrm_animate: error: ')
+    assert 'no /joint_states topic' in err and '/other_states' in err
+    assert not (tmp_path / 'x.gif').exists()
+
+
+def test_unknown_geometry_exits_2_and_names_the_options(tmp_path, capsys):
+    path = tmp_path / 'run.mcap'
+    write_run(path, PAPER, [0.0], hold=1.0, with_geometry=False)
+    code, _, err = _run([path, '-o', tmp_path / 'x.gif'], capsys)
+    assert code == analysis.EXIT_BAD_INPUT and err.count('\n') == 1
+    assert 'has no qrm_ros.geometry metadata' in err and '--crank-radius' in err
+    options = ['--coupling-radius', '0.025', '--crank-radius', '0.0505', '--pivot-distance',
+               '0.113', '--ram-height', '0.2']
+    code, _, err = _run([path, '-o', tmp_path / 'x.gif', '--end', '0.2'] + options, capsys)
+    assert code == 0, err
+
+
+@pytest.mark.parametrize('arguments, words', [
+    (['--start', '1.5', '--end', '1'],
+     'empty span: --end (1 s) must be after --start (1.5 s)'),
+    (['--start', '40'], '--start 40 s is outside the recording (allowed: 0.000 to 1.990 s)'),
+    (['--fps', '0'], '--fps must be a positive number of frames per second, got 0'),
+    (['--fps', '60'], '--fps 60 cannot be played by a GIF, whose frame delays are whole '
+     'hundredths of a second (at least 2): use 100/k, e.g. 50, 25, 20, 12.5 or 10, or write '
+     'an .mp4'),
+    (['--fps', '30'], '--fps 30 cannot be played by a GIF'),
+    (['--speed', 'nan'], '--speed must be a positive playback factor, got nan'),
+    (['--fps', '50', '--speed', '0.1'], '996 frames (1.99 s of run at --fps 50 and --speed '
+     '0.1) are too many for .gif (at most 600, all held in memory): shorten the span with '
+     '--start/--end, lower --fps or raise --speed, or write an .mp4'),
+])
+def test_bad_span_or_rates_exit_2_with_one_line(tmp_path, capsys, arguments, words):
+    path = tmp_path / 'run.mcap'
+    write_run(path, PAPER, [0.0], hold=2.0)
+    code, _, err = _run([path, '-o', tmp_path / 'x.gif'] + arguments, capsys)
+    assert code == analysis.EXIT_BAD_INPUT
+    assert err.startswith(f'qrm_animate: error: {words}') and err.count('\n') == 1, err
+    assert os.listdir(tmp_path) == ['run.mcap']
+
+
+@pytest.mark.parametrize('output, words', [
+    ('x.avi', "output '{folder}/x.avi' must end in .gif or .mp4"),
+    ('missing/x.gif', "the output folder '{folder}/missing' does not exist"),
+])
+def test_bad_output_exits_2_before_reading(tmp_path, capsys, output, words):
+    code, _, err = _run([tmp_path / 'does_not_matter.mcap', '-o', tmp_path / output], capsys)
+    assert code == analysis.EXIT_BAD_INPUT
+    assert err == f'qrm_animate: error: {words.format(folder=tmp_path)}\n'
+
+
+def test_mp4_without_imageio_ffmpeg_names_the_extra(tmp_path, capsys, monkeypatch):
+    monkeypatch.setitem(sys.modules, 'imageio_ffmpeg', None)  # as if not installed
+    code, _, err = _run([os.path.join(GOLDEN, 'steady_positive_offset.mcap'), '-o',
+                         tmp_path / 'x.mp4'], capsys)
+    assert code == analysis.EXIT_BAD_INPUT
+    assert err == f'qrm_animate: error: {animate.MP4_MISSING}\n'
+    assert "'qrm_ros[video]'" in err and 'imageio-ffmpeg' in err and '.gif' in err
+
+
+def test_an_output_that_cannot_be_written_exits_1_and_leaves_nothing(tmp_path, capsys):
+    path = tmp_path / 'run.mcap'
+    write_run(path, PAPER, [0.0], hold=1.0)
+    (tmp_path / 'taken.gif').mkdir()  # a folder where the file should go
+    code, _, err = _run([path, '-o', tmp_path / 'taken.gif', '--end', '0.2'], capsys)
+    assert code == analysis.EXIT_FAILURE
+    assert err.startswith(f'qrm_animate: error: cannot write {tmp_path / "taken.gif"}')
+    assert err.endswith('no animation was written\n') and err.count('\n') == 1
+    assert sorted(os.listdir(tmp_path)) == ['run.mcap', 'taken.gif']
+    assert os.listdir(tmp_path / 'taken.gif') == []
+
+
+def test_truncated_recording_is_animated_and_exits_3(tmp_path, capsys):
+    path = tmp_path / 'run.mcap'
+    write_run(path, PAPER, [0.0, 0.01], hold=3.0, chunk_size=16 * 1024)
+    data = path.read_bytes()
+    cut = tmp_path / 'cut.mcap'
+    cut.write_bytes(data[:int(len(data) * 0.8)])
+    code, out, err = _run([cut, '-o', tmp_path / 'cut.gif', '--fps', '5'], capsys)
+    assert code == analysis.EXIT_INCOMPLETE
+    assert 'truncated' in err and 'the animation covers only what was readable' in err
+    frames, size, _ = _gif_frames(tmp_path / 'cut.gif')
+    assert f'{frames} frames' in out and size == animate.FRAME_SIZE
+
+
+def test_mp4_has_the_frame_count_and_size(tmp_path, capsys, run_with_efforts):
+    imageio_ffmpeg = pytest.importorskip('imageio_ffmpeg')
+    out = tmp_path / 'run.mp4'
+    code, stdout, err = _run([run_with_efforts, '-o', out, '--end', '1.0', '--fps', '30'],
+                             capsys)
+    assert code == 0, err
+    assert '31 frames' in stdout
+    reader = imageio_ffmpeg.read_frames(str(out))
+    meta = next(reader)
+    count = sum(1 for _ in reader)
+    assert (count, tuple(meta['size']), meta['fps']) == (31, animate.FRAME_SIZE, 30.0)
+    assert os.listdir(tmp_path) == ['run.mp4']
+
+
+# --- damaged and odd recordings (test/damaged_runs.py, as test_fuzz.py) -----------------------
+
+# Two of each kind of damage or oddity by default; qrm_analyze's own fuzz test runs 300.
+FUZZ_CASES = int(os.environ.get('QRM_ANIMATE_FUZZ_CASES', '14'))
+
+
+@pytest.fixture(scope='module')
+def fuzz_cases():
+    logs = {name: open(os.path.join(GOLDEN, f'{name}.mcap'), 'rb').read()
+            for name in ('steady_positive_offset', 'offset_and_speed_change')}
+    return cases(logs, FUZZ_CASES, seed=20261122)
+
+
+@pytest.mark.parametrize('number', range(FUZZ_CASES))
+def test_damaged_run_is_animated_or_refused_as_qrm_analyze_does(number, fuzz_cases, tmp_path,
+                                                                capsys):
+    case = fuzz_cases[number]
+    run = tmp_path / 'run.mcap'
+    run.write_bytes(case.data)
+    analysed = analysis.main([str(run)])
+    capsys.readouterr()
+    out = tmp_path / 'run.gif'
+    code, stdout, err = _run([run, '-o', out, '--fps', '1', '--speed', '8'], capsys)
+    context = f'{case.name}: exit {code} (qrm_analyze: {analysed})\n{err}'
+    assert 'Traceback' not in stdout + err, context
+    # A clock that jumps by days makes an animation of days: refused, with what to do.
+    assert code == analysed or (code == 2 and ' are too many for .gif' in err), context
+    written = ['run.gif'] if code != analysis.EXIT_BAD_INPUT else []
+    assert sorted(os.listdir(tmp_path)) == sorted(['run.mcap'] + written), context
+    if code == analysis.EXIT_BAD_INPUT:
+        assert err.startswith('qrm_animate: error: ') and err.count('\n') == 1, context
+    else:
+        frames, size, _ = _gif_frames(out)
+        assert f'{frames} frames' in stdout and size == animate.FRAME_SIZE, context

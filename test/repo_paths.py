@@ -1,0 +1,20 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""The repository's folders, for tests in every room (test/<room>/ sits one level down)."""
+
+import os
+
+TEST_FOLDER = os.path.dirname(os.path.abspath(__file__))
+REPO_ROOT = os.path.dirname(TEST_FOLDER)
+TEST_DATA = os.path.join(TEST_FOLDER, 'data')
