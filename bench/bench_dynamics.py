@@ -34,7 +34,7 @@ import numpy as np
 
 from qrm_ros.core import dynamics as dyn
 from qrm_ros.core import motor_drive as md
-from qrm_ros.core.kinematics import Geometry
+from qrm_ros.core.geometry import Geometry
 from qrm_ros.core.motor_drive import MotorStepper, pair_efforts
 from qrm_ros.core.stepping import ShaperStepper
 

@@ -43,7 +43,7 @@ def ticker(ticks, load):
     sys.setswitchinterval(1e-4)
     from qrm_ros.core import dynamics as dyn
     from qrm_ros.core import motor_drive as md
-    from qrm_ros.core.kinematics import Geometry
+    from qrm_ros.core.geometry import Geometry
     if not load:
         md._start_loading_compiled_kernel = lambda: None
     stepper = md.MotorStepper(Geometry.paper(), dyn.MassProperties.small_shaper(),

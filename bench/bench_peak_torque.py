@@ -32,7 +32,8 @@ import numba
 import numpy as np
 
 from qrm_ros.core import dynamics as dyn
-from qrm_ros.core.kinematics import Geometry, state
+from qrm_ros.core.geometry import Geometry
+from qrm_ros.core.kinematics import state
 from qrm_ros.core.motor_drive import pair_efforts, peak_input_torque
 
 from bench_dynamics import median_seconds  # this folder: run as python bench/<name>.py

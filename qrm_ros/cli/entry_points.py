@@ -25,10 +25,10 @@ import importlib
 import signal
 import sys
 
+from qrm_ros.cli.exit_codes import EXIT_INTERRUPTED
+
 __all__ = ['mcap_recorder', 'qrm_analyze', 'qrm_animate', 'qrm_design', 'qrm_main', 'qrm_urdf',
            'shaper_sim']
-
-EXIT_INTERRUPTED = 130  # the shell's code for a Ctrl-C
 
 
 _STOP_REQUESTS = []  # the stop signals received while starting

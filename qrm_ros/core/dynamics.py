@@ -31,7 +31,7 @@ from typing import ClassVar, NamedTuple
 
 import numpy as np
 
-from qrm_ros.core.kinematics import check_offset, KinematicsError
+from qrm_ros.core.geometry import check_offset, KinematicsError
 from qrm_ros.core.names import MOTOR_PREFIX
 
 __all__ = [

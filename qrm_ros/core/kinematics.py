@@ -24,13 +24,15 @@ For a positive input speed the slow stroke, which moves the ram toward -x (ram v
 < 0), is the cutting stroke; running in reverse makes the cut the fast stroke (TR < 1).
 """
 
-from dataclasses import dataclass, fields
 import math
-from typing import Any, NamedTuple, Optional, Tuple, Union
+from typing import Any, NamedTuple, Tuple
 
 import numpy as np
 from scipy import optimize
 from scipy.optimize import elementwise
+
+from qrm_ros.core.geometry import (ArrayLike, as_float, check_offset, FloatOrArray, Geometry,
+                                   KinematicsError, MechanismState, SAFE_OFFSET_FRACTION, TWO_PI)
 
 __all__ = [
     'Geometry', 'KinematicsError', 'MechanismState', 'SAFE_OFFSET_FRACTION',
@@ -41,10 +43,6 @@ __all__ = [
     'time_ratio', 'time_ratio_rk4',
 ]
 
-TWO_PI = 2.0 * math.pi
-# Fraction of the coupling radius an offset may use in operation: at |offset| = r1 the pin
-# crosses the output axis and the flywheel speed is unbounded; at 0.9 r1 it peaks at 10x.
-SAFE_OFFSET_FRACTION = 0.9
 # Inversions search |offset| <= this fraction of r1 (the open limit, short of the singularity).
 _SEARCH_FRACTION = 1.0 - 1e-9
 # Crank-angle samples inside the cutting and the return stroke that bracket their speed
@@ -66,121 +64,6 @@ _PEAK_BLOCK = 2048
 # figures) never load it.
 _COMPILED_MIN_CONFIGURATIONS = 50_000
 _BRACKET_RESOLUTION = 4.0 * np.finfo(float).eps
-
-
-# A float for scalar arguments, an array of their broadcast shape otherwise; arguments
-# take the same (numbers or numpy arrays, broadcast together).
-FloatOrArray = Union[float, np.ndarray]
-ArrayLike = FloatOrArray
-
-
-class KinematicsError(ValueError):
-    """A geometry, offset or target the mechanism cannot take; the message names it."""
-
-
-def _as_float(name, value):
-    try:
-        array = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise KinematicsError(f'{name} must be a real number, got {value!r}') from None
-    if not np.all(np.isfinite(array)):
-        raise KinematicsError(f'{name} must be finite, got {value!r}')
-    return float(array) if array.ndim == 0 else array
-
-
-@dataclass(frozen=True, eq=False)
-class Geometry:
-    """
-    Dimensions of the drive, in metres and radians.
-
-    Fields may be numpy arrays (broadcast against offsets and angles) for design sweeps.
-    """
-
-    coupling_radius: float
-    crank_radius: float
-    pivot_distance: float
-    ram_height: float = 0.2
-    crank_phase: float = 0.0
-
-    def __post_init__(self):
-        for name in ('coupling_radius', 'crank_radius', 'pivot_distance', 'ram_height'):
-            value = _as_float(name, getattr(self, name))
-            if np.any(np.asarray(value) <= 0.0):
-                raise KinematicsError(f'{name} must be > 0 m, got {getattr(self, name)!r}')
-            object.__setattr__(self, name, value)
-        object.__setattr__(self, 'crank_phase', _as_float('crank_phase', self.crank_phase))
-        if np.any(np.asarray(self.crank_radius) >= self.pivot_distance):
-            raise KinematicsError(
-                f'crank_radius ({self.crank_radius!r} m) must be smaller than pivot_distance '
-                f'({self.pivot_distance!r} m): otherwise the lever turns fully round instead '
-                'of swinging')
-
-    @classmethod
-    def paper(cls, ram_height=0.2):
-        """Return Table 1 of the source article: r1 = 25 mm, r = 50.5 mm, h = 113 mm."""
-        return cls(coupling_radius=0.025, crank_radius=0.0505, pivot_distance=0.113,
-                   ram_height=ram_height)
-
-    @property
-    def max_safe_offset(self):
-        """
-        Largest |offset| the node accepts (SAFE_OFFSET_FRACTION of the coupling radius).
-
-        Rounded to 15 significant digits, so limits read 0.0225, not 0.022500000000000003.
-        """
-        limit = SAFE_OFFSET_FRACTION * self.coupling_radius
-        return float(f'{limit:.15g}') if np.ndim(limit) == 0 else limit
-
-    @property
-    def ram_stroke(self):
-        """Distance between the ram's two reversal points (independent of the offset)."""
-        r, h = self.crank_radius, self.pivot_distance
-        return 2.0 * self.ram_height * r / np.sqrt(h * h - r * r)
-
-    @classmethod
-    def field_names(cls):
-        """Names of the fields, in order: the node's geometry parameters and metadata keys."""
-        return tuple(field.name for field in fields(cls))
-
-    def as_dict(self):
-        return {name: getattr(self, name) for name in self.field_names()}
-
-
-class MechanismState(NamedTuple):
-    """Positions and rates of every joint at one instant (rad, rad/s, m, m/s, m/s^2)."""
-
-    flywheel_angle: FloatOrArray
-    flywheel_speed: FloatOrArray
-    lever_angle: FloatOrArray
-    lever_speed: FloatOrArray
-    ram_position: FloatOrArray
-    ram_velocity: FloatOrArray
-    ram_acceleration: FloatOrArray
-
-
-def check_offset(geometry: 'Geometry', offset: ArrayLike,
-                 limit: Optional[float] = None) -> FloatOrArray:
-    """
-    Refuse an offset the coupling cannot turn with; return it as float or array.
-
-    ``limit`` defaults to the coupling radius (the physical limit, exclusive); the node
-    passes ``geometry.max_safe_offset`` (inclusive).
-    """
-    offset = _as_float('offset', offset)
-    if limit is None:
-        bad = np.abs(offset) >= geometry.coupling_radius
-        allowed = f'|offset| < coupling_radius = {_fmt(geometry.coupling_radius)} m'
-    else:
-        bad = np.abs(offset) > limit
-        allowed = f'|offset| <= {_fmt(limit)} m'
-    if np.any(bad):
-        shown = float(np.asarray(offset)[np.asarray(bad)].flat[0]) if np.ndim(offset) else offset
-        raise KinematicsError(f'offset {shown!r} m is out of range: allowed {allowed}')
-    return offset
-
-
-def _fmt(value):
-    return f'{value:.6g}' if np.ndim(value) == 0 else 'per-element values'
 
 
 class _ScalarMath:
@@ -296,7 +179,7 @@ def _forward_cut_input_arc(geometry, offset):
 
 
 def _check_speed(input_speed):
-    input_speed = _as_float('input_speed', input_speed)
+    input_speed = as_float('input_speed', input_speed)
     if np.any(np.asarray(input_speed) == 0.0):
         raise KinematicsError('input_speed must be non-zero (rad/s): a stopped shaft has no '
                               'strokes')
@@ -689,7 +572,7 @@ def steady_theory(geometry: 'Geometry', offset: ArrayLike,
 
 def offset_for_speed_ratio(geometry: 'Geometry', speed_ratio_target: ArrayLike) -> FloatOrArray:
     """Offset giving a mid-stroke speed ratio (eq. 27; numerical inversion if phased)."""
-    target = _as_float('speed_ratio', speed_ratio_target)
+    target = as_float('speed_ratio', speed_ratio_target)
     if target <= 0.0:
         raise KinematicsError(f'speed_ratio must be > 0, got {speed_ratio_target!r}')
     if geometry.crank_phase == 0.0:
@@ -701,7 +584,7 @@ def offset_for_speed_ratio(geometry: 'Geometry', speed_ratio_target: ArrayLike) 
 
 def offset_for_time_ratio(geometry: 'Geometry', time_ratio_target: ArrayLike) -> FloatOrArray:
     """Offset giving a wanted time ratio (forward running), by inverting the exact TR."""
-    target = _as_float('time_ratio', time_ratio_target)
+    target = as_float('time_ratio', time_ratio_target)
     return _invert(lambda d: time_ratio(geometry, d), target, geometry, 'time_ratio')
 
 
@@ -709,7 +592,7 @@ def offset_for_cutting_speed(geometry: 'Geometry', input_speed: ArrayLike,
                              cutting_speed: ArrayLike) -> FloatOrArray:
     """Offset giving a wanted peak cutting speed (m/s) at an input speed (rad/s)."""
     input_speed = _check_speed(input_speed)
-    target = _as_float('cutting_speed', cutting_speed)
+    target = as_float('cutting_speed', cutting_speed)
     return _invert(lambda d: peak_ram_speeds(geometry, d, input_speed)[0], target, geometry,
                    'cutting_speed')
 
@@ -739,7 +622,7 @@ def offset_for_mean_cutting_speed(geometry: 'Geometry', input_speed: ArrayLike,
     speed is reachable.
     """
     input_speed = _check_speed(input_speed)
-    target = _as_float('cutting_speed', cutting_speed)
+    target = as_float('cutting_speed', cutting_speed)
     if np.any(np.asarray(target) <= 0.0):
         raise KinematicsError(f'cutting_speed must be > 0 m/s, got {cutting_speed!r}')
     arc = geometry.ram_stroke * np.abs(input_speed) / target

@@ -32,9 +32,9 @@ import numpy as np
 from scipy import integrate, optimize, special
 
 from qrm_ros.core import dynamics as dyn
-from qrm_ros.core.kinematics import (_flat_design, check_offset, Geometry,
-                                     input_angle_for_flywheel_angle, KinematicsError,
-                                     reversal_flywheel_angles, state, TWO_PI)
+from qrm_ros.core.geometry import check_offset, Geometry, KinematicsError, TWO_PI
+from qrm_ros.core.kinematics import (_flat_design, input_angle_for_flywheel_angle,
+                                     reversal_flywheel_angles, state)
 from qrm_ros.core.stepping import _finite, _positive, _ramp, checked_limits, wrap_angle
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
 

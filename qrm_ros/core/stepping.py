@@ -39,8 +39,8 @@ its absolute precision does not decay over long runs at high speed.
 import math
 from typing import Optional
 
-from qrm_ros.core.kinematics import (check_offset, Geometry, KinematicsError, MechanismState,
-                                     state)
+from qrm_ros.core.geometry import check_offset, Geometry, KinematicsError, MechanismState
+from qrm_ros.core.kinematics import state
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
 
 __all__ = ['checked_limits', 'ShaperStepper', 'wrap_angle']

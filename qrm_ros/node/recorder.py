@@ -46,7 +46,7 @@ from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.utilities import remove_ros_args, try_shutdown
 
-from qrm_ros.core.kinematics import Geometry
+from qrm_ros.core.geometry import Geometry
 from qrm_ros.recording.mcap_recover import recover_command
 from qrm_ros.recording.mcap_run_file import (COMPRESSIONS, ConfigurationError, McapRunFile,
                                              RecorderError)

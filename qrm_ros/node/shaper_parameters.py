@@ -25,7 +25,7 @@ from typing import Callable, NamedTuple, Optional, Tuple
 
 from qrm_ros.core.cutting_speed_hold import CUTTING_SPEED_DEFINITIONS, unreachable_reason
 from qrm_ros.core.dynamics import Loads, MassProperties, MotorDrive, parameter_names
-from qrm_ros.core.kinematics import Geometry, KinematicsError
+from qrm_ros.core.geometry import Geometry, KinematicsError
 from qrm_ros.core.names import DRIVES, MOTOR_PREFIX
 
 __all__ = ['AtLeast', 'DoubleRange', 'DRIVES', 'GEOMETRY_NAMES', 'MARKER_SLICING_RATE',

@@ -37,7 +37,7 @@ from qrm_ros.core.dynamics import (efforts, Loads, MassProperties, MotorDrive, p
                                    ram_load_force)
 from qrm_ros.core.effort_theory import BackgroundTheory, Setting, THEORY_FIGURES
 from qrm_ros.core.motor_drive import MotorStepper
-from qrm_ros.core.kinematics import Geometry
+from qrm_ros.core.geometry import Geometry
 from qrm_ros.node.linkage_markers import (delete_all_marker_array, linkage_marker_array,
                                           stamp_message)
 from qrm_ros.core.names import (CUTTING_SPEED_STATUS, DIAGNOSTICS_TOPIC, DRIVE_STATUS, JOINT_NAMES,

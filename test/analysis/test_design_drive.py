@@ -36,7 +36,8 @@ from scipy import integrate
 from qrm_ros.analysis import design_table
 from qrm_ros.core import dynamics as dyn
 from qrm_ros.core import motor_drive as md
-from qrm_ros.core.kinematics import Geometry, state
+from qrm_ros.core.geometry import Geometry
+from qrm_ros.core.kinematics import state
 
 import synthetic_run
 from repo_paths import REPO_ROOT

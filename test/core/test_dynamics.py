@@ -26,7 +26,8 @@ import pytest
 from scipy import integrate
 
 from qrm_ros.core import dynamics as dyn
-from qrm_ros.core.kinematics import Geometry, state
+from qrm_ros.core.geometry import Geometry
+from qrm_ros.core.kinematics import state
 
 CHECK_GEOMETRY = Geometry(0.025, 0.0505, 0.113, 0.2)
 CHECK_MASS = dyn.MassProperties(input_inertia=0.01, flywheel_inertia=0.5, lever_inertia=0.3,

@@ -29,8 +29,8 @@ from scipy import integrate, optimize
 
 from qrm_ros.core import dynamics as dyn
 from qrm_ros.core import motor_drive as md
-from qrm_ros.core.kinematics import (Geometry, input_angle_for_flywheel_angle, KinematicsError,
-                                     reversal_flywheel_angles, state)
+from qrm_ros.core.geometry import Geometry, KinematicsError
+from qrm_ros.core.kinematics import input_angle_for_flywheel_angle, reversal_flywheel_angles, state
 from synthetic_run import dense_revolution
 
 GEOMETRY = Geometry.paper()

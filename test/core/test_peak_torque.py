@@ -248,7 +248,7 @@ _CONCURRENT_CALLS = '''
 import math, threading
 import numpy as np
 from qrm_ros.core import dynamics as dyn
-from qrm_ros.core.kinematics import Geometry
+from qrm_ros.core.geometry import Geometry
 from qrm_ros.core.motor_drive import peak_input_torque
 geometry = Geometry.paper()
 mass, loads = dyn.MassProperties.small_shaper(), dyn.Loads.small_shaper()

@@ -24,7 +24,8 @@ import math
 import random
 
 import pytest
-from qrm_ros.core.kinematics import Geometry, KinematicsError, state
+from qrm_ros.core.geometry import Geometry, KinematicsError
+from qrm_ros.core.kinematics import state
 from qrm_ros.core.stepping import ShaperStepper, wrap_angle
 
 GEOMETRY = Geometry.paper()

@@ -17,7 +17,8 @@ import math
 
 import numpy as np
 import pytest
-from qrm_ros.core.kinematics import Geometry, state, stroke_times, time_ratio
+from qrm_ros.core.geometry import Geometry
+from qrm_ros.core.kinematics import state, stroke_times, time_ratio
 from qrm_ros.core.stroke_monitor import _SAMPLE_FIELDS, MEASURED_FIGURES, StrokeMonitor
 from qrm_ros.core.strokes import find_stroke_pairs, measure_pair_efforts
 

@@ -40,7 +40,7 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 import pytest
 from qrm_ros.recording.bag_reader import open_run, RunFileError
-from qrm_ros.core.kinematics import Geometry
+from qrm_ros.core.geometry import Geometry
 import yaml
 
 from ros_probe import BackgroundSpinner, call, installed_executable, stop_process, wait_for

@@ -31,7 +31,8 @@ import time
 from ament_index_python.packages import get_package_share_directory
 import numpy as np
 import pytest
-from qrm_ros.core.kinematics import Geometry, state
+from qrm_ros.core.geometry import Geometry
+from qrm_ros.core.kinematics import state
 from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterValue
 from rcl_interfaces.srv import GetParameters, SetParameters, SetParametersAtomically
 import rclpy

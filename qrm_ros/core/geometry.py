@@ -1,0 +1,150 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+The drive's dimensions and the offset's range.
+
+numpy only: a command that needs no more than the geometry's names (the recorder) does not
+load scipy. Frame and symbols as doc/mechanism.md: the flywheel centre O2 at the origin, the
+input shaft O1 at (0, offset), the lever pivot O3 at (0, -pivot_distance).
+"""
+
+from dataclasses import dataclass, fields
+import math
+from typing import Any, NamedTuple, Optional, Union
+
+import numpy as np
+
+__all__ = ['ArrayLike', 'FloatOrArray', 'Geometry', 'KinematicsError', 'MechanismState',
+           'SAFE_OFFSET_FRACTION', 'TWO_PI', 'as_float', 'check_offset']
+
+TWO_PI = 2.0 * math.pi
+# Fraction of the coupling radius an offset may use in operation: at |offset| = r1 the pin
+# crosses the output axis and the flywheel speed is unbounded; at 0.9 r1 it peaks at 10x.
+SAFE_OFFSET_FRACTION = 0.9
+
+
+# A float for scalar arguments, an array of their broadcast shape otherwise; arguments
+# take the same (numbers or numpy arrays, broadcast together).
+FloatOrArray = Union[float, np.ndarray]
+ArrayLike = FloatOrArray
+
+
+class KinematicsError(ValueError):
+    """A geometry, offset or target the mechanism cannot take; the message names it."""
+
+
+def as_float(name: str, value: Any) -> FloatOrArray:
+    """Return a real, finite number as a float, or an array of them as an array."""
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise KinematicsError(f'{name} must be a real number, got {value!r}') from None
+    if not np.all(np.isfinite(array)):
+        raise KinematicsError(f'{name} must be finite, got {value!r}')
+    return float(array) if array.ndim == 0 else array
+
+
+@dataclass(frozen=True, eq=False)
+class Geometry:
+    """
+    Dimensions of the drive, in metres and radians.
+
+    Fields may be numpy arrays (broadcast against offsets and angles) for design sweeps.
+    """
+
+    coupling_radius: float
+    crank_radius: float
+    pivot_distance: float
+    ram_height: float = 0.2
+    crank_phase: float = 0.0
+
+    def __post_init__(self):
+        for name in ('coupling_radius', 'crank_radius', 'pivot_distance', 'ram_height'):
+            value = as_float(name, getattr(self, name))
+            if np.any(np.asarray(value) <= 0.0):
+                raise KinematicsError(f'{name} must be > 0 m, got {getattr(self, name)!r}')
+            object.__setattr__(self, name, value)
+        object.__setattr__(self, 'crank_phase', as_float('crank_phase', self.crank_phase))
+        if np.any(np.asarray(self.crank_radius) >= self.pivot_distance):
+            raise KinematicsError(
+                f'crank_radius ({self.crank_radius!r} m) must be smaller than pivot_distance '
+                f'({self.pivot_distance!r} m): otherwise the lever turns fully round instead '
+                'of swinging')
+
+    @classmethod
+    def paper(cls, ram_height=0.2):
+        """Return Table 1 of the source article: r1 = 25 mm, r = 50.5 mm, h = 113 mm."""
+        return cls(coupling_radius=0.025, crank_radius=0.0505, pivot_distance=0.113,
+                   ram_height=ram_height)
+
+    @property
+    def max_safe_offset(self):
+        """
+        Largest |offset| the node accepts (SAFE_OFFSET_FRACTION of the coupling radius).
+
+        Rounded to 15 significant digits, so limits read 0.0225, not 0.022500000000000003.
+        """
+        limit = SAFE_OFFSET_FRACTION * self.coupling_radius
+        return float(f'{limit:.15g}') if np.ndim(limit) == 0 else limit
+
+    @property
+    def ram_stroke(self):
+        """Distance between the ram's two reversal points (independent of the offset)."""
+        r, h = self.crank_radius, self.pivot_distance
+        return 2.0 * self.ram_height * r / np.sqrt(h * h - r * r)
+
+    @classmethod
+    def field_names(cls):
+        """Names of the fields, in order: the node's geometry parameters and metadata keys."""
+        return tuple(field.name for field in fields(cls))
+
+    def as_dict(self):
+        return {name: getattr(self, name) for name in self.field_names()}
+
+
+class MechanismState(NamedTuple):
+    """Positions and rates of every joint at one instant (rad, rad/s, m, m/s, m/s^2)."""
+
+    flywheel_angle: FloatOrArray
+    flywheel_speed: FloatOrArray
+    lever_angle: FloatOrArray
+    lever_speed: FloatOrArray
+    ram_position: FloatOrArray
+    ram_velocity: FloatOrArray
+    ram_acceleration: FloatOrArray
+
+
+def check_offset(geometry: 'Geometry', offset: ArrayLike,
+                 limit: Optional[float] = None) -> FloatOrArray:
+    """
+    Refuse an offset the coupling cannot turn with; return it as float or array.
+
+    ``limit`` defaults to the coupling radius (the physical limit, exclusive); the node
+    passes ``geometry.max_safe_offset`` (inclusive).
+    """
+    offset = as_float('offset', offset)
+    if limit is None:
+        bad = np.abs(offset) >= geometry.coupling_radius
+        allowed = f'|offset| < coupling_radius = {_fmt(geometry.coupling_radius)} m'
+    else:
+        bad = np.abs(offset) > limit
+        allowed = f'|offset| <= {_fmt(limit)} m'
+    if np.any(bad):
+        shown = float(np.asarray(offset)[np.asarray(bad)].flat[0]) if np.ndim(offset) else offset
+        raise KinematicsError(f'offset {shown!r} m is out of range: allowed {allowed}')
+    return offset
+
+
+def _fmt(value):
+    return f'{value:.6g}' if np.ndim(value) == 0 else 'per-element values'
