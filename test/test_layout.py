@@ -20,9 +20,10 @@ nothing points outside the repository.
 """
 
 import ast
+import functools
 import os
 import subprocess
-from typing import Dict, Iterator, List, NamedTuple, Optional, Tuple
+from typing import Dict, Iterator, List, NamedTuple, Optional, Set, Tuple
 
 from repo_paths import REPO_ROOT
 
@@ -112,7 +113,8 @@ def _resolve(module: Module, node: ast.ImportFrom) -> str:
     return '.'.join(base + ([node.module] if node.module else []))
 
 
-def _imports(module: Module) -> Iterator[Import]:
+@functools.lru_cache(maxsize=None)
+def _imports(module: Module) -> Tuple[Import, ...]:
     """Every import of a qrm_ros module in `module`, marked when inside a function."""
     def walk(node: ast.AST, in_function: bool) -> Iterator[Import]:
         for child in ast.iter_child_nodes(node):
@@ -133,7 +135,13 @@ def _imports(module: Module) -> Iterator[Import]:
                     yield Import(imported, () if submodules else names, child.lineno,
                                  in_function)
             yield from walk(child, inside)
-    return walk(module.tree, False)
+    return tuple(walk(module.tree, False))
+
+
+@functools.lru_cache(maxsize=None)
+def _nodes(module: Module) -> Tuple[ast.AST, ...]:
+    """Every node of the module's syntax tree (walked once, read by several rules)."""
+    return tuple(ast.walk(module.tree))
 
 
 def _room_of(module_name: str) -> Optional[str]:
@@ -187,13 +195,60 @@ def test_every_deferred_import_names_a_module_that_exists():
     assert not missing, f'DEFERRED_IMPORTS names modules that do not exist: {missing}'
 
 
+def _import_graph() -> Dict[str, Set[str]]:
+    """Module -> the qrm_ros modules it imports (inside functions too)."""
+    return {m.name: {i.module for i in _imports(m) if i.module in MODULE_NAMES} - {m.name}
+            for m in MODULES}
+
+
+def _circles(graph: Dict[str, Set[str]]) -> List[List[str]]:
+    """The strongly connected groups of more than one module (Tarjan's algorithm)."""
+    order: Dict[str, int] = {}
+    low: Dict[str, int] = {}
+    stack: List[str] = []
+    on_stack: Set[str] = set()
+    circles = []
+
+    def visit(node: str) -> None:
+        order[node] = low[node] = len(order)
+        stack.append(node)
+        on_stack.add(node)
+        for target in sorted(graph[node]):
+            if target not in order:
+                visit(target)
+                low[node] = min(low[node], low[target])
+            elif target in on_stack:
+                low[node] = min(low[node], order[target])
+        if low[node] == order[node]:
+            group = []
+            while True:
+                member = stack.pop()
+                on_stack.discard(member)
+                group.append(member)
+                if member == node:
+                    break
+            if len(group) > 1:
+                circles.append(sorted(group))
+
+    for node in sorted(graph):
+        if node not in order:
+            visit(node)
+    return circles
+
+
+def test_no_circle_of_imports_even_inside_functions():
+    # A deferred import may put off a heavy library, never hide a circle between modules.
+    circles = [' <-> '.join(group) for group in _circles(_import_graph())]
+    assert not circles, _report(circles, 'no circle of imports')
+
+
 # --- (c) no private name imported across modules ------------------------------------------
 
 def test_no_private_name_imported_from_another_module():
     problems = []
     for module in MODULES:
         module_aliases = {}  # local name -> qrm_ros module it is bound to
-        for node in ast.walk(module.tree):
+        for node in _nodes(module):
             if isinstance(node, ast.Import):
                 for alias in node.names:
                     if alias.name.split('.')[0] == PACKAGE:
@@ -208,7 +263,7 @@ def test_no_private_name_imported_from_another_module():
                                         f'from {source}')
                     elif f'{source}.{alias.name}' in MODULE_NAMES:
                         module_aliases[alias.asname or alias.name] = f'{source}.{alias.name}'
-        for node in ast.walk(module.tree):
+        for node in _nodes(module):
             if (isinstance(node, ast.Attribute) and _is_private(node.attr)
                     and isinstance(node.value, ast.Name) and node.value.id in module_aliases):
                 problems.append(f'{module.path}:{node.lineno}: uses {node.value.id}.{node.attr} '
@@ -231,7 +286,7 @@ def test_no_module_over_the_line_limit():
 def test_no_class_over_the_line_limit():
     problems = []
     for module in MODULES:
-        for node in ast.walk(module.tree):
+        for node in _nodes(module):
             if isinstance(node, ast.ClassDef):
                 length = node.end_lineno - node.lineno + 1
                 if length > MAX_CLASS_LINES:
@@ -250,7 +305,7 @@ def test_only_commands_define_main_or_parse_arguments():
         for node in module.tree.body:
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.name == 'main':
                 problems.append(f'{module.path}:{node.lineno}: defines main')
-        for node in ast.walk(module.tree):
+        for node in _nodes(module):
             if isinstance(node, ast.Import):
                 taken = [a.name for a in node.names if a.name.split('.')[0] == 'argparse']
             elif isinstance(node, ast.ImportFrom) and not node.level:
