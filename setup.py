@@ -22,6 +22,8 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test', 'test.*', 'bench']),
+    # PEP 561: the package is typed; type checkers read its hints once it is installed.
+    package_data={package_name: ['py.typed']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -38,7 +40,7 @@ setup(
         # MP4 animations (qrm_animate -o OUT.mp4): a bundled ffmpeg
         'video': ['imageio-ffmpeg'],
     },
-    zip_safe=True,
+    zip_safe=False,  # PEP 561: type checkers cannot read a package out of a zipped egg
     maintainer='qrm_ros developers',
     maintainer_email='qrm-ros-dev@example.com',
     description='Modified quick-return (shaper) mechanism: kinematics, ROS 2 node, '

@@ -31,33 +31,23 @@ whose summary is damaged, is streamed from the start up to its last whole record
 """
 
 import heapq
-import io
 import os
-import struct
-from typing import (Any, Callable, Dict, Generator, Iterable, Iterator, List, NamedTuple,
-                    Optional, Union)
-import zlib
+from typing import (BinaryIO, Callable, Dict, Generator, Iterable, Iterator, List, NamedTuple,
+                    Optional, Set, Tuple, Union)
 
-from mcap.data_stream import ReadDataStream
 from mcap.exceptions import EndOfFile
-from mcap.opcode import Opcode
-from mcap.reader import FOOTER_SIZE, SeekingReader
-from mcap.records import Channel, Chunk, DataEnd, Footer, Message, Metadata, Schema
-from mcap.stream_reader import breakup_chunk, get_chunk_data_stream, StreamReader
+from mcap.reader import SeekingReader
+from mcap.records import (Channel, Chunk, ChunkIndex, DataEnd, Footer, McapRecord, Message,
+                          Metadata, Schema)
+from mcap.stream_reader import StreamReader
+from mcap.summary import Summary
 
-MAGIC = b'\x89MCAP0\r\n'
-# A chunk claiming more than this uncompressed is damaged (the recorder's hold about 1 s).
-MAX_CHUNK_BYTES = 1 << 30
-_RECORD_PREFIX = 1 + 8  # opcode, length
-_FOOTER_CRC_END = _RECORD_PREFIX + 8 + 8  # the summary CRC covers the footer up to here
-_MESSAGE_INDEX_ENTRY = 16  # log time, offset
-_DATA_END_SIZE = _RECORD_PREFIX + 4  # opcode, length, data section CRC
-_RECORD_HEAD = struct.Struct('<BQ')  # opcode, length
-_MESSAGE_HEAD = struct.Struct('<HIQQ')  # channel id, sequence, log time, publish time
+from qrm_ros.recording.mcap_structure import (chunk_records, data_section_matches_crc,
+                                              describe_error, indexed_message_count, MAGIC,
+                                              read_chunk, read_summary, RunFileError)
 
-
-class RunFileError(ValueError):
-    """A run file that cannot be read at all (missing, not MCAP, damaged)."""
+__all__ = ['ChannelLabels', 'Loss', 'MessageTuple', 'open_run', 'Run', 'RunFileError', 'Stop',
+           'Topics']
 
 
 class MessageTuple(NamedTuple):
@@ -88,72 +78,24 @@ class Stop(NamedTuple):
 
 
 Topics = Union[str, Iterable[str], None]
+# Channel id -> (topic, schema name) of the channels a read wants.
+ChannelLabels = Dict[int, Tuple[str, str]]
 
 
 def _normalise(topic: str) -> str:
     return topic if topic.startswith('/') else '/' + topic
 
 
-def _wanted(topics: Topics):
+def _wanted(topics: Topics) -> Optional[Set[str]]:
     if topics is None:
         return None
     return {_normalise(topics)} if isinstance(topics, str) else {_normalise(t) for t in topics}
 
 
-def _check_size(chunk: Chunk) -> None:
-    """Refuse a chunk whose claimed size would make decompression allocate absurdly."""
-    if chunk.uncompressed_size > MAX_CHUNK_BYTES:
-        raise RunFileError(f'the chunk claims {chunk.uncompressed_size} bytes uncompressed')
-
-
-def _chunk_records(chunk: Chunk) -> List:
-    """Return a chunk's records once its size and CRC check out; raise on damage."""
-    _check_size(chunk)
-    return breakup_chunk(chunk, validate_crc=True)
-
-
-def _chunk_messages(chunk: Chunk, channels) -> List[tuple]:
-    """
-    Return (channel id, log time, publish time, data) of the chunk's messages on `channels`.
-
-    The chunk is decompressed and CRC-checked by the mcap library; the records are then
-    walked here with one struct call per record instead of the library's per-field reads
-    (breakup_chunk), which took 40 % of a long analysis. Anything this walk does not expect
-    is handed to the library's own breakup_chunk, so the library stays the judge.
-    """
-    _check_size(chunk)
-    stream, size = get_chunk_data_stream(chunk, validate_crc=True)
-    data = stream.read(size)
-    found = []
-    position, record_head, message_head = 0, _RECORD_HEAD.unpack_from, _MESSAGE_HEAD.unpack_from
-    try:
-        while position < size:
-            opcode, length = record_head(data, position)
-            body, position = position + _RECORD_PREFIX, position + _RECORD_PREFIX + length
-            if opcode == Opcode.MESSAGE:
-                if length < _MESSAGE_HEAD.size:
-                    raise ValueError('a message record shorter than its fields')
-                channel_id, _, log_time, publish_time = message_head(data, body)
-                if channel_id in channels:
-                    found.append((channel_id, log_time, publish_time,
-                                  data[body + _MESSAGE_HEAD.size:position]))
-        if position != size:
-            raise ValueError('records overrun the chunk')
-    except (struct.error, ValueError):
-        return [(r.channel_id, r.log_time, r.publish_time, r.data) for r in _chunk_records(chunk)
-                if isinstance(r, Message) and r.channel_id in channels]
-    return found
-
-
-def _describe(error: Exception) -> str:
-    text = str(error).strip().splitlines()
-    return f'{type(error).__name__}: {text[0]}' if text else type(error).__name__
-
-
 class Run:
     """One recorded run. Build it with :func:`open_run`."""
 
-    def __init__(self, path: str):
+    def __init__(self, path: str) -> None:
         self.path = path
         self.metadata: Dict[str, Dict[str, str]] = {}
         self.truncated = False
@@ -163,14 +105,14 @@ class Run:
         self._schemas: Dict[int, Schema] = {}
         self._channels: Dict[int, Channel] = {}
         self._counts: Dict[int, int] = {}
-        self._chunk_indexes: list = []  # in file order; empty when the file is streamed
+        self._chunk_indexes: List[ChunkIndex] = []  # in file order; empty when streamed
         self._indexed = False
         try:
             with open(path, 'rb') as handle:
                 if handle.read(len(MAGIC)) != MAGIC:
                     raise RunFileError(f'{path!r} is not an MCAP file (it does not start with '
                                        'the MCAP magic bytes)')
-                summary, summary_problem = self._summary(handle)
+                summary, summary_problem = read_summary(handle)
                 if summary is not None:
                     self._read_index(handle, summary)
                     self._check_data_section(handle)
@@ -187,70 +129,14 @@ class Run:
 
     # --- structure -----------------------------------------------------------------------
 
-    @staticmethod
-    def _summary(handle):
-        """
-        Return (summary, None) for a finished file indexed by chunk, else (None, why not).
-
-        Why not is None for a file that is simply unfinished or unindexed (it is streamed
-        then), or says how its summary is damaged.
-        """
-        size = os.fstat(handle.fileno()).st_size
-        footer_at = size - FOOTER_SIZE - len(MAGIC)
-        if footer_at < len(MAGIC):
-            return None, None
-        handle.seek(footer_at)
-        tail = handle.read()
-        if tail[0] != Opcode.FOOTER or tail[-len(MAGIC):] != MAGIC:
-            return None, None  # no footer: the file was not finished
-        try:
-            footer = next(StreamReader(io.BytesIO(tail), skip_magic=True).records)
-        except Exception as error:  # the mcap library's and struct's errors on odd bytes
-            return None, f'its footer is damaged ({_describe(error)})'
-        if not isinstance(footer, Footer) or footer.summary_start == 0:
-            return None, None  # finished without a summary: stream it
-        if not len(MAGIC) <= footer.summary_start < footer_at:
-            return None, f'its footer points outside the file (summary at {footer.summary_start})'
-        if footer.summary_crc:
-            handle.seek(footer.summary_start)
-            covered = handle.read(footer_at + _FOOTER_CRC_END - footer.summary_start)
-            if zlib.crc32(covered) != footer.summary_crc:
-                return None, 'its summary section fails its CRC'
-        try:
-            handle.seek(0)
-            summary = SeekingReader(handle, record_size_limit=size).get_summary()
-        except Exception as error:  # as above
-            return None, f'its summary section is unreadable ({_describe(error)})'
-        if summary is None or (not summary.chunk_indexes and summary.statistics
-                               and summary.statistics.message_count):
-            return None, None  # finished but unindexed: stream it
-        return summary, None
-
-    def _check_data_section(self, handle):
-        """
-        Check the data section against the CRC in its DataEnd record, when it has one.
-
-        Chunks carry their own CRCs; this is the only one covering the records between them
-        (metadata such as the geometry, message indexes). Reading 40 MB costs about 30 ms.
-        """
-        footer = handle.seek(-(FOOTER_SIZE + len(MAGIC)), io.SEEK_END)
-        summary_start = struct.unpack_from('<Q', handle.read(FOOTER_SIZE), _RECORD_PREFIX)[0]
-        data_end = (summary_start or footer) - _DATA_END_SIZE
-        handle.seek(data_end)
-        opcode, length, expected = struct.unpack('<BQI', handle.read(_DATA_END_SIZE))
-        if opcode != Opcode.DATA_END or length != 4 or expected == 0:
-            return
-        handle.seek(0)
-        crc = 0
-        for block in iter(lambda: handle.read(min(1 << 20, data_end - handle.tell())), b''):
-            crc = zlib.crc32(block, crc)
-        if crc != expected:
+    def _check_data_section(self, handle: BinaryIO) -> None:
+        if not data_section_matches_crc(handle):
             self.truncated = True
             self.problem = ('its data section fails its CRC: a record outside the chunks '
                             '(metadata such as the geometry, or an index) is damaged, so what '
                             'the metadata says may be wrong; every chunk passed its own CRC')
 
-    def _read_index(self, handle, summary):
+    def _read_index(self, handle: BinaryIO, summary: Summary) -> None:
         self._schemas = dict(summary.schemas)
         self._channels = dict(summary.channels)
         self._chunk_indexes = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
@@ -267,10 +153,10 @@ class Run:
                              for record in reader.iter_metadata()}
         except Exception as error:  # the mcap library's and struct's errors on odd bytes
             raise RunFileError(f'{self.path!r}: damaged metadata record '
-                               f'({_describe(error)})') from None
+                               f'({describe_error(error)})') from None
         self._indexed = True
 
-    def _records(self) -> Generator[Any, None, Optional[Stop]]:
+    def _records(self) -> Generator[McapRecord, None, Optional[Stop]]:
         """Stream the file's records up to the last whole one; return why it stopped early."""
         with open(self.path, 'rb') as handle:
             size = os.fstat(handle.fileno()).st_size
@@ -280,7 +166,7 @@ class Run:
             try:
                 for record in reader.records:
                     if isinstance(record, Chunk):
-                        inside = _chunk_records(record)
+                        inside = chunk_records(record)
                         last_whole = handle.tell()
                         yield from inside
                     else:
@@ -290,7 +176,7 @@ class Run:
                 return Stop(last_whole, size, error)
         return None
 
-    def _scan_definitions(self, summary_problem):
+    def _scan_definitions(self, summary_problem: Optional[str]) -> None:
         data_end = footer = False
         records = self._records()
         while True:
@@ -332,7 +218,7 @@ class Run:
                         + '. Messages received after the last whole chunk are lost.')
 
     @staticmethod
-    def _stop_text(stopped):
+    def _stop_text(stopped: Stop) -> str:
         # Without a footer the stream always stops on an error: EndOfFile where the file was
         # cut short, anything else where a record is damaged.
         last_whole, size, error = stopped
@@ -340,7 +226,7 @@ class Run:
         return (f'read up to its last whole record at byte {last_whole} of {size}'
                 + (f' ({lost} bytes after it are incomplete and ignored)' if lost else '')
                 + ('' if isinstance(error, EndOfFile)
-                   else f'; the record there is damaged: {_describe(error)}'))
+                   else f'; the record there is damaged: {describe_error(error)}'))
 
     # --- public API ----------------------------------------------------------------------
 
@@ -348,7 +234,7 @@ class Run:
         """Topic name -> schema name (e.g. 'sensor_msgs/msg/JointState') of every channel."""
         return {channel.topic: self._schema_name(channel) for channel in self._channels.values()}
 
-    def _schema_name(self, channel):
+    def _schema_name(self, channel: Channel) -> str:
         schema = self._schemas.get(channel.schema_id)
         return schema.name if schema is not None else ''
 
@@ -405,8 +291,9 @@ class Run:
         file stops being readable is known when it is opened: ``truncated``, ``problem``.)
         """
         wanted = _wanted(topics)
-        labels = {cid: (c.topic, self._schema_name(c)) for cid, c in self._channels.items()
-                  if wanted is None or c.topic in wanted}
+        labels: ChannelLabels = {cid: (c.topic, self._schema_name(c))
+                                 for cid, c in self._channels.items()
+                                 if wanted is None or c.topic in wanted}
         if not labels:
             return
         low = -1 if starting_at is None else starting_at
@@ -421,23 +308,26 @@ class Run:
                 yield MessageTuple(topic, schema, record.log_time, record.publish_time,
                                    record.data)
 
-    def _indexed_messages(self, labels, log_time_order, low, high, part, on_loss):
+    def _indexed_messages(self, labels: ChannelLabels, log_time_order: bool, low: float,
+                          high: float, part: Optional[slice],
+                          on_loss: Optional[Callable[[Loss], None]]) -> Iterator[MessageTuple]:
         chunks = self._chunk_indexes if part is None else self._chunk_indexes[part]
         chunks = [c for c in chunks if c.message_end_time >= low and c.message_start_time < high
                   and (not c.message_index_offsets
                        or any(cid in labels for cid in c.message_index_offsets))]
         if log_time_order:
             chunks.sort(key=lambda c: c.message_start_time)
-        pending = []  # (log time, chunk, position, message): a merge across overlapping chunks
+        # (log time, chunk, position, message): a merge across overlapping chunks
+        pending: List[Tuple[int, int, int, MessageTuple]] = []
         with open(self.path, 'rb') as handle:
             for sequence, index in enumerate(chunks):
                 try:
-                    records = self._chunk(handle, index, labels)
+                    records = read_chunk(handle, index, labels)
                 except Exception as error:  # the mcap library, zstandard and lz4's own errors
                     loss = Loss(f'damaged chunk at byte {index.chunk_start_offset} '
-                                f'({_describe(error)})', index.message_start_time,
+                                f'({describe_error(error)})', index.message_start_time,
                                 index.message_end_time,
-                                self._indexed_count(handle, index, labels))
+                                indexed_message_count(handle, index, labels))
                     if on_loss is None:
                         raise RunFileError(f'{self.path!r}: {loss.reason}') from None
                     on_loss(loss)
@@ -455,34 +345,6 @@ class Run:
         while pending:
             yield heapq.heappop(pending)[-1]
 
-    @staticmethod
-    def _chunk(handle, index, channels):
-        """Read one chunk at its index entry; its messages on `channels`, once it checks out."""
-        handle.seek(index.chunk_start_offset)
-        prefix = handle.read(_RECORD_PREFIX)
-        if len(prefix) < _RECORD_PREFIX:
-            raise EndOfFile()
-        opcode, length = struct.unpack('<BQ', prefix)
-        if opcode != Opcode.CHUNK or _RECORD_PREFIX + length != index.chunk_length:
-            raise RunFileError('its record does not match the chunk index')
-        return _chunk_messages(Chunk.read(ReadDataStream(handle)), channels)
-
-    @staticmethod
-    def _indexed_count(handle, index, labels):
-        """Messages of the wanted channels a chunk held, from its message indexes, or None."""
-        count = 0
-        try:
-            for channel_id, offset in index.message_index_offsets.items():
-                if channel_id in labels:
-                    handle.seek(offset)
-                    opcode, _, _, length = struct.unpack('<BQHI', handle.read(15))
-                    if opcode != Opcode.MESSAGE_INDEX:
-                        return None
-                    count += length // _MESSAGE_INDEX_ENTRY
-        except (OSError, struct.error):
-            return None
-        return count
-
     def message_count(self, topic: Topics = None) -> int:
         """Messages in the file, or on some topics (from the statistics when present)."""
         wanted = _wanted(topic)
@@ -496,6 +358,6 @@ class Run:
         return self._indexed and bool(self._counts)
 
 
-def open_run(path) -> Run:
+def open_run(path: Union[str, 'os.PathLike[str]']) -> Run:
     """Open a recorded run; raises RunFileError if the file is missing or not MCAP."""
     return Run(os.fspath(path))

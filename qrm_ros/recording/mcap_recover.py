@@ -25,10 +25,11 @@ import dataclasses
 import os
 import struct
 import sys
+from typing import BinaryIO, Callable, Dict, Iterator, List, NoReturn, Tuple, TextIO
 
 from mcap.exceptions import McapError
-from mcap.records import (Attachment, Channel, Chunk, DataEnd, Footer, Header, Message,
-                          Metadata, Schema)
+from mcap.records import (Attachment, Channel, Chunk, DataEnd, Footer, Header, McapRecord,
+                          Message, Metadata, Schema)
 from mcap.stream_reader import breakup_chunk, StreamReader
 
 from qrm_ros.recording.mcap_run_file import (COMPRESSIONS, ConfigurationError, McapRunFile,
@@ -47,14 +48,15 @@ class Recovery:
     """What a recovery kept and what it lost."""
 
     messages: int = 0
-    topic_counts: dict = dataclasses.field(default_factory=dict)
-    lost_chunks: list = dataclasses.field(default_factory=list)  # (start ns, end ns, reason)
+    topic_counts: Dict[str, int] = dataclasses.field(default_factory=dict)
+    # (start ns, end ns, reason)
+    lost_chunks: List[Tuple[int, int, str]] = dataclasses.field(default_factory=list)
     lost_messages: int = 0  # of channels without a readable schema or channel record
     end_problem: str = ''  # why reading stopped before the summary ('' = the data was whole)
     read_bytes: int = 0
     size: int = 0
 
-    def warnings(self):
+    def warnings(self) -> List[str]:
         lines = [f'lost a damaged chunk holding log time {start} to {end} ns: {reason}'
                  for start, end, reason in self.lost_chunks]
         if self.lost_messages:
@@ -69,13 +71,13 @@ class Recovery:
 class _Rewriter:
     """Maps the broken file's schemas and channels onto the new file's."""
 
-    def __init__(self, run_file, recovery):
+    def __init__(self, run_file: McapRunFile, recovery: Recovery) -> None:
         self.run_file = run_file
         self.recovery = recovery
-        self.schemas = {}
-        self.channels = {}
+        self.schemas: Dict[int, Schema] = {}
+        self.channels: Dict[int, Tuple[int, str]] = {}  # old id -> (new id, topic)
 
-    def take(self, record):
+    def take(self, record: McapRecord) -> None:
         if isinstance(record, Schema):
             self.schemas[record.id] = record
         elif isinstance(record, Channel):
@@ -96,7 +98,7 @@ class _Rewriter:
             self.run_file.add_attachment(record.create_time, record.log_time, record.name,
                                          record.media_type, record.data)
 
-    def _add_channel(self, channel):
+    def _add_channel(self, channel: Channel) -> None:
         if channel.id in self.channels:
             return
         schema = self.schemas.get(channel.schema_id)
@@ -110,7 +112,7 @@ class _Rewriter:
         self.channels[channel.id] = (new_id, channel.topic)
 
 
-def recover(broken, fixed, compression='zstd'):
+def recover(broken: str, fixed: str, compression: str = 'zstd') -> Recovery:
     """Rewrite what is readable in `broken` into the new file `fixed`; return a Recovery."""
     recovery = Recovery(size=os.path.getsize(broken))
     with open(broken, 'rb') as handle:
@@ -134,7 +136,7 @@ def recover(broken, fixed, compression='zstd'):
     return recovery
 
 
-def _rewrite(records, handle, rewriter):
+def _rewrite(records: Iterator[McapRecord], handle: BinaryIO, rewriter: _Rewriter) -> None:
     recovery = rewriter.recovery
     recovery.read_bytes = handle.tell()
     try:
@@ -152,7 +154,7 @@ def _rewrite(records, handle, rewriter):
                                     else 'the file ends inside a record')
 
 
-def _take_chunk(chunk, rewriter):
+def _take_chunk(chunk: Chunk, rewriter: _Rewriter) -> None:
     try:
         inner = breakup_chunk(chunk, validate_crc=True)
     except _DAMAGE as error:
@@ -164,7 +166,8 @@ def _take_chunk(chunk, rewriter):
         rewriter.take(record)
 
 
-def recover_command(broken, fixed, usage_error, out=sys.stdout, err=sys.stderr):
+def recover_command(broken: str, fixed: str, usage_error: Callable[[str], NoReturn],
+                    out: TextIO = sys.stdout, err: TextIO = sys.stderr) -> int:
     """``mcap_recorder --recover``: 0 done (losses said), 1 nothing readable, 2 bad usage."""
     if not os.path.isfile(broken):
         usage_error(f'--recover: {broken!r} does not exist or is not a file')

@@ -22,14 +22,19 @@ own, so a slow disk never stalls the caller's message intake);
 whole chunk; one that fails before anything was written leaves no file at all.
 """
 
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 import errno
 import os
+from typing import (Any, Callable, Dict, Optional, Sequence, Tuple, TYPE_CHECKING, TypeVar,
+                    Union)
 
 from mcap.writer import CompressionType, Writer
 
 from qrm_ros.recording.rosbag2_formats import (find_message_definition, offered_qos_profiles_yaml,
                                                rosbag2_metadata_yaml)
+
+if TYPE_CHECKING:  # the recorder hands over rclpy's profiles; this module never imports ROS
+    from rclpy.qos import QoSProfile
 
 __all__ = ['COMPRESSIONS', 'CHUNK_SIZE_BYTES', 'ConfigurationError', 'McapRunFile',
            'RecorderError']
@@ -40,6 +45,9 @@ COMPRESSIONS = {'zstd': CompressionType.ZSTD, 'lz4': CompressionType.LZ4,
 CHUNK_SIZE_BYTES = 4 * 1024 * 1024
 LIBRARY = 'qrm_ros mcap_recorder'
 NO_ROOM = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG}
+# A channel's (topic, type name, offered_qos_profiles YAML, type hash).
+ChannelInfo = Tuple[str, str, str, str]
+Result = TypeVar('Result')
 
 
 class RecorderError(Exception):
@@ -53,7 +61,8 @@ class ConfigurationError(RecorderError):
 class McapRunFile:
     """The MCAP writer plus the chunk, fsync and error bookkeeping."""
 
-    def __init__(self, path, compression, max_chunk_duration_ns):
+    def __init__(self, path: str, compression: CompressionType,
+                 max_chunk_duration_ns: int) -> None:
         folder = os.path.dirname(os.path.abspath(path))
         try:
             os.makedirs(folder, exist_ok=True)
@@ -73,18 +82,19 @@ class McapRunFile:
         # Data-section CRC: the reader then also checks the metadata records.
         self._writer = Writer(self._stream, chunk_size=1 << 62, compression=compression,
                               enable_data_crcs=True)
-        self._schemas = {}
-        self._counts = {}
-        self._channel_info = {}
-        self._chunk_start_ns = None
+        self._schemas: Dict[str, Tuple[int, Optional[str]]] = {}  # type -> (id, problem)
+        self._counts: Dict[int, int] = {}
+        self._channel_info: Dict[int, ChannelInfo] = {}
+        self._chunk_start_ns: Optional[int] = None
         self._chunk_bytes = 0
         self._good_offset = 0
         self.message_count = 0
         self.message_count_on_disk = 0
         self._syncer = ThreadPoolExecutor(max_workers=1, thread_name_prefix='mcap_fsync')
-        self._sync = None  # the fsync in flight: a future of (offset, message count)
-        self.start_ns = None
-        self.end_ns = None
+        # the fsync in flight: a future of (offset, message count)
+        self._sync: Optional[Future[Tuple[int, int]]] = None
+        self.start_ns: Optional[int] = None
+        self.end_ns: Optional[int] = None
         self.failed = False
         try:
             self._writer.start('ros2', LIBRARY)
@@ -101,13 +111,13 @@ class McapRunFile:
                                 + self._what_to_do(error)) from None
 
     @staticmethod
-    def _what_to_do(error):
+    def _what_to_do(error: Exception) -> str:
         if isinstance(error, OSError) and error.errno in NO_ROOM:
             return ('; free space on that disk (or raise the file size limit) or choose '
                     'another output (-p output:=PATH)')
         return ''
 
-    def _guard(self, operation, *args):
+    def _guard(self, operation: Callable[..., Result], *args: Any) -> Result:
         try:
             return operation(*args)
         except OSError as error:
@@ -118,7 +128,7 @@ class McapRunFile:
                 'complete chunk (finish it with mcap_recorder --recover)'
                 + self._what_to_do(error)) from None
 
-    def _commit(self, wait=False):
+    def _commit(self, wait: bool = False) -> None:
         # Everything buffered goes to the OS now; to the disk by an fsync on the sync thread.
         self._writer.flush()
         self._chunk_start_ns = None
@@ -126,18 +136,22 @@ class McapRunFile:
         self._collect_sync(wait=wait)  # when waiting, for the one in flight first
         if self._sync is None:  # else the next commit syncs this too
             fd, offset, count = self._stream.fileno(), self._stream.tell(), self.message_count
-            self._sync = self._syncer.submit(lambda: (os.fsync(fd), offset, count)[1:])
+
+            def sync_to_disk() -> Tuple[int, int]:
+                os.fsync(fd)
+                return offset, count
+            self._sync = self._syncer.submit(sync_to_disk)
         if wait:
             self._collect_sync(wait=True)
 
-    def _collect_sync(self, wait):
+    def _collect_sync(self, wait: bool) -> None:
         """Take the result of a finished fsync (raising its OSError), or wait for it."""
         if self._sync is None or not (wait or self._sync.done()):
             return
         sync, self._sync = self._sync, None
         self._good_offset, self.message_count_on_disk = sync.result()
 
-    def _abandon(self):
+    def _abandon(self) -> None:
         # Cut any half-written record so the file ends on a whole record, then let go of it.
         self.failed = True
         try:
@@ -159,7 +173,7 @@ class McapRunFile:
         except (OSError, ValueError):
             pass
 
-    def add_schema(self, type_name, definition=None):
+    def add_schema(self, type_name: str, definition: Optional[str] = None) -> Optional[str]:
         """
         Register the ``ros2msg`` schema of a type once; return None or why it has no text.
 
@@ -178,7 +192,8 @@ class McapRunFile:
         self._schemas[type_name] = (schema_id, problem)
         return problem
 
-    def add_channel(self, topic, type_name, offered_qos, type_hash):
+    def add_channel(self, topic: str, type_name: str,
+                    offered_qos: Union[str, Sequence['QoSProfile']], type_hash: str) -> int:
         """
         Register a topic; return its channel id.
 
@@ -195,7 +210,8 @@ class McapRunFile:
         self._channel_info[channel_id] = (topic, type_name, qos_yaml, type_hash)
         return channel_id
 
-    def add_message(self, channel_id, log_time_ns, publish_time_ns, data):
+    def add_message(self, channel_id: int, log_time_ns: int, publish_time_ns: int,
+                    data: bytes) -> None:
         if self._chunk_start_ns is None:
             self._chunk_start_ns = log_time_ns
         elif log_time_ns - self._chunk_start_ns >= self._max_chunk_duration_ns:
@@ -212,19 +228,20 @@ class McapRunFile:
         if self._chunk_bytes >= CHUNK_SIZE_BYTES:
             self._guard(self._commit)
 
-    def close_chunk_if_due(self, now_ns):
+    def close_chunk_if_due(self, now_ns: int) -> None:
         if (self._chunk_start_ns is not None
                 and now_ns - self._chunk_start_ns >= self._max_chunk_duration_ns):
             self._guard(self._commit)
 
-    def add_metadata(self, name, data):
+    def add_metadata(self, name: str, data: Dict[str, str]) -> None:
         self._guard(self._writer.add_metadata, name, data)
 
-    def add_attachment(self, create_time_ns, log_time_ns, name, media_type, data):
+    def add_attachment(self, create_time_ns: int, log_time_ns: int, name: str, media_type: str,
+                       data: bytes) -> None:
         self._guard(self._writer.add_attachment, create_time_ns, log_time_ns, name,
                     media_type, data)
 
-    def finish(self):
+    def finish(self) -> None:
         topics = [info + (self._counts[cid],) for cid, info in self._channel_info.items()]
         yaml_text = rosbag2_metadata_yaml(self.path, topics, self.start_ns or 0,
                                           self.end_ns or 0)
@@ -234,5 +251,5 @@ class McapRunFile:
         self._syncer.shutdown()
         self._stream.close()
 
-    def topic_counts(self):
+    def topic_counts(self) -> Dict[str, int]:
         return {info[0]: self._counts[cid] for cid, info in self._channel_info.items()}

@@ -25,13 +25,18 @@ Pure text: the MCAP run file, the recorder node and the recovery all build on th
 import json
 import os
 import re
+from typing import Callable, List, Optional, Sequence, Set, Tuple, TYPE_CHECKING
 
 from ament_index_python.packages import get_package_share_directory, PackageNotFoundError
 
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
 
+if TYPE_CHECKING:  # the recorder hands over rclpy's profiles; this module never imports ROS
+    from rclpy.duration import Duration
+    from rclpy.qos import QoSProfile
+
 __all__ = ['DEFINITION_DELIMITER', 'find_message_definition', 'offered_qos_profiles_yaml',
-           'qos_profile_yaml_lines', 'rosbag2_metadata_yaml', 'NO_QOS_PROFILES']
+           'qos_profile_yaml_lines', 'rosbag2_metadata_yaml', 'NO_QOS_PROFILES', 'TopicSummary']
 
 DEFINITION_DELIMITER = '=' * 80 + '\n'
 NO_QOS_PROFILES = '[]'
@@ -47,7 +52,7 @@ _PRIMITIVE_TYPES = {'bool', 'byte', 'char', 'float32', 'float64', 'int8', 'uint8
 
 # --- schema text ---------------------------------------------------------------------------
 
-def _msg_text(type_name, share_directory):
+def _msg_text(type_name: str, share_directory: Callable[[str], str]) -> Tuple[str, str]:
     match = _TYPE_NAME.match(type_name)
     if not match:
         raise LookupError(f'message type name {type_name!r} is not pkg/Type or pkg/msg/Type')
@@ -65,7 +70,7 @@ def _msg_text(type_name, share_directory):
         raise LookupError(f'no message definition {path}') from None
 
 
-def _msg_dependencies(text, package):
+def _msg_dependencies(text: str, package: str) -> List[str]:
     found = set()
     for match in _MSG_FIELD_TYPE.finditer(text):
         field_type = match.group(1)
@@ -75,7 +80,9 @@ def _msg_dependencies(text, package):
     return sorted(found)
 
 
-def find_message_definition(type_name, share_directory=get_package_share_directory):
+def find_message_definition(
+        type_name: str, share_directory: Callable[[str], str] = get_package_share_directory,
+) -> Tuple[Optional[str], Optional[str]]:
     """
     Full ``ros2msg`` text of a type and None, or None and the reason it cannot be built.
 
@@ -83,9 +90,9 @@ def find_message_definition(type_name, share_directory=get_package_share_directo
     in sorted order, as rosbag2 does), each after a newline, a line of 80 '=' and
     ``MSG: pkg/Type``.
     """
-    seen = set()
+    seen: Set[str] = set()
 
-    def append(name, depth):
+    def append(name: str, depth: int) -> str:
         if depth <= 0:
             raise LookupError(f'nesting too deep resolving {type_name!r}')
         package, text = _msg_text(name, share_directory)
@@ -105,12 +112,12 @@ def find_message_definition(type_name, share_directory=get_package_share_directo
 
 # --- QoS metadata --------------------------------------------------------------------------
 
-def _duration_yaml(duration, indent):
+def _duration_yaml(duration: 'Duration', indent: str) -> str:
     seconds, nanoseconds = divmod(duration.nanoseconds, NANOSECONDS_PER_SECOND)
     return f'{indent}  sec: {seconds}\n{indent}  nsec: {nanoseconds}'
 
 
-def qos_profile_yaml_lines(profile):
+def qos_profile_yaml_lines(profile: 'QoSProfile') -> List[str]:
     """One QoS profile as the YAML block-sequence item rosbag2 writes (every field)."""
     # rclpy's short keys are rmw_qos_*_policy_to_str's spellings, which rosbag2 writes.
     lines = [
@@ -128,7 +135,7 @@ def qos_profile_yaml_lines(profile):
     return [line for text in lines for line in text.split('\n')]
 
 
-def offered_qos_profiles_yaml(profiles):
+def offered_qos_profiles_yaml(profiles: Sequence['QoSProfile']) -> str:
     """Return the ``offered_qos_profiles`` channel metadata value (yaml-cpp Dump style)."""
     if not profiles:
         return NO_QOS_PROFILES
@@ -137,11 +144,16 @@ def offered_qos_profiles_yaml(profiles):
 
 # --- the rosbag2 metadata record -----------------------------------------------------------
 
-def _yaml_string(text):
+# A topic's (name, type, offered_qos_profiles YAML, type hash, message count).
+TopicSummary = Tuple[str, str, str, str, int]
+
+
+def _yaml_string(text: str) -> str:
     return json.dumps(text)  # a JSON string literal is a valid YAML double-quoted scalar
 
 
-def rosbag2_metadata_yaml(path, topics, start_ns, end_ns):
+def rosbag2_metadata_yaml(path: str, topics: Sequence[TopicSummary], start_ns: int,
+                          end_ns: int) -> str:
     """
     Build the ``serialized_metadata`` of rosbag2's ``rosbag2`` metadata record (version 9).
 
