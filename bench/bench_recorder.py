@@ -131,7 +131,7 @@ def _recorder_command(output, profile_path=None):
     command = [sys.executable]
     if profile_path:
         command += ['-m', 'cProfile', '-o', profile_path]
-    return command + ['-m', 'qrm_ros.node.recorder', '--ros-args', '-p', f'output:={output}',
+    return command + ['-m', 'qrm_ros.cli.mcap_recorder', '--ros-args', '-p', f'output:={output}',
                       '-p', f'topics:=[{", ".join(TOPICS)}]', '-p', 'sim_wait_timeout:=60.0']
 
 

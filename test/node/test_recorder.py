@@ -60,7 +60,7 @@ GEOMETRY = list(Geometry.field_names())
 
 def _recorder_executable():
     executable = installed_executable('mcap_recorder')
-    return [executable] if executable else [sys.executable, '-m', 'qrm_ros.node.recorder']
+    return [executable] if executable else [sys.executable, '-m', 'qrm_ros.cli.mcap_recorder']
 
 
 def _recorder_command(*parameters):
