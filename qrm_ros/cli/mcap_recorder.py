@@ -105,7 +105,8 @@ def main(argv: Optional[List[str]] = None) -> int:
         return EXIT_BAD_INPUT
     parser, options = _options(own_arguments)
     if options.recover:
-        return recover_command(*options.recover, parser.error)
+        broken, fixed = options.recover
+        return recover_command(broken, fixed, parser.error)
     return _record(argv)
 
 

@@ -24,7 +24,7 @@ an rclpy update that breaks them fails a test.
 """
 
 import difflib
-from typing import Dict, List, Mapping, Optional, Sequence, Tuple
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 
 from qrm_ros.core.geometry import Geometry
 from qrm_ros.node.shaper_parameters import (allowed_text, change_refusal, default_values,
@@ -174,12 +174,12 @@ class ShaperParameterNode(Node):
     call (ParameterSpec.apply).
     """
 
-    _values: Dict[str, object]
+    _values: Dict[str, Any]
     _geometry: Geometry
 
     def declare_shaper_parameters(self) -> None:
         """Declare every parameter, the geometry first; ValueError: a start-up value refused."""
-        values: Dict[str, object] = {}
+        values: Dict[str, Any] = {}
         self._values = values
         for name in GEOMETRY_NAMES:
             values[name] = _declare_checked(self, name, values, _PAPER)

@@ -21,7 +21,7 @@ the node turns specs into descriptors and reasons into SetParametersResults.
 """
 
 import math
-from typing import Callable, NamedTuple, Optional, Tuple
+from typing import Any, Callable, NamedTuple, Optional, Tuple
 
 from qrm_ros.core.cutting_speed_hold import CUTTING_SPEED_DEFINITIONS, unreachable_reason
 from qrm_ros.core.dynamics import Loads, MassProperties, MotorDrive, parameter_names
@@ -194,7 +194,7 @@ class ParameterSpec(NamedTuple):
     # (value, view) -> why a value that passes the rule is still refused, or None.
     checks: Tuple[Callable[[float, View], Optional[str]], ...] = ()
     # (node, value) -> None: what a new value does beyond being stored.
-    apply: Optional[Callable[[object, object], None]] = None
+    apply: Optional[Callable[[Any, Any], None]] = None
 
 
 def _max_input_speed_checks():

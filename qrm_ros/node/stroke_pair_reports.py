@@ -26,7 +26,7 @@ switch interval. Each report carries the pair's effort theory, worked out in the
 from collections import deque
 import threading
 import time
-from typing import Deque, Generator, List, Optional, Tuple
+from typing import Any, Deque, Generator, List, Optional, Tuple
 
 from diagnostic_msgs.msg import KeyValue
 from qrm_ros.core.dynamics import Loads, MassProperties, MotorDrive
@@ -70,8 +70,9 @@ class StrokePairReports:
         self.step_budget_ns = round(PAIR_STEP_SHARE * NANOSECONDS_PER_SECOND / publish_rate)
         self._steps_waited = False  # the last tick ran no step: the next runs one
         self._published = 0
-        # What the effort theory of a pair depends on, and since when (ns) it has held.
-        self._setting: Optional[tuple] = None
+        # What the effort theory of a pair depends on, and since when (ns) it has held:
+        # (stepper, mass, loads, motor, offset, speed).
+        self._setting: Any = None
         self._setting_since_ns = 0
 
     @property
@@ -139,7 +140,7 @@ class StrokePairReports:
         self.wait_for_all()
         self._theory.close()
 
-    def _report(self, completed: CompletedSamples, setting: Optional[tuple],
+    def _report(self, completed: CompletedSamples, setting: Any,
                 setting_since_ns: int, target: float, definition: str) -> Generator:
         """Measure and publish completed stroke pairs, a step per next() (run_steps)."""
         try:
@@ -155,7 +156,7 @@ class StrokePairReports:
             self._logger.error(f'stroke pair at {completed.stamp_ns} ns not reported: '
                                f'{type(error).__name__}: {error}')
 
-    def _effort_theory(self, report: PairReport, setting: Optional[tuple],
+    def _effort_theory(self, report: PairReport, setting: Any,
                        setting_since_ns: int) -> Tuple[List[KeyValue], str]:
         """Return the pair's effort theory as key-values, and a word on where it stands."""
         if report.pair_start * NANOSECONDS_PER_SECOND < setting_since_ns:
