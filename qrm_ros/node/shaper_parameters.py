@@ -17,7 +17,7 @@ The shaper_sim node's parameters as data: default, unit, meaning, rule and effec
 Adding a parameter is one PARAMETERS entry (plus its use). A rule says in words what it
 allows and why a value breaks it; refusal_reason() builds every refusal the same way, so
 `ros2 param set` always prints '<name> = <value> refused: <why>; allowed ...'. ROS-free:
-the node turns specs into descriptors and reasons into SetParametersResults.
+parameter_services turns specs into descriptors and reasons into SetParametersResults.
 """
 
 import math
