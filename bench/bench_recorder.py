@@ -127,11 +127,12 @@ def floor(kind):
     rclpy.try_shutdown()
 
 
-def _recorder_command(output, profile_path=None):
+def recorder_command(output, profile_path=None):
+    """Return the command that records TOPICS to output (profiled to profile_path if given)."""
     command = [sys.executable]
     if profile_path:
         command += ['-m', 'cProfile', '-o', profile_path]
-    return command + ['-m', 'qrm_ros.node.recorder', '--ros-args', '-p', f'output:={output}',
+    return command + ['-m', 'qrm_ros.cli.mcap_recorder', '--ros-args', '-p', f'output:={output}',
                       '-p', f'topics:=[{", ".join(TOPICS)}]', '-p', 'sim_wait_timeout:=60.0']
 
 
@@ -146,7 +147,7 @@ def one_repeat(index, seconds, rate, folder, env, roles, profile_path=None):
             logs[role] = open(os.path.join(folder, f'{role}_{index}.log'), 'w')
             kind = 'single' if role == 'recorder-single' else 'events'
             return subprocess.Popen(
-                _recorder_command(outputs[role], profile_path if role == 'recorder' else None),
+                recorder_command(outputs[role], profile_path if role == 'recorder' else None),
                 stdout=logs[role], stderr=logs[role],
                 env=dict(env, QRM_ROS_EXECUTOR=kind))
         kind = 'events' if role == 'floor-events' else 'single'

@@ -31,7 +31,7 @@ import sys
 import tempfile
 import time
 
-from bench_recorder import _recorder_command
+from bench_recorder import recorder_command
 from process_stats import cpu_seconds, rss_bytes
 from qrm_ros.node.ros_isolation import isolate_ros_traffic
 
@@ -82,7 +82,7 @@ def main():
     with tempfile.TemporaryDirectory() as folder:
         output = os.path.join(folder, 'soak.mcap')
         log = open(os.path.join(folder, 'recorder.log'), 'w')
-        recorder = subprocess.Popen(_recorder_command(output), stdout=log, stderr=log, env=env)
+        recorder = subprocess.Popen(recorder_command(output), stdout=log, stderr=log, env=env)
         bare = subprocess.Popen([sys.executable, BENCH_RECORDER, '--floor'],
                                 stdout=subprocess.PIPE, text=True, env=env)
         publisher = subprocess.Popen([sys.executable, BENCH_RECORDER, '--publish',

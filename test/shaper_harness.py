@@ -29,6 +29,9 @@ from sensor_msgs.msg import JointState
 from ros_probe import BackgroundSpinner, call, wait_for
 
 NS = 1_000_000_000
+# The paper's geometry written out (coupling radius r1, crank radius r, pivot distance h, m):
+# the tests check against these numbers, not against Geometry.paper().
+R1, R, H_PIVOT = 0.025, 0.0505, 0.113
 
 
 class Harness:
@@ -77,6 +80,11 @@ def run_ticks(node, start_ns, seconds, rate=100.0, jitter_ns=1_000_000, seed=7,
     if wait_for_reports:
         node.wait_for_pair_reports(timeout=30.0)
     return stamps
+
+
+def all_finite(message):
+    """Whether a JointState's positions and velocities are all finite."""
+    return all(map(math.isfinite, list(message.position) + list(message.velocity)))
 
 
 def pair_values(message):

@@ -61,11 +61,11 @@ def _run(module_name):
 
 
 def shaper_sim():
-    return _run('qrm_ros.node.shaper_sim')
+    return _run('qrm_ros.cli.shaper_sim')
 
 
 def mcap_recorder():
-    return _run('qrm_ros.node.recorder')
+    return _run('qrm_ros.cli.mcap_recorder')
 
 
 def qrm_analyze():

@@ -20,9 +20,13 @@ steps the coupling offset through a schedule by the node's parameter service (wh
 diagnostics report enough steady stroke pairs at each offset, stops the recorder cleanly
 (SIGINT), and analyses the recording offline like ``qrm_analyze --plot``.
 
-Exit codes: 0 done, 1 a failure while running (a child that exits, a time-out, a refused
-setting, an analysis error), 2 bad options (argparse), 128 + the signal number when stopped
-by SIGINT (130, Ctrl-C) or SIGTERM (143); the children are stopped cleanly either way.
+Its own ROS node, which sets the parameters and counts the pairs, is the Conductor
+(qrm_ros.node.main_job_conductor).
+
+Exit codes (qrm_ros.cli.exit_codes): 0 done, 1 a failure while running (a child that exits, a
+time-out, a refused setting, an analysis error), 2 bad options (argparse), 3 analysed but the
+recording was damaged or incomplete, 128 + the signal number when stopped by SIGINT (130,
+Ctrl-C) or SIGTERM (143); the children are stopped cleanly either way.
 """
 
 import argparse
@@ -33,50 +37,35 @@ import signal
 import subprocess
 import sys
 import time
+from typing import List, Optional
 
 from qrm_ros.analysis import run_analysis as analysis
+from qrm_ros.cli.exit_codes import (EXIT_FAILURE, EXIT_INCOMPLETE, EXIT_INTERRUPTED, EXIT_OK,
+                                    exit_code_for_signal)
 from qrm_ros.core import kinematics as kin
 from qrm_ros.core.dynamics import DynamicsError, Loads
-from qrm_ros.core.names import (absolute_topic, DIAGNOSTICS_TOPIC, DRIVES, JOINT_STATES_TOPIC,
-                                LINKAGE_MARKERS_TOPIC, RECORDER_NODE_NAME, SIM_NODE_NAME,
-                                STROKE_PAIR_STATUS)
+from qrm_ros.core.names import (DRIVES, LINKAGE_MARKERS_TOPIC, RECORDER_NODE_NAME,
+                                SIM_NODE_NAME)
+from qrm_ros.node.main_job_conductor import (Conductor, Interrupted, MainJobError,
+                                             START_TIMEOUT)
 from qrm_ros.node.recorder import DEFAULT_TOPICS
-from qrm_ros.node.ros_process import init_rclpy, StopRequest
+from qrm_ros.node.ros_process import StopRequest
 
-SIM_NODE = '/' + SIM_NODE_NAME
 # Both signs, and the offset of equal mid-stroke speeds (SR = 1, paper eq. 26: -r r1 / h).
 UNITY_SPEED_RATIO_MM = kin.offset_for_speed_ratio(kin.Geometry.paper(), 1.0) * 1e3
 DEFAULT_OFFSETS_MM = [-15.0, UNITY_SPEED_RATIO_MM, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0]
 # Margin after the recorder's subscription appears before its data is surely flowing.
 RECORDER_SETTLE_TIME = 0.5
-START_TIMEOUT = 30.0  # s, for each child to come up
-PARAMETER_CALL_TIMEOUT = 10.0  # s
 CHILD_STOP_TIMEOUT = 15.0  # s, after SIGINT, before SIGKILL
 # Beside the figures: one input revolution at each of a few offsets (qrm_ros.analysis.animate).
 TOUR_FILE = 'offset_tour.gif'
-
-
-class MainJobError(Exception):
-    """A step of the main job failed; the message says which and what to look at."""
 
 
 class UsageError(MainJobError):
     """An option outside what the job accepts (exit code 2)."""
 
 
-class Interrupted(MainJobError):
-    """SIGINT or SIGTERM arrived while recording; the children were stopped cleanly."""
-
-    def __init__(self, signal_number, folder=None):
-        text = f'interrupted by {signal.Signals(signal_number).name}'
-        if folder:
-            text += (f'; shaper_sim and mcap_recorder were stopped, the recording so far is '
-                     f'in {folder}')
-        super().__init__(text)
-        self.signal_number = signal_number
-
-
-def _start(command_name, ros_arguments, log_path, env):
+def start_child(command_name, ros_arguments, log_path, env):
     """Start a package executable as its own process (works in a venv and under colcon)."""
     # Through the console script's entry point, so a stop during start-up is quiet too.
     command = [sys.executable, '-c', 'import sys; from qrm_ros.cli import entry_points; '
@@ -86,7 +75,7 @@ def _start(command_name, ros_arguments, log_path, env):
                                 start_new_session=True)
 
 
-def _stop(process, timeout=CHILD_STOP_TIMEOUT):
+def stop_child(process, timeout=CHILD_STOP_TIMEOUT):
     """SIGINT (a clean finish), then SIGKILL if it hangs; return the exit code."""
     if process.poll() is None:
         process.send_signal(signal.SIGINT)
@@ -96,95 +85,6 @@ def _stop(process, timeout=CHILD_STOP_TIMEOUT):
             process.kill()
             process.wait()
     return process.returncode
-
-
-class Conductor:
-    """The main job's own ROS node: sets parameters and counts steady stroke pairs."""
-
-    def __init__(self, stop=None):
-        import rclpy
-        from rclpy.parameter_client import AsyncParameterClient
-        from diagnostic_msgs.msg import DiagnosticArray
-        self._rclpy = rclpy
-        self._stop_request = stop
-        self.context = rclpy.Context()
-        init_rclpy(args=[], context=self.context)  # stop signals: StopRequest, not rclpy
-        self.node = rclpy.create_node('qrm_main_job', context=self.context)
-        self.executor = rclpy.executors.SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self.sim_parameters = AsyncParameterClient(self.node, SIM_NODE)
-        self.children = []  # (name, process, log path): one that exits ends any wait
-        self.pairs = []
-        self.node.create_subscription(DiagnosticArray, DIAGNOSTICS_TOPIC, self._on_diagnostics, 50)
-
-    def _on_diagnostics(self, message):
-        for status in message.status:
-            if status.name == STROKE_PAIR_STATUS:
-                self.pairs.append({item.key: item.value for item in status.values})
-
-    def watch(self, name, process, log_path):
-        self.children.append((name, process, log_path))
-
-    def wait_for(self, condition, timeout, what, interruptible=True):
-        deadline = time.monotonic() + timeout
-        while not condition():
-            if interruptible and self._stop_request:
-                raise Interrupted(self._stop_request.signal_number)
-            for name, process, log_path in self.children if interruptible else ():
-                if process.poll() is not None:
-                    raise MainJobError(f'{name} exited ({process.returncode}); see {log_path}')
-            if time.monotonic() > deadline:
-                raise MainJobError(f'timed out after {timeout:g} s waiting for {what}')
-            self.executor.spin_once(timeout_sec=0.05)
-
-    def sim_ready(self):
-        return self.sim_parameters.services_are_ready()
-
-    def node_up(self, name):
-        """Whether a node of that name is on the graph (it then handles stop signals)."""
-        return name in self.node.get_node_names()
-
-    def let_start(self, children):
-        """
-        Wait (at most START_TIMEOUT) until each running child's node is up.
-
-        A child signalled while still importing Python would die with a traceback: the
-        package's nodes catch stop signals only once they exist.
-        """
-        self.wait_for(lambda: all(process.poll() is not None or self.node_up(name)
-                                  for name, process in children), START_TIMEOUT,
-                      'the children to start before stopping them', interruptible=False)
-
-    def recorder_subscribed(self):
-        infos = self.node.get_subscriptions_info_by_topic(
-            absolute_topic(JOINT_STATES_TOPIC))
-        return any(info.node_name == RECORDER_NODE_NAME for info in infos)
-
-    def set_parameters(self, **values):
-        """Set shaper_sim parameters (floats) as `ros2 param set` does; raise if refused."""
-        from rclpy.parameter import Parameter
-        future = self.sim_parameters.set_parameters(
-            [Parameter(name, value=float(value)) for name, value in values.items()])
-        self.wait_for(future.done, PARAMETER_CALL_TIMEOUT,
-                      f'the answer of {SIM_NODE}/set_parameters')
-        for name, result in zip(values, future.result().results):
-            if not result.successful:
-                raise MainJobError(f'{SIM_NODE} refused {name} = {values[name]}: '
-                                   f'{result.reason}')
-
-    def steady_pairs_at(self, offset, since, input_speed=None):
-        """Count steady stroke pairs at an offset (and speed) that began after `since` (s)."""
-        return sum(1 for pair in self.pairs
-                   if pair.get('offset_steady') == 'true'
-                   and pair.get('input_speed_steady') == 'true'
-                   and float(pair.get('coupling_offset', 'nan')) == offset
-                   and (input_speed is None
-                        or float(pair.get('input_speed', 'nan')) == input_speed)
-                   and float(pair.get('pair_start', '-inf')) >= since)
-
-    def close(self):
-        self.node.destroy_node()
-        self._rclpy.try_shutdown(context=self.context)
 
 
 def _parser():
@@ -253,7 +153,7 @@ def record(options, folder, stop):
     env.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     os.environ.update(env)
     sim_log = os.path.join(folder, 'shaper_sim.log')
-    sim = _start('shaper_sim', [
+    sim = start_child('shaper_sim', [
         '-p', f'coupling_offset:={offsets[0]!r}', '-p', f'input_speed:={options.input_speed!r}',
         '-p', f'publish_rate:={float(options.publish_rate)!r}',
         '-p', f'offset_rate_limit:={float(options.offset_rate_limit)!r}',
@@ -272,8 +172,9 @@ def record(options, folder, stop):
         # The recorder's topics and the linkage markers: the run then shows the machine
         # in Foxglove's 3D panel (config/foxglove_layout.json).
         topics = ', '.join(DEFAULT_TOPICS + [LINKAGE_MARKERS_TOPIC])
-        recorder = _start('mcap_recorder', ['-p', f'output:={recording}',
-                                            '-p', f'topics:=[{topics}]'], recorder_log, env)
+        recorder = start_child('mcap_recorder', ['-p', f'output:={recording}',
+                                                 '-p', f'topics:=[{topics}]'], recorder_log,
+                               env)
         print(f'qrm_main: started mcap_recorder (pid {recorder.pid})', flush=True)
         conductor.watch('mcap_recorder', recorder, recorder_log)
         conductor.wait_for(conductor.recorder_subscribed, START_TIMEOUT,
@@ -286,10 +187,10 @@ def record(options, folder, stop):
         except MainJobError as error:
             print(f'qrm_main: warning: {error}', file=sys.stderr)
         conductor.close()
-        if recorder is not None and _stop(recorder) != 0:
+        if recorder is not None and stop_child(recorder) != 0:
             print(f'qrm_main: warning: mcap_recorder exited with {recorder.returncode}; see '
                   f'{folder}/mcap_recorder.log', file=sys.stderr)
-        _stop(sim)
+        stop_child(sim)
     return recording
 
 
@@ -361,7 +262,8 @@ def run(options):
     return folder, missing
 
 
-def main(argv=None):
+def main(argv: Optional[List[str]] = None) -> int:
+    """Run the main job; return its exit code (bad options exit 2 through argparse)."""
     parser = _parser()
     options = parser.parse_args(argv)
     try:
@@ -372,18 +274,18 @@ def main(argv=None):
         folder, missing = run(options)
     except Interrupted as error:
         print(f'qrm_main: {error}', file=sys.stderr)
-        return 128 + error.signal_number
+        return exit_code_for_signal(error.signal_number)
     except (MainJobError, analysis.AnalysisError) as error:
         print(f'qrm_main: error: {error}', file=sys.stderr)
-        return 1
+        return EXIT_FAILURE
     except KeyboardInterrupt:  # Ctrl-C while analysing
         print('qrm_main: interrupted', file=sys.stderr)
-        return 128 + signal.SIGINT
+        return EXIT_INTERRUPTED
     if missing:  # analysed, but the recording was damaged or incomplete
         print(f'qrm_main: the results in {folder} cover only what was readable',
               file=sys.stderr)
-        return analysis.EXIT_INCOMPLETE
-    return 0
+        return EXIT_INCOMPLETE
+    return EXIT_OK
 
 
 if __name__ == '__main__':

@@ -21,44 +21,32 @@ self-describing with two metadata records read from the sim node's parameter ser
 ``qrm_ros.geometry`` (the five geometry parameters, ``repr(float)`` strings) and
 ``qrm_ros.parameters`` (every parameter, JSON-encoded).
 
-``mcap_recorder --recover BROKEN.mcap FIXED.mcap`` finishes a file left by SIGKILL, a power
-loss or a full disk (``mcap_recover``).
-
-Exit codes: 0 done, 1 a failure while running (a write error, a full disk), 2 a usage or
-configuration error (bad arguments or parameters, an existing output file).
+Run it with the ``mcap_recorder`` command (qrm_ros.cli.mcap_recorder), which also finishes a
+file left unfinished.
 """
 
-import argparse
 import datetime
 import importlib
 import json
 import math
 import os
-import sys
 import time
 
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.client import Client
-from rclpy.exceptions import NameValidationException, ParameterException
 from rclpy.node import Node
 from rclpy.parameter import parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.utilities import remove_ros_args, try_shutdown
 
 from qrm_ros.core.geometry import Geometry
-from qrm_ros.recording.mcap_recover import recover_command
-from qrm_ros.recording.mcap_run_file import (COMPRESSIONS, ConfigurationError, McapRunFile,
-                                             RecorderError)
+from qrm_ros.recording.mcap_run_file import COMPRESSIONS, ConfigurationError, McapRunFile
 from qrm_ros.core.names import (DIAGNOSTICS_TOPIC, GEOMETRY_METADATA, JOINT_STATES_TOPIC,
                                 PARAMETER_EVENTS_TOPIC, PARAMETERS_METADATA, RAM_TWIST_TOPIC,
                                 RECORDER_NODE_NAME, SPEED_COMMAND_TOPIC)
-from qrm_ros.node.ros_process import (executor_kind, ExecutorChoiceError, init_rclpy,
-                                      MESSAGE_INFO_SIGNATURE, message_and_info, new_executor,
-                                      RCLError, rcl_error_text, spin_until_stopped, StopRequest)
+from qrm_ros.node.ros_process import MESSAGE_INFO_SIGNATURE, message_and_info
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
 
-NODE_NAME = RECORDER_NODE_NAME
 DEFAULT_TOPICS = [JOINT_STATES_TOPIC, RAM_TWIST_TOPIC, SPEED_COMMAND_TOPIC, DIAGNOSTICS_TOPIC,
                   PARAMETER_EVENTS_TOPIC]
 GEOMETRY_PARAMETERS = list(Geometry.field_names())
@@ -145,7 +133,7 @@ class Recorder(Node):
     """Subscribes (serialized) to the configured topics as they appear and writes them."""
 
     def __init__(self, **kwargs):
-        super().__init__(NODE_NAME, **kwargs)
+        super().__init__(RECORDER_NODE_NAME, **kwargs)
         read_only = {'read_only': True}
         self.declare_parameter('output', '', ParameterDescriptor(
             description='MCAP file to write; empty = runs/qrm_<date>_<time>.mcap in the working '
@@ -360,70 +348,3 @@ class Recorder(Node):
         self.get_logger().info(
             f'wrote {self.run_file.message_count} messages to {self.run_file.path}: '
             + ', '.join(f'{topic} {count}' for topic, count in sorted(counts.items())))
-
-
-def _options(argv):
-    parser = argparse.ArgumentParser(
-        prog='mcap_recorder',
-        description='Record a shaper_sim run to MCAP (ROS parameters after --ros-args), or '
-                    'finish a recording left unfinished.',
-        epilog='Recording: mcap_recorder --ros-args -p output:=runs/run.mcap')
-    parser.add_argument('--recover', nargs=2, metavar=('BROKEN', 'FIXED'),
-                        help='rewrite what is readable in BROKEN (left by SIGKILL, a power '
-                             'loss or a full disk) into a new, finished file FIXED')
-    return parser, parser.parse_args(argv)
-
-
-def _error(text):
-    print(f'{NODE_NAME}: error: {text}', file=sys.stderr, flush=True)
-
-
-def _record(args):
-    """Run the recorder node until SIGINT/SIGTERM; return the exit code."""
-    try:
-        init_rclpy(args)
-    except RCLError as error:  # a malformed -p or params file, said by rcl
-        _error(rcl_error_text(error))
-        return 2
-    recorder = executor = None
-    try:
-        with StopRequest() as stop:
-            kind = executor_kind()  # QRM_ROS_EXECUTOR: events (default) or single
-            recorder = Recorder()
-            executor = new_executor(kind)
-            executor.add_node(recorder)
-            spin_until_stopped(executor, stop)
-            recorder.drain(executor)
-            recorder.finish()
-    except (ConfigurationError, ExecutorChoiceError, ParameterException,
-            NameValidationException) as error:
-        _error(error)
-        return 2
-    except RecorderError as error:
-        _error(error)
-        return 1
-    finally:
-        if executor is not None:
-            executor.shutdown()  # lets go of the node's entities before they are destroyed
-        if recorder is not None:
-            recorder.destroy_node()
-        try_shutdown()
-    return 0
-
-
-def main(args=None):
-    """Record (ROS arguments after --ros-args) or, with --recover, finish a broken file."""
-    argv = sys.argv if args is None else args
-    try:
-        own_arguments = remove_ros_args(argv)[1:]
-    except RCLError as error:
-        _error(rcl_error_text(error))
-        return 2
-    parser, options = _options(own_arguments)
-    if options.recover:
-        return recover_command(*options.recover, parser.error)
-    return _record(args)
-
-
-if __name__ == '__main__':
-    sys.exit(main())

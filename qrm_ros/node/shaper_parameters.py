@@ -17,11 +17,11 @@ The shaper_sim node's parameters as data: default, unit, meaning, rule and effec
 Adding a parameter is one PARAMETERS entry (plus its use). A rule says in words what it
 allows and why a value breaks it; refusal_reason() builds every refusal the same way, so
 `ros2 param set` always prints '<name> = <value> refused: <why>; allowed ...'. ROS-free:
-the node turns specs into descriptors and reasons into SetParametersResults.
+parameter_services turns specs into descriptors and reasons into SetParametersResults.
 """
 
 import math
-from typing import Callable, NamedTuple, Optional, Tuple
+from typing import Any, Callable, NamedTuple, Optional, Tuple
 
 from qrm_ros.core.cutting_speed_hold import CUTTING_SPEED_DEFINITIONS, unreachable_reason
 from qrm_ros.core.dynamics import Loads, MassProperties, MotorDrive, parameter_names
@@ -30,8 +30,8 @@ from qrm_ros.core.names import DRIVES, MOTOR_PREFIX
 
 __all__ = ['AtLeast', 'DoubleRange', 'DRIVES', 'GEOMETRY_NAMES', 'MARKER_SLICING_RATE',
            'MOTOR_PREFIX', 'NonEmptyText', 'OneOf', 'ParameterSpec', 'PARAMETERS',
-           'PositiveLength', 'SymmetricRange', 'View', 'allowed_text', 'default_values',
-           'refusal_reason', 'shown']
+           'PositiveLength', 'SymmetricRange', 'View', 'allowed_text', 'change_refusal',
+           'default_values', 'refusal_reason', 'shown', 'start_up_refusal']
 
 GEOMETRY_NAMES = Geometry.field_names()
 # Hz: above this publish rate the node sends a marker frame one marker per tick, after a tick
@@ -194,7 +194,7 @@ class ParameterSpec(NamedTuple):
     # (value, view) -> why a value that passes the rule is still refused, or None.
     checks: Tuple[Callable[[float, View], Optional[str]], ...] = ()
     # (node, value) -> None: what a new value does beyond being stored.
-    apply: Optional[Callable[[object, object], None]] = None
+    apply: Optional[Callable[[Any, Any], None]] = None
 
 
 def _max_input_speed_checks():
@@ -231,6 +231,12 @@ def _offset_by_hand(value, view):
     return (f'the offset is commanded by cutting_speed_target = {shown(target)} m/s; set '
             'cutting_speed_target to 0 to command coupling_offset by hand (or set both in '
             'one atomic call)')
+
+
+def _stepper_limit(name, default, unit, what, rule):
+    """Return the spec of a live limit on how fast the stepper follows a command (set_limits)."""
+    return ParameterSpec(default, unit, f'{what} toward its command.', False, rule,
+                         apply=lambda node, value: node.stepper.set_limits(**{name: value}))
 
 
 PARAMETERS = {
@@ -272,10 +278,9 @@ PARAMETERS = {
         "stroke's length over its time (the figure of shop tables), or 'peak', the largest "
         'cutting speed in the stroke.', False, OneOf(CUTTING_SPEED_DEFINITIONS),
         (_target_reachable,), apply=lambda node, value: node.command_offset()),
-    'offset_rate_limit': ParameterSpec(
-        0.005, 'm/s', 'Speed at which the offset actuator moves the offset toward its '
-        'command.', False, DoubleRange(1e-6, 1.0),
-        apply=lambda node, value: node.stepper.set_limits(offset_rate_limit=value)),
+    'offset_rate_limit': _stepper_limit(
+        'offset_rate_limit', 0.005, 'm/s',
+        'Speed at which the offset actuator moves the offset', DoubleRange(1e-6, 1.0)),
     'max_input_speed': ParameterSpec(
         60.0, 'rad/s', 'Largest |input speed| accepted from input_speed and '
         'input_speed_cmd.', False, DoubleRange(1e-3, 1e4), _max_input_speed_checks()),
@@ -286,10 +291,9 @@ PARAMETERS = {
         SymmetricRange(lambda view: view.values['max_input_speed'],
                        lambda view: '|input_speed| <= max_input_speed', False),
         apply=lambda node, value: node.command_speed(value)),
-    'input_acceleration_limit': ParameterSpec(
-        20.0, 'rad/s^2', 'Acceleration at which the input shaft speed ramps toward its '
-        'command.', False, DoubleRange(1e-3, 1e5),
-        apply=lambda node, value: node.stepper.set_limits(input_acceleration_limit=value)),
+    'input_acceleration_limit': _stepper_limit(
+        'input_acceleration_limit', 20.0, 'rad/s^2',
+        'Acceleration at which the input shaft speed ramps', DoubleRange(1e-3, 1e5)),
     'publish_rate': ParameterSpec(
         100.0, 'Hz', 'Rate of the timer that steps and publishes the mechanism (node clock). '
         'Set at start-up only.', True, DoubleRange(1.0, 1e4)),
@@ -406,6 +410,40 @@ def refusal_reason(name, value, view, starting=False):
         problem = check(value, view)
         if problem:
             return f'{refused}{problem} (allowed range {allowed_text(name, view)})'
+    return None
+
+
+def change_refusal(changed, values, geometry, speed_command):
+    """
+    Return the first refusal of a change, judged as a whole (all values after it), or None.
+
+    changed: the new values by name (names of no parameter are not judged); values: those in
+    force; speed_command: the input speed command in force, which a change that sets
+    input_speed sets too.
+    """
+    changed = {name: value for name, value in changed.items() if name in PARAMETERS}
+    candidate = dict(values)
+    # Read-only values never change, so the candidate keeps them (reasons show them).
+    candidate.update((name, value) for name, value in changed.items()
+                     if not PARAMETERS[name].read_only)
+    if 'input_speed' in changed:
+        speed_command = candidate['input_speed']
+    view = View(candidate, geometry, speed_command)
+    for name, value in changed.items():
+        reason = refusal_reason(name, value, view)
+        if reason:
+            return reason
+    return None
+
+
+def start_up_refusal(values, geometry):
+    """Return the first refusal of the start-up values, or None (input_speed judged first)."""
+    view = View(values, geometry, values['input_speed'])
+    # input_speed before max_input_speed, so a too-fast start names input_speed.
+    for name in sorted(PARAMETERS, key=lambda name: name != 'input_speed'):
+        reason = refusal_reason(name, values[name], view, starting=True)
+        if reason:
+            return reason
     return None
 
 

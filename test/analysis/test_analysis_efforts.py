@@ -284,7 +284,9 @@ REAL_RATE = 250.0
 
 @pytest.fixture(scope='module')
 def real_run(tmp_path_factory):
-    from qrm_ros.cli.qrm_main import _start, _stop, Conductor, RECORDER_SETTLE_TIME
+    from qrm_ros.cli.qrm_main import (RECORDER_SETTLE_TIME, start_child as _start,
+                                      stop_child as _stop)
+    from qrm_ros.node.main_job_conductor import Conductor
     folder = tmp_path_factory.mktemp('real_efforts')
     path = str(folder / 'run.mcap')
     env = dict(os.environ)

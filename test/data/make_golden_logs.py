@@ -35,7 +35,9 @@ import sys
 import tempfile
 import time
 
-from qrm_ros.cli.qrm_main import _start, _stop, Conductor, MainJobError, RECORDER_SETTLE_TIME
+from qrm_ros.cli.qrm_main import (RECORDER_SETTLE_TIME, start_child as _start,
+                                  stop_child as _stop)
+from qrm_ros.node.main_job_conductor import Conductor, MainJobError
 from qrm_ros.core.names import RECORDER_NODE_NAME
 
 HERE = os.path.dirname(os.path.abspath(__file__))

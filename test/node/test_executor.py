@@ -20,6 +20,7 @@ simulated time (/clock steps, a pause of /clock, jumps forward and back), timer 
 reset, the node's services and parameter services, and its refusal of guard conditions.
 """
 
+import contextlib
 import math
 import statistics
 import time
@@ -188,19 +189,35 @@ def test_a_cancelled_timer_stops_and_a_reset_one_runs_again(sim_time_bench):
     assert bench.ticks[count:] == [bench.sim_ns - k * SIM_STEP_NS for k in range(9, -1, -1)]
 
 
-@pytest.mark.parametrize('kind', KINDS)
-def test_a_wall_timer_is_cancelled_and_reset(kind):
+@contextlib.contextmanager
+def _node_with_executor(kind, name):
+    """Yield a plain node and an executor of that kind, in a context of their own."""
     context = Context()
     init_rclpy(context=context)
-    node = Node('wall_timer', context=context)
+    node = Node(name, context=context)
     executor = new_executor(kind, context=context)
     try:
+        yield node, executor
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.shutdown(context=context)
+
+
+def _spin_while(executor, condition, timeout=10.0):
+    """Spin while condition() holds, at most timeout seconds."""
+    deadline = time.monotonic() + timeout
+    while condition() and time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.05)
+
+
+@pytest.mark.parametrize('kind', KINDS)
+def test_a_wall_timer_is_cancelled_and_reset(kind):
+    with _node_with_executor(kind, 'wall_timer') as (node, executor):
         ticks = []
         timer = node.create_timer(0.005, lambda: ticks.append(time.monotonic()))
         executor.add_node(node)
-        deadline = time.monotonic() + 10.0
-        while len(ticks) < 5 and time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.05)
+        _spin_while(executor, lambda: len(ticks) < 5)
         assert len(ticks) >= 5
         timer.cancel()
         count = len(ticks)
@@ -209,14 +226,8 @@ def test_a_wall_timer_is_cancelled_and_reset(kind):
             executor.spin_once(timeout_sec=0.01)
         assert len(ticks) == count
         timer.reset()
-        deadline = time.monotonic() + 10.0
-        while len(ticks) < count + 5 and time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.05)
+        _spin_while(executor, lambda: len(ticks) < count + 5)
         assert len(ticks) >= count + 5
-    finally:
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.shutdown(context=context)
 
 
 @pytest.mark.parametrize('kind', KINDS)
@@ -269,11 +280,7 @@ def test_marker_rate_changed_while_spinning(kind):
 @pytest.mark.parametrize('kind', KINDS)
 def test_a_message_info_callback_gets_the_info_on_either_executor(kind, raw):
     # rclpy 7.1's EventsExecutor passes (message, info) as one argument; see ros_process.
-    context = Context()
-    init_rclpy(context=context)
-    node = Node('message_info', context=context)
-    executor = new_executor(kind, context=context)
-    try:
+    with _node_with_executor(kind, 'message_info') as (node, executor):
         received = []
 
         def on_message(*arguments):
@@ -286,9 +293,7 @@ def test_a_message_info_callback_gets_the_info_on_either_executor(kind, raw):
         before = time.time_ns()
         for value in (1.0, 2.0, 3.0):
             publisher.publish(Float64(data=value))
-        deadline = time.monotonic() + 10.0
-        while len(received) < 3 and time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.05)
+        _spin_while(executor, lambda: len(received) < 3)
         assert len(received) == 3
         for (message, info), value in zip(received, (1.0, 2.0, 3.0)):
             if raw:
@@ -297,10 +302,6 @@ def test_a_message_info_callback_gets_the_info_on_either_executor(kind, raw):
                 assert message.data == value
             assert before <= info['source_timestamp'] <= info['received_timestamp'] <= (
                 time.time_ns())
-    finally:
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.shutdown(context=context)
 
 
 def test_the_events_executor_refuses_guard_conditions_and_the_node_has_none():

@@ -60,7 +60,7 @@ GEOMETRY = list(Geometry.field_names())
 
 def _recorder_executable():
     executable = installed_executable('mcap_recorder')
-    return [executable] if executable else [sys.executable, '-m', 'qrm_ros.node.recorder']
+    return [executable] if executable else [sys.executable, '-m', 'qrm_ros.cli.mcap_recorder']
 
 
 def _recorder_command(*parameters):
@@ -473,12 +473,18 @@ def test_rosbags_anyreader_opens_the_folder_its_rosbag2_record_describes(recordi
     assert counts == {t: len(v) for t, v in recording.ours.items()}
 
 
-def test_sigterm_finishes_the_file(tmp_path, listener):
-    output = str(tmp_path / 'run.mcap')
-    recorder = Process(_recorder_command(f'output:={output}', 'compression:=lz4'),
-                       str(tmp_path), 'recorder')
-    publisher = Process(_publisher_command(0, 100.0, 2, forever=True), str(tmp_path),
+def _record_a_publisher(folder, *parameters):
+    """Start a recorder (these parameters) and a publisher at 100 Hz until stopped."""
+    output = str(folder / 'run.mcap')
+    recorder = Process(_recorder_command(f'output:={output}', *parameters), str(folder),
+                       'recorder')
+    publisher = Process(_publisher_command(0, 100.0, 2, forever=True), str(folder),
                         'publisher')
+    return output, recorder, publisher
+
+
+def test_sigterm_finishes_the_file(tmp_path, listener):
+    output, recorder, publisher = _record_a_publisher(tmp_path, 'compression:=lz4')
     try:
         wait_for(lambda: len(listener.messages('/joint_states')) >= 100, 15.0,
                  '100 joint states at the listener')
@@ -497,12 +503,8 @@ def test_sigkill_loses_at_most_one_chunk_and_recover_finishes_the_file(tmp_path,
     from sensor_msgs.msg import JointState
     import rclpy.serialization
     chunk_duration = 0.3
-    output = str(tmp_path / 'run.mcap')
-    recorder = Process(_recorder_command(f'output:={output}',
-                                         f'max_chunk_duration:={chunk_duration}'),
-                       str(tmp_path), 'recorder')
-    publisher = Process(_publisher_command(0, 100.0, 2, forever=True), str(tmp_path),
-                        'publisher')
+    output, recorder, publisher = _record_a_publisher(
+        tmp_path, f'max_chunk_duration:={chunk_duration}')
     try:
         wait_for(lambda: len(listener.messages('/joint_states')) >= 150, 15.0,
                  '150 joint states at the listener')

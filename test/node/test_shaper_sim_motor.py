@@ -97,7 +97,7 @@ def test_speed_drive_pairs_carry_the_exact_effort_theory_once_worked_out(harness
     tick_until(h, stamp, lambda: with_theory(h.diagnostics), 'a pair with effort theory')
     report = with_theory(h.diagnostics)[0]
     node = h.shaper
-    exact = pair_efforts(node.geometry, node._mass, node._loads, report['coupling_offset'],
+    exact = pair_efforts(node.geometry, node.mass, node.loads, report['coupling_offset'],
                          report['input_speed'])
     for name, value in exact._asdict().items():
         assert report[f'{name}_theory'] == value, name
@@ -128,7 +128,7 @@ def test_motor_drive_pairs_carry_the_steady_speed_fluctuation_theory(harness):
                timeout=120.0)
     report = with_theory(h.diagnostics)[0]
     node = h.shaper
-    steady = speed_fluctuation(node.geometry, node._mass, node._loads, node._motor,
+    steady = speed_fluctuation(node.geometry, node.mass, node.loads, node.motor,
                                report['coupling_offset'], node.stepper.speed_reference)
     assert report['speed_fluctuation_theory'] == steady.fluctuation
     for name, value in steady.pair_efforts._asdict().items():

@@ -275,37 +275,6 @@ def test_a_stop_while_starting_is_quiet(signal_number, delay):
     assert 'Traceback' not in output and 'KeyboardInterrupt' not in output, output
 
 
-_STOP_INSIDE_AN_EXTENSION = """
-import os, signal, sys, time
-class Finder:
-    def find_spec(self, name, path=None, target=None):
-        if name != 'fake_extension':
-            return None
-        import importlib.machinery
-        return importlib.machinery.ModuleSpec(name, self)
-    def create_module(self, spec):
-        try:  # a C extension's initialisation, interrupted by the stop signal
-            os.kill(os.getpid(), signal.SIGINT)
-            time.sleep(5.0)
-        except SystemExit as stop:
-            raise ImportError('initialization failed') from stop
-    def exec_module(self, module):
-        pass
-sys.meta_path.insert(0, Finder())
-from qrm_ros.cli import entry_points
-entry_points._run('fake_extension')
-print('not stopped')
-"""
-
-
-def test_a_stop_inside_an_extensions_initialisation_is_quiet():
-    """A stop that a C extension's import turns into ImportError still exits 0, quietly."""
-    result = subprocess.run([sys.executable, '-c', _STOP_INSIDE_AN_EXTENSION],
-                            capture_output=True, text=True, timeout=60)
-    assert result.returncode == 0, result.stderr
-    assert result.stdout == '' and 'Traceback' not in result.stderr, result.stderr
-
-
 def test_process_refuses_a_bad_start_up_value_and_exits_2():
     node = Process('-p', 'coupling_offset:=0.024')
     code, output = node.stop(None, timeout=30.0)

@@ -1,0 +1,114 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+The ``mcap_recorder`` command: records a shaper_sim run (qrm_ros.node.recorder) to MCAP.
+
+``mcap_recorder --ros-args -p output:=runs/run.mcap`` records until Ctrl-C or SIGTERM;
+``mcap_recorder --recover BROKEN.mcap FIXED.mcap`` finishes a file left by SIGKILL, a power
+loss or a full disk (``mcap_recover``). It loads no numerical library: it starts recording
+as fast as a bare subscriber.
+
+Exit codes (qrm_ros.cli.exit_codes): 0 done, 1 a failure while running (a write error, a
+full disk), 2 a usage or configuration error (bad arguments or parameters, an existing
+output file).
+"""
+
+import argparse
+import sys
+from typing import List, Optional
+
+from qrm_ros.cli.exit_codes import EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_OK
+from qrm_ros.core.names import RECORDER_NODE_NAME
+from qrm_ros.node.recorder import Recorder
+from qrm_ros.node.ros_process import (executor_kind, ExecutorChoiceError, init_rclpy,
+                                      new_executor, RCLError, rcl_error_text,
+                                      spin_until_stopped, StopRequest)
+from qrm_ros.recording.mcap_recover import recover_command
+from qrm_ros.recording.mcap_run_file import ConfigurationError, RecorderError
+from rclpy.exceptions import NameValidationException, ParameterException
+from rclpy.utilities import remove_ros_args, try_shutdown
+
+__all__ = ['main']
+
+
+def _options(argv):
+    parser = argparse.ArgumentParser(
+        prog='mcap_recorder',
+        description='Record a shaper_sim run to MCAP (ROS parameters after --ros-args), or '
+                    'finish a recording left unfinished.',
+        epilog='Recording: mcap_recorder --ros-args -p output:=runs/run.mcap')
+    parser.add_argument('--recover', nargs=2, metavar=('BROKEN', 'FIXED'),
+                        help='rewrite what is readable in BROKEN (left by SIGKILL, a power '
+                             'loss or a full disk) into a new, finished file FIXED')
+    return parser, parser.parse_args(argv)
+
+
+def _error(text):
+    print(f'{RECORDER_NODE_NAME}: error: {text}', file=sys.stderr, flush=True)
+
+
+def _record(argv):
+    """Run the recorder node until SIGINT/SIGTERM; return the exit code."""
+    try:
+        init_rclpy(argv)
+    except RCLError as error:  # a malformed -p or params file, said by rcl
+        _error(rcl_error_text(error))
+        return EXIT_BAD_INPUT
+    recorder = executor = None
+    try:
+        with StopRequest() as stop:
+            kind = executor_kind()  # QRM_ROS_EXECUTOR: events (default) or single
+            recorder = Recorder()
+            executor = new_executor(kind)
+            executor.add_node(recorder)
+            spin_until_stopped(executor, stop)
+            recorder.drain(executor)
+            recorder.finish()
+    except (ConfigurationError, ExecutorChoiceError, ParameterException,
+            NameValidationException) as error:
+        _error(error)
+        return EXIT_BAD_INPUT
+    except RecorderError as error:
+        _error(error)
+        return EXIT_FAILURE
+    finally:
+        if executor is not None:
+            executor.shutdown()  # lets go of the node's entities before they are destroyed
+        if recorder is not None:
+            recorder.destroy_node()
+        try_shutdown()
+    return EXIT_OK
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    """
+    Record (ROS arguments after --ros-args) or, with --recover, finish a broken file.
+
+    argv: the whole command line, program name first, as sys.argv (None: sys.argv).
+    """
+    command_line = sys.argv if argv is None else argv
+    try:
+        own_arguments = remove_ros_args(command_line)[1:]
+    except RCLError as error:
+        _error(rcl_error_text(error))
+        return EXIT_BAD_INPUT
+    parser, options = _options(own_arguments)
+    if options.recover:
+        broken, fixed = options.recover
+        return recover_command(broken, fixed, parser.error)
+    return _record(argv)
+
+
+if __name__ == '__main__':
+    sys.exit(main())
