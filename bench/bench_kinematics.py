@@ -17,11 +17,11 @@ Benchmark: closed-form TR and SR, and exact peak speeds, over an (offset, crank 
 Prints configurations per second, as medians over repeats with the spread (lowest-highest),
 for: closed-form TR + SR together; peak cutting and return speeds with peak SR
 (`peak_ram_speeds`: the compiled search, qrm_ros.core.peak_kernel, on sweeps of at least
-kinematics._COMPILED_MIN_CONFIGURATIONS), on grid rows and on random designs (offsets up to
+peak_speeds.COMPILED_MIN_CONFIGURATIONS), on grid rows and on random designs (offsets up to
 0.999 r1, random crank phases: nothing for the search to reuse between configurations);
-the previous method, the same search in numpy (`_peak_speeds_numpy`), and the one before
+the previous method, the same search in numpy (`peak_speeds_numpy`), and the one before
 (bracketing with scipy's Chandrupatla root finder on a 48-sample grid,
-`_peak_speeds_bracketing`), on slices of the same grid; and the paper's per-point RK4 of
+`peak_speeds_bracketing`), on slices of the same grid; and the paper's per-point RK4 of
 eq. (20) for TR. The methods are timed in turn within each repeat, so each ratio is taken
 within a repeat (the machine is shared and noisy) and its median and spread printed. Also
 what the compiled search costs before its first answer (importing numba, then compiling or
@@ -60,6 +60,8 @@ import time
 import numpy as np
 
 from qrm_ros.core import kinematics as kin
+from qrm_ros.core import peak_speeds
+from qrm_ros.core.peak_speeds_bracketing import peak_speeds_bracketing
 
 
 def spread(values, unit=''):
@@ -92,12 +94,12 @@ def first_answer():
     Importing it compiles peak_kernel.peak_speeds for its signature, or loads the cache.
     """
     start = time.perf_counter()
-    search = kin._compiled_peak_search()
+    search = peak_speeds.compiled_peak_search()
     imported = time.perf_counter()
     if search is None:
         return None
-    kin._peak_speeds_forward(kin.Geometry.paper(),
-                             np.zeros(kin._COMPILED_MIN_CONFIGURATIONS))
+    peak_speeds.peak_speeds_forward(kin.Geometry.paper(),
+                                    np.zeros(peak_speeds.COMPILED_MIN_CONFIGURATIONS))
     answered = time.perf_counter()
     hits = sum(search.stats.cache_hits.values())
     return imported - start, answered - imported, 'from the cache' if hits else 'compiled'
@@ -148,10 +150,10 @@ def main():
         'closed': closed_form,
         'peaks': lambda: with_ratio(*kin.peak_ram_speeds(peak_geometry, offsets[None, :])),
         'random': lambda: with_ratio(*kin.peak_ram_speeds(random_geometry, random_offsets)),
-        'numpy': lambda: with_ratio(*kin._peak_speeds_numpy(numpy_geometry,
-                                                            offsets[None, :])),
-        'bracketing': lambda: with_ratio(*kin._peak_speeds_bracketing(old_geometry,
-                                                                      offsets[None, :])),
+        'numpy': lambda: with_ratio(*peak_speeds.peak_speeds_numpy(numpy_geometry,
+                                                                   offsets[None, :])),
+        'bracketing': lambda: with_ratio(*peak_speeds_bracketing(old_geometry,
+                                                                 offsets[None, :])),
     }
     rates = {name: [] for name in methods}
     for _ in range(args.repeats):
@@ -163,11 +165,11 @@ def main():
 
     time_ratios, _ = closed_form()
     against_numpy = disagreement(kin.peak_ram_speeds(random_geometry, random_offsets),
-                                 kin._peak_speeds_numpy(random_geometry, random_offsets))
+                                 peak_speeds.peak_speeds_numpy(random_geometry, random_offsets))
     # The bracketing method's 48 samples miss peaks beyond the safe offset: grid rows only.
-    grid_rows = rows(kin._COMPILED_MIN_CONFIGURATIONS // args.grid + 1)
+    grid_rows = rows(peak_speeds.COMPILED_MIN_CONFIGURATIONS // args.grid + 1)
     against_bracketing = disagreement(kin.peak_ram_speeds(grid_rows, offsets[None, :]),
-                                      kin._peak_speeds_bracketing(grid_rows, offsets[None, :]))
+                                      peak_speeds_bracketing(grid_rows, offsets[None, :]))
 
     rng = np.random.default_rng(20261121)
     sample = rng.integers(0, args.grid, size=(args.rk4_points, 2))
@@ -186,7 +188,7 @@ def main():
     else:
         print(f'compiled peak search before its first answer: import {startup[0]:.2f} s '
               f'(numba, and the machine code {startup[2]}), first call on '
-              f'{kin._COMPILED_MIN_CONFIGURATIONS} configurations {startup[1]:.2f} s')
+              f'{peak_speeds.COMPILED_MIN_CONFIGURATIONS} configurations {startup[1]:.2f} s')
     print(f'closed-form TR+SR ({counts["closed"]} configurations): '
           f'{spread(rates["closed"], "/s")}')
     print(f'peak speeds and peak SR, grid rows ({counts["peaks"]} configurations): '

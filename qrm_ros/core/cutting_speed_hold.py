@@ -24,7 +24,11 @@ from typing import NamedTuple, Optional, Tuple
 
 import numpy as np
 
-from qrm_ros.core import kinematics as kin
+from qrm_ros.core.checks import KinematicsError
+from qrm_ros.core.cutting_speeds import mean_cutting_speed, offset_for_mean_cutting_speed
+from qrm_ros.core.geometry import ArrayLike, FloatOrArray, Geometry
+from qrm_ros.core.offset_inverses import offset_for_cutting_speed
+from qrm_ros.core.peak_speeds import peak_ram_speeds
 
 __all__ = ['CUTTING_SPEED_DEFINITIONS', 'CUTTING_SPEED_FIGURES', 'HoldAnswer', 'cutting_speed',
            'hold_offset', 'unreachable_reason',
@@ -39,14 +43,15 @@ CUTTING_SPEED_FIGURES = {'mean': 'mean_cutting_speed', 'peak': 'peak_cutting_spe
 _RANGE_SAMPLES = 201
 
 
-def cutting_speed(geometry: kin.Geometry, offset, input_speed, definition: str):
+def cutting_speed(geometry: Geometry, offset: ArrayLike, input_speed: ArrayLike,
+                  definition: str) -> FloatOrArray:
     """Cutting speed (m/s, >= 0) at an offset and input speed, by its definition."""
     if definition == 'mean':
-        return kin.mean_cutting_speed(geometry, offset, input_speed)
+        return mean_cutting_speed(geometry, offset, input_speed)
     if definition == 'peak':
-        return kin.peak_ram_speeds(geometry, offset, input_speed)[0]
-    raise kin.KinematicsError(f'cutting speed definition {definition!r} is not one of '
-                              f'{", ".join(CUTTING_SPEED_DEFINITIONS)}')
+        return peak_ram_speeds(geometry, offset, input_speed)[0]
+    raise KinematicsError(f'cutting speed definition {definition!r} is not one of '
+                          f'{", ".join(CUTTING_SPEED_DEFINITIONS)}')
 
 
 def _over_safe_offsets(geometry, input_speed, definition):
@@ -56,14 +61,14 @@ def _over_safe_offsets(geometry, input_speed, definition):
     return offsets, np.asarray(cutting_speed(geometry, offsets, input_speed, definition))
 
 
-def reachable_cutting_speeds(geometry: kin.Geometry, input_speed: float,
+def reachable_cutting_speeds(geometry: Geometry, input_speed: float,
                              definition: str) -> Tuple[float, float]:
     """(lowest, highest) cutting speed the safe offsets give at input_speed (m/s)."""
     _, speeds = _over_safe_offsets(geometry, input_speed, definition)
     return float(speeds.min()), float(speeds.max())
 
 
-def unreachable_reason(geometry: kin.Geometry, input_speed: float, target: float,
+def unreachable_reason(geometry: Geometry, input_speed: float, target: float,
                        definition: str,
                        reachable: Optional[Tuple[float, float]] = None) -> Optional[str]:
     """
@@ -90,7 +95,7 @@ class HoldAnswer(NamedTuple):
     problem: Optional[str]       # None: the offset gives the target exactly
 
 
-def hold_offset(geometry: kin.Geometry, input_speed: float, target: float,
+def hold_offset(geometry: Geometry, input_speed: float, target: float,
                 definition: str) -> HoldAnswer:
     """Return the offset giving the target cutting speed at input_speed, or the nearest."""
     if input_speed == 0.0:
@@ -100,8 +105,8 @@ def hold_offset(geometry: kin.Geometry, input_speed: float, target: float,
     reachable = float(speeds.min()), float(speeds.max())
     reason = unreachable_reason(geometry, input_speed, target, definition, reachable)
     if reason is None:
-        invert = (kin.offset_for_mean_cutting_speed if definition == 'mean'
-                  else kin.offset_for_cutting_speed)
+        invert = (offset_for_mean_cutting_speed if definition == 'mean'
+                  else offset_for_cutting_speed)
         offset = float(invert(geometry, input_speed, target))
         if abs(offset) <= geometry.max_safe_offset:
             return HoldAnswer(offset, reachable, None)

@@ -31,6 +31,7 @@ from typing import ClassVar, NamedTuple
 
 import numpy as np
 
+from qrm_ros.core.checks import as_float
 from qrm_ros.core.geometry import check_offset, KinematicsError
 from qrm_ros.core.names import MOTOR_PREFIX
 
@@ -50,22 +51,16 @@ class DynamicsError(KinematicsError):
 
 def _checked(name, value, unit, minimum=None, strict=False):
     """Return value as float (or array), refusing non-numbers, non-finite and out-of-range."""
-    if isinstance(value, bool):
-        raise DynamicsError(f'{name} must be a real number in {unit}, got {value!r}')
-    try:
-        array = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise DynamicsError(f'{name} must be a real number in {unit}, got {value!r}') from None
-    if not np.all(np.isfinite(array)):
-        raise DynamicsError(f'{name} must be finite ({unit}), got {value!r}')
+    checked = as_float(name, value, unit, DynamicsError, refuse_bool=True)
     if minimum is not None:
+        array = np.asarray(checked)
         bad = array <= minimum if strict else array < minimum
         if np.any(bad):
             relation = '>' if strict else '>='
             shown = float(array[bad].flat[0]) if array.ndim else float(array)
             raise DynamicsError(f'{name} = {shown!r} {unit} is out of range: allowed '
                                 f'{relation} {minimum:g} {unit}')
-    return float(array) if array.ndim == 0 else array
+    return checked
 
 
 @functools.cache

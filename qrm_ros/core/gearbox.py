@@ -34,13 +34,18 @@ that way with N0 = ceil(log(V2 / V1) / log phi) steps, for the standard progress
 """
 
 import math
-from typing import Callable, NamedTuple, Optional, Tuple
+from typing import Callable, cast, NamedTuple, Optional, Tuple
 
 import numpy as np
 from scipy import optimize
 from scipy.optimize import elementwise
 
-from qrm_ros.core import kinematics as kin
+from qrm_ros.core.checks import as_float, KinematicsError
+from qrm_ros.core.cutting_speeds import mean_cutting_speed
+from qrm_ros.core.geometry import ArrayLike, FloatOrArray, Geometry
+from qrm_ros.core.offset_inverses import offset_for_time_ratio
+from qrm_ros.core.peak_speeds import peak_ram_speeds
+from qrm_ros.core.stroke_timing import time_ratio
 
 # Progression ratios of machine-tool gearboxes (Renard series R20/2 ... R10/3 and 2).
 STANDARD_PROGRESSION_RATIOS = (1.12, 1.26, 1.41, 1.58, 2.0)
@@ -100,38 +105,38 @@ class GearboxPlan(NamedTuple):
     conventional: Tuple[ConventionalGearbox, ...]
 
 
-def unit_cutting_speed(geometry: kin.Geometry,
-                       definition: str) -> Callable[[kin.ArrayLike], kin.FloatOrArray]:
+def unit_cutting_speed(geometry: Geometry,
+                       definition: str) -> Callable[[ArrayLike], FloatOrArray]:
     """Cutting speed per unit input speed (m/rad) as a vectorised function of the offset."""
     if definition == 'mean':
-        return lambda offset: kin.mean_cutting_speed(geometry, offset, 1.0)
+        return lambda offset: mean_cutting_speed(geometry, offset, 1.0)
     if definition == 'peak':
-        return lambda offset: kin.peak_ram_speeds(geometry, offset, 1.0)[0]
-    raise kin.KinematicsError(
+        return lambda offset: peak_ram_speeds(geometry, offset, 1.0)[0]
+    raise KinematicsError(
         f'definition must be one of {", ".join(DEFINITIONS)}, got {definition!r}')
 
 
 def _positive(name, value, unit):
-    value = kin._as_float(name, value)
+    value = as_float(name, value)
     if np.ndim(value) or value <= 0.0:
-        raise kin.KinematicsError(f'{name} must be one number > 0{unit}, got {value!r}')
+        raise KinematicsError(f'{name} must be one number > 0{unit}, got {value!r}')
     return value
 
 
-def usable_offsets(geometry: kin.Geometry, max_offset: float,
+def usable_offsets(geometry: Geometry, max_offset: float,
                    min_time_ratio: float) -> Tuple[float, float]:
     """Return the interval of offsets with |offset| <= max_offset and TR >= min_time_ratio."""
     ends = (-max_offset, max_offset)
-    ratios = [kin.time_ratio(geometry, end) for end in ends]
+    ratios = [time_ratio(geometry, end) for end in ends]
     quick = [ratio >= min_time_ratio for ratio in ratios]
     if not any(quick):
-        raise kin.KinematicsError(
+        raise KinematicsError(
             f'min_time_ratio {min_time_ratio:g} is out of reach: offsets with |offset| <= '
             f'{max_offset:g} m give TR from {min(ratios):.6g} to {max(ratios):.6g}')
     if all(quick):
         return ends
     # TR is monotone in the offset, so one end qualifies and the limit lies between.
-    limit = float(kin.offset_for_time_ratio(geometry, min_time_ratio))
+    limit = float(offset_for_time_ratio(geometry, min_time_ratio))
     return (limit, max_offset) if quick[1] else (-max_offset, limit)
 
 
@@ -148,7 +153,7 @@ def _extreme_offset(function, low, high, sign):
     return float(found.x) if -found.fun > values[best] else float(grid[best])
 
 
-def offset_range(geometry: kin.Geometry, definition: str, max_offset: float,
+def offset_range(geometry: Geometry, definition: str, max_offset: float,
                  min_time_ratio: float) -> OffsetRange:
     """Usable offsets and the slowest and fastest cutting speed per input speed they give."""
     function = unit_cutting_speed(geometry, definition)
@@ -158,7 +163,7 @@ def offset_range(geometry: kin.Geometry, definition: str, max_offset: float,
     return OffsetRange(low, high, slow, fast, float(function(slow)), float(function(fast)))
 
 
-def offsets_for_unit_speeds(geometry: kin.Geometry, definition: str, offsets: OffsetRange,
+def offsets_for_unit_speeds(geometry: Geometry, definition: str, offsets: OffsetRange,
                             unit_speeds: np.ndarray) -> np.ndarray:
     """
     Offsets (m) giving cutting speeds per input speed within the range; vectorised.
@@ -196,13 +201,13 @@ def fewest_steps(range_ratio: float, step_ratio: float) -> int:
     return count
 
 
-def conventional_gearbox(geometry: kin.Geometry, definition: str, min_cutting_speed: float,
+def conventional_gearbox(geometry: Geometry, definition: str, min_cutting_speed: float,
                          max_cutting_speed: float,
                          progression_ratio: float) -> ConventionalGearbox:
     """Plan steps V1 phi^k without offset: each wanted speed cut at most 1 - 1/phi slower."""
     progression_ratio = _positive('progression_ratio', progression_ratio, '')
     if progression_ratio <= 1.0:
-        raise kin.KinematicsError(
+        raise KinematicsError(
             f'progression_ratio must be > 1, got {progression_ratio!r}')
     count = fewest_steps(max_cutting_speed / min_cutting_speed, progression_ratio)
     speeds = min_cutting_speed * progression_ratio ** np.arange(count)
@@ -212,7 +217,7 @@ def conventional_gearbox(geometry: kin.Geometry, definition: str, min_cutting_sp
                                tuple(float(v) for v in speeds))
 
 
-def plan_gearbox(geometry: kin.Geometry, min_cutting_speed: float, max_cutting_speed: float,
+def plan_gearbox(geometry: Geometry, min_cutting_speed: float, max_cutting_speed: float,
                  definition: str = 'mean', max_offset: Optional[float] = None,
                  min_time_ratio: float = DEFAULT_MIN_TIME_RATIO,
                  progression_ratios: Tuple[float, ...] = STANDARD_PROGRESSION_RATIOS
@@ -227,13 +232,13 @@ def plan_gearbox(geometry: kin.Geometry, min_cutting_speed: float, max_cutting_s
     v1 = _positive('min_cutting_speed', min_cutting_speed, ' m/s')
     v2 = _positive('max_cutting_speed', max_cutting_speed, ' m/s')
     if v1 >= v2:
-        raise kin.KinematicsError(
+        raise KinematicsError(
             f'min_cutting_speed ({v1:g} m/s) must be below max_cutting_speed ({v2:g} m/s)')
-    if max_offset is None:
-        max_offset = geometry.max_safe_offset
-    max_offset = kin._as_float('max_offset', max_offset)
+    # One number (cast for the type checker): an array is refused just below.
+    max_offset = cast(float, as_float(
+        'max_offset', geometry.max_safe_offset if max_offset is None else max_offset))
     if np.ndim(max_offset) or not 0.0 <= max_offset < geometry.coupling_radius:
-        raise kin.KinematicsError(
+        raise KinematicsError(
             f'max_offset must be >= 0 and < coupling_radius = {geometry.coupling_radius:g} m,'
             f' got {max_offset!r}')
     min_time_ratio = _positive('min_time_ratio', min_time_ratio, '')
@@ -243,12 +248,12 @@ def plan_gearbox(geometry: kin.Geometry, min_cutting_speed: float, max_cutting_s
     allowed = f'the offsets allowed (|offset| <= {max_offset:g} m, TR >= {min_time_ratio:g})'
     remedy = 'allow a larger max_offset or a lower min_time_ratio'
     if band_ratio <= 1.0 + 1e-9:
-        raise kin.KinematicsError(
+        raise KinematicsError(
             f'{allowed} leave one {definition} cutting speed per step (band ratio '
             f'{band_ratio:.9g}), so no gearbox reaches every speed from {v1:g} to {v2:g} m/s '
             f'exactly; {remedy}')
     if math.log(range_ratio) / math.log(band_ratio) > MAX_STEPS:
-        raise kin.KinematicsError(
+        raise KinematicsError(
             f'{allowed} change the {definition} cutting speed by a factor of only '
             f'{band_ratio:.9g}: more than {MAX_STEPS} steps would be needed to reach every '
             f'speed from {v1:g} to {v2:g} m/s; {remedy}')
@@ -269,7 +274,7 @@ def plan_gearbox(geometry: kin.Geometry, min_cutting_speed: float, max_cutting_s
                        float(band_ratio), float(progression), steps, conventional)
 
 
-def plan_as_dict(plan: GearboxPlan, geometry: kin.Geometry) -> dict:
+def plan_as_dict(plan: GearboxPlan, geometry: Geometry) -> dict:
     """Return the plan as plain JSON types, SI units; keys documented in the README."""
     result = plan._asdict()
     result['geometry'] = {name: float(value) for name, value in geometry.as_dict().items()}

@@ -21,12 +21,16 @@ input shaft O1 at (0, offset), the lever pivot O3 at (0, -pivot_distance).
 
 from dataclasses import dataclass, fields
 import math
-from typing import Any, NamedTuple, Optional, Union
+from typing import Any, Dict, NamedTuple, Optional, Tuple, Union
 
 import numpy as np
 
+from qrm_ros.core.checks import as_float, KinematicsError
+
+# KinematicsError is checks' (the error every input check raises), named here too: the
+# geometry's callers catch it.
 __all__ = ['ArrayLike', 'FloatOrArray', 'Geometry', 'KinematicsError', 'MechanismState',
-           'SAFE_OFFSET_FRACTION', 'TWO_PI', 'as_float', 'check_offset']
+           'SAFE_OFFSET_FRACTION', 'TWO_PI', 'check_offset', 'float_or_array']
 
 TWO_PI = 2.0 * math.pi
 # Fraction of the coupling radius an offset may use in operation: at |offset| = r1 the pin
@@ -40,19 +44,9 @@ FloatOrArray = Union[float, np.ndarray]
 ArrayLike = FloatOrArray
 
 
-class KinematicsError(ValueError):
-    """A geometry, offset or target the mechanism cannot take; the message names it."""
-
-
-def as_float(name: str, value: Any) -> FloatOrArray:
-    """Return a real, finite number as a float, or an array of them as an array."""
-    try:
-        array = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise KinematicsError(f'{name} must be a real number, got {value!r}') from None
-    if not np.all(np.isfinite(array)):
-        raise KinematicsError(f'{name} must be finite, got {value!r}')
-    return float(array) if array.ndim == 0 else array
+def float_or_array(value: Any) -> FloatOrArray:
+    """Return a 0-d result as a float, any other as it is (the FloatOrArray convention)."""
+    return float(value) if np.ndim(value) == 0 else value
 
 
 @dataclass(frozen=True, eq=False)
@@ -69,7 +63,7 @@ class Geometry:
     ram_height: float = 0.2
     crank_phase: float = 0.0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for name in ('coupling_radius', 'crank_radius', 'pivot_distance', 'ram_height'):
             value = as_float(name, getattr(self, name))
             if np.any(np.asarray(value) <= 0.0):
@@ -83,13 +77,13 @@ class Geometry:
                 'of swinging')
 
     @classmethod
-    def paper(cls, ram_height=0.2):
+    def paper(cls, ram_height: float = 0.2) -> 'Geometry':
         """Return Table 1 of the source article: r1 = 25 mm, r = 50.5 mm, h = 113 mm."""
         return cls(coupling_radius=0.025, crank_radius=0.0505, pivot_distance=0.113,
                    ram_height=ram_height)
 
     @property
-    def max_safe_offset(self):
+    def max_safe_offset(self) -> FloatOrArray:
         """
         Largest |offset| the node accepts (SAFE_OFFSET_FRACTION of the coupling radius).
 
@@ -99,17 +93,17 @@ class Geometry:
         return float(f'{limit:.15g}') if np.ndim(limit) == 0 else limit
 
     @property
-    def ram_stroke(self):
+    def ram_stroke(self) -> FloatOrArray:
         """Distance between the ram's two reversal points (independent of the offset)."""
         r, h = self.crank_radius, self.pivot_distance
         return 2.0 * self.ram_height * r / np.sqrt(h * h - r * r)
 
     @classmethod
-    def field_names(cls):
+    def field_names(cls) -> Tuple[str, ...]:
         """Names of the fields, in order: the node's geometry parameters and metadata keys."""
         return tuple(field.name for field in fields(cls))
 
-    def as_dict(self):
+    def as_dict(self) -> Dict[str, FloatOrArray]:
         return {name: getattr(self, name) for name in self.field_names()}
 
 

@@ -18,15 +18,16 @@ The URDF, the live markers and the animations all draw the same machine; its dra
 (disc radii, lever and ram lengths, tool) and its point positions come from here only, so
 the three pictures cannot disagree. Positions are in the ``shaper_base`` frame of
 doc/mechanism.md (flywheel centre O2 at the origin, x right, y up), in metres, on
-the plane z = 0; the joint values come from ``kinematics.state``.
+the plane z = 0; the joint values come from ``mechanism_state.state``.
 """
 
 import math
-from typing import NamedTuple
+from typing import NamedTuple, Optional, Tuple
 
 import numpy as np
 
-from qrm_ros.core import kinematics as kin
+from qrm_ros.core.geometry import ArrayLike, Geometry, MechanismState
+from qrm_ros.core.mechanism_state import state
 
 __all__ = ['COLOURS', 'LinkagePoints', 'LinkageSizes', 'linkage_points', 'linkage_sizes',
            'workpiece_span']
@@ -61,7 +62,7 @@ class LinkageSizes(NamedTuple):
     max_lever_angle: float      # the lever's swing, +/- asin(r / h) (rad)
 
 
-def linkage_sizes(geometry):
+def linkage_sizes(geometry: Geometry) -> LinkageSizes:
     """
     Drawn sizes for a (scalar) geometry.
 
@@ -105,15 +106,17 @@ class LinkagePoints(NamedTuple):
     slot_end: np.ndarray        # outer end of the coupling slot
 
 
-def linkage_points(geometry, offset, input_angle, mechanism_state=None, sizes=None):
+def linkage_points(geometry: Geometry, offset: ArrayLike, input_angle: ArrayLike,
+                   mechanism_state: Optional[MechanismState] = None,
+                   sizes: Optional[LinkageSizes] = None) -> LinkagePoints:
     """
     Every point of the mechanism at input angle(s) and offset(s) (broadcast, vectorised).
 
-    ``mechanism_state`` (from ``kinematics.state`` at the same offset and angle) saves
+    ``mechanism_state`` (from ``mechanism_state.state`` at the same offset and angle) saves
     recomputing it when the caller has it; ``sizes`` likewise (``linkage_sizes``).
     """
     if mechanism_state is None:
-        mechanism_state = kin.state(geometry, offset, input_angle, 0.0)
+        mechanism_state = state(geometry, offset, input_angle, 0.0)
     sizes = sizes or linkage_sizes(geometry)
     offset = np.asarray(offset, dtype=float)
     theta = np.asarray(input_angle, dtype=float)
@@ -150,7 +153,8 @@ def linkage_points(geometry, offset, input_angle, mechanism_state=None, sizes=No
     )
 
 
-def workpiece_span(geometry, cutting_length, sizes=None):
+def workpiece_span(geometry: Geometry, cutting_length: float,
+                   sizes: Optional[LinkageSizes] = None) -> Tuple[float, float]:
     """
     Tool-tip x range (low, high) in m over which the tool is in the workpiece.
 

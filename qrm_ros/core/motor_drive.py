@@ -32,10 +32,12 @@ import numpy as np
 from scipy import integrate, optimize, special
 
 from qrm_ros.core import dynamics as dyn
+from qrm_ros.core.checks import finite as _finite, positive as _positive
 from qrm_ros.core.geometry import check_offset, Geometry, KinematicsError, TWO_PI
-from qrm_ros.core.kinematics import (_flat_design, input_angle_for_flywheel_angle,
-                                     reversal_flywheel_angles, state)
-from qrm_ros.core.stepping import _finite, _positive, _ramp, checked_limits, wrap_angle
+from qrm_ros.core.mechanism_state import (input_angle_for_flywheel_angle,
+                                          reversal_flywheel_angles, state)
+from qrm_ros.core.peak_speeds import flat_design as _flat_design
+from qrm_ros.core.stepping import checked_limits, ramp as _ramp, wrap_angle
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
 
 __all__ = ['MotorStepper', 'PairEfforts', 'Simulation', 'SpeedFluctuation',

@@ -12,15 +12,15 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 """
-Compiled (numba) peak search of kinematics.peak_ram_speeds for large design sweeps.
+Compiled (numba) peak search of peak_speeds.peak_ram_speeds for large design sweeps.
 
-The same method as kinematics._peak_speeds_block, one configuration at a time: the sign of
-d|v|/dphi_c (kinematics._speed_rise's division-free form) at evenly spread crank angles and
-the coupling's two crossings, then safeguarded Newton steps on dv/dphi_c (the closed-form
-slopes of kinematics._ram_speed_terms) in every bracket where |v| rises then falls. The
-formulas are those of kinematics, written out for scalars; the tests hold the two to
-agree to 1e-12 (they do to 5e-14). Imported only for sweeps big enough to repay loading it
-(kinematics._COMPILED_MIN_CONFIGURATIONS): importing numba and loading the cached machine
+The same method as peak_speeds._peak_speeds_block, one configuration at a time: the sign of
+d|v|/dphi_c (speed_rise.speed_rise_of, the very function, compiled) at evenly spread crank
+angles and the coupling's two crossings, then safeguarded Newton steps on dv/dphi_c (the
+closed-form slopes of peak_speeds._ram_speed_terms) in every bracket where |v| rises then
+falls. The formulas are those of peak_speeds, written out for scalars; the tests hold the two
+to agree to 1e-12 (they do to 5e-14). Imported only for sweeps big enough to repay loading it
+(peak_speeds.COMPILED_MIN_CONFIGURATIONS): importing numba and loading the cached machine
 code take 0.3 s (0.5-0.8 s on a busy machine); the first import compiles (2 s, 3-5 s busy),
 cached beside this file (or in numba's user cache) until the file changes. peak_speeds is
 compiled for its one signature on import, so no call can start another compilation.
@@ -28,62 +28,32 @@ compiled for its one signature on import, so no call can start another compilati
 
 import math
 
-import numba
 import numpy as np
 
-from qrm_ros.core.kinematics import speed_rise_of
+from qrm_ros.core.kernel_tools import compiler, rotate
+from qrm_ros.core.speed_rise import speed_rise_of
+
+__all__ = ['newton_peak', 'peak_speeds', 'velocity']
 
 _TWO_PI = 2.0 * math.pi
 
-
-def _compiler(signature=None):
-    """
-    Compile with this module's options, cached on disk.
-
-    error_model='numpy': a zero slope gives inf/NaN (refused by the safeguard), not an
-    error. fastmath 'contract' only: a multiply and an add may fuse (one rounding instead of
-    two; 8 % faster), no other reassociation, so every formula keeps its written order.
-    """
-    return numba.njit(signature, cache=True, nogil=True, error_model='numpy',
-                      fastmath={'contract'})
-
-
-_jit = _compiler()
-# d|v|/dphi_c's division-free numerator, kinematics' formula compiled for scalars.
+_jit = compiler()
+# d|v|/dphi_c's division-free numerator, speed_rise's formula compiled for scalars.
 _speed_rise = _jit(speed_rise_of)
 
 
-# Taylor coefficients of sin(x)/x and cos(x) in x^2, through x^14: for |x| <= 0.3 the next
-# terms are below 1e-19, so the series are as exact as the library's sin and cos.
-_SIN = tuple((-1.0) ** k / math.factorial(2 * k + 1) for k in range(7))
-_COS = tuple((-1.0) ** k / math.factorial(2 * k) for k in range(8))
-_SERIES_LIMIT = 0.3
-# Below this, the first terms suffice (next ones below 1e-17 absolute).
-_SHORT_SERIES_LIMIT = 1e-3
-
-
 @_jit
-def _rotate(sin_c, cos_c, delta):
-    """(sin, cos) of angle + delta from those of angle, by series for small delta."""
-    square = delta * delta
-    if abs(delta) <= _SHORT_SERIES_LIMIT:
-        sin_d = delta * (_SIN[0] + square * _SIN[1])
-        cos_d = _COS[0] + square * (_COS[1] + square * _COS[2])
-    elif abs(delta) <= _SERIES_LIMIT:
-        sin_d = delta * (_SIN[0] + square * (_SIN[1] + square * (_SIN[2] + square * (
-            _SIN[3] + square * (_SIN[4] + square * (_SIN[5] + square * _SIN[6]))))))
-        cos_d = _COS[0] + square * (_COS[1] + square * (_COS[2] + square * (_COS[3] + square * (
-            _COS[4] + square * (_COS[5] + square * (_COS[6] + square * _COS[7]))))))
-    else:
-        sin_d, cos_d = math.sin(delta), math.cos(delta)
-    return sin_c * cos_d + cos_c * sin_d, cos_c * cos_d - sin_c * sin_d
-
-
-@_jit
-def _velocity(sin_c, cos_c, r1, r, h, height, cos0, sin0, offset, clearance):
+def _flywheel_terms(sin_c, cos_c, r1, cos0, sin0, offset):
+    """Return sin and cos of the flywheel angle (the crank's less its phase), and S (eq. 20)."""
     sin_f = sin_c * cos0 - cos_c * sin0
     cos_f = cos_c * cos0 + sin_c * sin0
-    root = math.sqrt(r1 * r1 - (offset * cos_f) ** 2)
+    return sin_f, cos_f, math.sqrt(r1 * r1 - (offset * cos_f) ** 2)
+
+
+@_jit
+def velocity(sin_c, cos_c, r1, r, h, height, cos0, sin0, offset, clearance):
+    """Ram velocity per unit input speed at a crank angle given by its sine and cosine."""
+    sin_f, cos_f, root = _flywheel_terms(sin_c, cos_c, r1, cos0, sin0, offset)
     lift = offset * sin_f
     pin_distance = lift + root if lift >= 0.0 else clearance / (root - lift)
     denominator = h + r * sin_c
@@ -92,10 +62,8 @@ def _velocity(sin_c, cos_c, r1, r, h, height, cos0, sin0, offset, clearance):
 
 @_jit
 def _velocity_growth_slope(sin_c, cos_c, r1, r, h, height, cos0, sin0, offset, clearance):
-    """v, dv/dphi_c and d2v/dphi_c2: kinematics._ram_speed_terms, three divisions."""
-    sin_f = sin_c * cos0 - cos_c * sin0
-    cos_f = cos_c * cos0 + sin_c * sin0
-    root = math.sqrt(r1 * r1 - (offset * cos_f) ** 2)
+    """v, dv/dphi_c and d2v/dphi_c2: peak_speeds._ram_speed_terms, three divisions."""
+    sin_f, cos_f, root = _flywheel_terms(sin_c, cos_c, r1, cos0, sin0, offset)
     lift = offset * sin_f
     inverse_root = 1.0 / root
     inverse_pin = 1.0 / (lift + root) if lift >= 0.0 else (root - lift) / clearance
@@ -119,10 +87,10 @@ def _velocity_growth_slope(sin_c, cos_c, r1, r, h, height, cos0, sin0, offset, c
 
 
 @_jit
-def _newton_peak(stroke_sign, low, sin_c, cos_c, start, high, tolerance, resolution,
-                 max_steps, r1, r, h, height, cos0, sin0, offset, clearance):
+def newton_peak(stroke_sign, low, sin_c, cos_c, start, high, tolerance, resolution,
+                max_steps, r1, r, h, height, cos0, sin0, offset, clearance):
     """
-    Root of dv/dphi_c in [low, high] and |v| there: kinematics._newton_peaks, one root.
+    Root of dv/dphi_c in [low, high] and |v| there: peak_speeds.newton_peaks, one root.
 
     (sin_c, cos_c) are those of low; each step rotates them by its angle instead of calling
     sin and cos (the costliest part otherwise). The speed returned is the one at the last
@@ -131,7 +99,7 @@ def _newton_peak(stroke_sign, low, sin_c, cos_c, start, high, tolerance, resolut
     peaks; the stroke's best is taken again at its root with sin and cos.
     """
     angle = start
-    sin_c, cos_c = _rotate(sin_c, cos_c, start - low)
+    sin_c, cos_c = rotate(sin_c, cos_c, start - low)
     velocity = 0.0
     for _ in range(max_steps):
         velocity, growth, slope = _velocity_growth_slope(sin_c, cos_c, r1, r, h, height, cos0,
@@ -147,7 +115,7 @@ def _newton_peak(stroke_sign, low, sin_c, cos_c, start, high, tolerance, resolut
             following = 0.5 * (low + high)
         done = ((newton and abs(step) <= tolerance)
                 or high - low <= resolution * max(abs(angle), 1.0))
-        sin_c, cos_c = _rotate(sin_c, cos_c, following - angle)
+        sin_c, cos_c = rotate(sin_c, cos_c, following - angle)
         angle = following
         if done:
             break
@@ -160,8 +128,8 @@ def _keep_peak(best, best_angle, stroke_sign, angle, growth, sin_c, cos_c, end, 
     """Return the larger of (best, its angle) and the peak of |v| turning in [angle, end]."""
     if growth >= 0.0 and end_growth <= 0.0 and growth != end_growth:
         start = angle + (end - angle) * (growth / (growth - end_growth))
-        speed, at = _newton_peak(stroke_sign, angle, sin_c, cos_c, start, end, tolerance,
-                                 resolution, max_steps, *args)
+        speed, at = newton_peak(stroke_sign, angle, sin_c, cos_c, start, end, tolerance,
+                                resolution, max_steps, *args)
         if speed > best:
             return speed, at
     return best, best_angle
@@ -172,7 +140,7 @@ def _stroke_peak(stroke_sign, arc_start, arc_end, sin_end, cos_start, cos_end, s
                  tolerance, resolution, max_steps, phase, r1, r, h, height, cos0, sin0,
                  offset, clearance):
     """
-    Largest |v| of one stroke: kinematics._peak_speeds_block for one configuration.
+    Largest |v| of one stroke: peak_speeds._peak_speeds_block for one configuration.
 
     sin and cos of every sample come from rotating those of the stroke's start (exact:
     sin = -r/h at both reversals) by the sample spacing.
@@ -188,7 +156,7 @@ def _stroke_peak(stroke_sign, arc_start, arc_end, sin_end, cos_start, cos_end, s
         cross_sin, cross_cos = -sin0, -cos0
     width = arc_end - arc_start
     spacing = width / (samples + 1)
-    step_sin, step_cos = _rotate(0.0, 1.0, spacing)
+    step_sin, step_cos = rotate(0.0, 1.0, spacing)
     angle, sin_c, cos_c = arc_start, sin_end, cos_start
     growth = max(-stroke_sign * _speed_rise(sin_c, cos_c, r1, r, h, cos0, sin0, offset), 0.0)
     best, best_angle = 0.0, arc_start
@@ -220,11 +188,11 @@ def _stroke_peak(stroke_sign, arc_start, arc_end, sin_end, cos_start, cos_end, s
         angle, growth, sin_c, cos_c = following, following_growth, next_sin, next_cos
     if best == 0.0:
         return 0.0
-    return abs(_velocity(math.sin(best_angle), math.cos(best_angle), *args))
+    return abs(velocity(math.sin(best_angle), math.cos(best_angle), *args))
 
 
-@_compiler('UniTuple(float64[::1], 2)(float64[::1], float64[::1], float64[::1], float64[::1], '
-           'float64[::1], float64[::1], int64, int64, float64, float64, int64)')
+@compiler('UniTuple(float64[::1], 2)(float64[::1], float64[::1], float64[::1], float64[::1], '
+          'float64[::1], float64[::1], int64, int64, float64, float64, int64)')
 def peak_speeds(r1, r, h, height, phase, offset, cut_samples, return_samples, tolerance,
                 resolution, max_steps):
     """

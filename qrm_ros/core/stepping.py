@@ -37,13 +37,14 @@ its absolute precision does not decay over long runs at high speed.
 """
 
 import math
-from typing import Optional
+from typing import Optional, Tuple
 
-from qrm_ros.core.geometry import check_offset, Geometry, KinematicsError, MechanismState
-from qrm_ros.core.kinematics import state
+from qrm_ros.core.checks import finite, positive
+from qrm_ros.core.geometry import check_offset, Geometry, MechanismState
+from qrm_ros.core.mechanism_state import state
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
 
-__all__ = ['checked_limits', 'ShaperStepper', 'wrap_angle']
+__all__ = ['checked_limits', 'ramp', 'ShaperStepper', 'wrap_angle']
 
 # 2 pi split into the nearest double and the remainder. Measured, it makes no difference to
 # long-run precision (bench/bench_angle_precision.py: ~2.5e-16 rad per revolution either
@@ -68,42 +69,24 @@ def wrap_angle(angle: float) -> float:
     return angle
 
 
-def _finite(name, value, unit):
-    if isinstance(value, bool):
-        raise KinematicsError(f'{name} must be a real number in {unit}, got {value!r}')
-    try:
-        value = float(value)
-    except (TypeError, ValueError):
-        raise KinematicsError(f'{name} must be a real number in {unit}, got {value!r}') from None
-    if not math.isfinite(value):
-        raise KinematicsError(f'{name} must be finite ({unit}), got {value!r}')
-    return value
-
-
-def _positive(name, value, unit):
-    value = _finite(name, value, unit)
-    if value <= 0.0:
-        raise KinematicsError(f'{name} must be > 0 {unit}, got {value!r}')
-    return value
-
-
 def checked_limits(acceleration_limit: float, offset_rate_limit: float,
                    new_acceleration_limit: Optional[float] = None,
-                   new_offset_rate_limit: Optional[float] = None):
+                   new_offset_rate_limit: Optional[float] = None) -> Tuple[float, float]:
     """
     Return the (input acceleration, offset rate) limits after a change (None keeps one).
 
     Both are checked before either is taken, so a refused change changes nothing.
     """
     if new_acceleration_limit is not None:
-        acceleration_limit = _positive('input_acceleration_limit', new_acceleration_limit,
-                                       'rad/s^2')
+        acceleration_limit = positive('input_acceleration_limit', new_acceleration_limit,
+                                      'rad/s^2')
     if new_offset_rate_limit is not None:
-        offset_rate_limit = _positive('offset_rate_limit', new_offset_rate_limit, 'm/s')
+        offset_rate_limit = positive('offset_rate_limit', new_offset_rate_limit, 'm/s')
     return acceleration_limit, offset_rate_limit
 
 
-def _ramp(value, target, rate_limit, duration):
+def ramp(value: float, target: float, rate_limit: float,
+         duration: float) -> Tuple[float, float]:
     """
     Move value toward target at rate_limit for duration seconds.
 
@@ -136,9 +119,9 @@ class ShaperStepper:
     def __init__(self, geometry: Geometry, input_speed: float, offset: float,
                  input_acceleration_limit: float, offset_rate_limit: float) -> None:
         self._geometry = geometry
-        self._acceleration_limit = _positive('input_acceleration_limit',
-                                             input_acceleration_limit, 'rad/s^2')
-        self._offset_rate_limit = _positive('offset_rate_limit', offset_rate_limit, 'm/s')
+        self._acceleration_limit = positive('input_acceleration_limit',
+                                            input_acceleration_limit, 'rad/s^2')
+        self._offset_rate_limit = positive('offset_rate_limit', offset_rate_limit, 'm/s')
         self.time_resets = 0
         self.reset(input_speed, offset)
 
@@ -146,7 +129,7 @@ class ShaperStepper:
 
     def set_speed_command(self, input_speed: float) -> None:
         """Command the input shaft speed (rad/s); reached at input_acceleration_limit."""
-        self._speed_command = _finite('input_speed', input_speed, 'rad/s')
+        self._speed_command = finite('input_speed', input_speed, 'rad/s')
 
     def set_offset_command(self, offset: float) -> None:
         """Command the coupling offset (m, |offset| < coupling_radius); moved at the limit."""
@@ -165,7 +148,7 @@ class ShaperStepper:
 
         The next step starts a new time base (it returns this state at its stamp).
         """
-        input_speed = _finite('input_speed', input_speed, 'rad/s')
+        input_speed = finite('input_speed', input_speed, 'rad/s')
         offset = float(check_offset(self._geometry, offset))
         self._input_angle = 0.0
         self._input_speed = self._speed_command = input_speed
@@ -180,7 +163,7 @@ class ShaperStepper:
         Commands equal the state until set; stepping on from here repeats, bit for bit, what
         the stepper that produced the state did, given the same commands at the same stamps.
         """
-        input_angle = _finite('input_angle', input_angle, 'rad')
+        input_angle = finite('input_angle', input_angle, 'rad')
         self.reset(input_speed, offset)
         self._input_angle = wrap_angle(input_angle)
         self._stamp_ns = int(stamp_ns)
@@ -202,10 +185,10 @@ class ShaperStepper:
             self.time_resets += 1
             return
         duration = (stamp_ns - previous) / NANOSECONDS_PER_SECOND
-        speed, angle_change = _ramp(self._input_speed, self._speed_command,
-                                    self._acceleration_limit, duration)
-        offset, _ = _ramp(self._offset, self._offset_command, self._offset_rate_limit,
-                          duration)
+        speed, angle_change = ramp(self._input_speed, self._speed_command,
+                                   self._acceleration_limit, duration)
+        offset, _ = ramp(self._offset, self._offset_command, self._offset_rate_limit,
+                         duration)
         self._input_speed = speed
         self._offset = offset
         self._input_angle = wrap_angle(self._input_angle + angle_change)

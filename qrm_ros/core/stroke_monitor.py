@@ -32,7 +32,7 @@ from typing import Dict, List, NamedTuple, Optional
 import numpy as np
 
 from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.kinematics import steady_theory, SteadyTheory
+from qrm_ros.core.steady_theory import steady_theory, SteadyTheory
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
 from qrm_ros.core.strokes import (pair_effort_steps, PairEffortsMeasured, run_steps, Steps,
                                   stroke_pair_steps)
@@ -75,10 +75,10 @@ class PairReport(NamedTuple):
     theory: Dict[str, float]  # empty at zero speed; keys end in '_theory'
 
     @property
-    def steady(self):
+    def steady(self) -> bool:
         return self.offset_steady and self.input_speed_steady
 
-    def values(self):
+    def values(self) -> Dict[str, float]:
         """Every figure as name -> float, in publishing order."""
         values = dict(self.measured)
         values.update(pair_start=self.pair_start, pair_end=self.pair_end,

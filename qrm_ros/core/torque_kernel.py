@@ -43,7 +43,7 @@ import numba
 import numpy as np
 
 from qrm_ros.core.dynamics import speed_drive_torque_of
-from qrm_ros.core.peak_kernel import _compiler, _rotate
+from qrm_ros.core.kernel_tools import compiler as _compiler, rotate as _rotate
 
 _TWO_PI = 2.0 * math.pi
 # Return-stroke samples grow as sqrt(h / (h - r)) times this, once above the base count.
