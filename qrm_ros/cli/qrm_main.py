@@ -34,7 +34,8 @@ import subprocess
 import sys
 import time
 
-from qrm_ros.analysis import run_analysis as analysis
+from qrm_ros import analysis
+from qrm_ros.cli.exit_codes import EXIT_INCOMPLETE
 from qrm_ros.core import kinematics as kin
 from qrm_ros.core.dynamics import DynamicsError, Loads
 from qrm_ros.core.names import (absolute_topic, DIAGNOSTICS_TOPIC, DRIVES, JOINT_STATES_TOPIC,
@@ -52,7 +53,7 @@ RECORDER_SETTLE_TIME = 0.5
 START_TIMEOUT = 30.0  # s, for each child to come up
 PARAMETER_CALL_TIMEOUT = 10.0  # s
 CHILD_STOP_TIMEOUT = 15.0  # s, after SIGINT, before SIGKILL
-# Beside the figures: one input revolution at each of a few offsets (qrm_ros.analysis.animate).
+# Beside the figures: one input revolution at each of a few offsets (qrm_ros.analysis.animation).
 TOUR_FILE = 'offset_tour.gif'
 
 
@@ -338,10 +339,10 @@ def report(recording, folder):
 
 def _write_tour(result, path):
     """Write the linkage at a few offsets beside the figures; a failure only warns."""
-    from qrm_ros.analysis import animate  # matplotlib: only once there is something to draw
+    from qrm_ros.analysis import animation  # matplotlib: only once there is something to draw
     try:
-        return animate.write_offset_tour(result, path)
-    except (OSError, animate.AnimationError) as error:
+        return animation.write_offset_tour(result, path)
+    except (OSError, animation.AnimationError) as error:
         print(f'qrm_main: warning: no animation written: {error}', file=sys.stderr)
         return None
 
@@ -382,7 +383,7 @@ def main(argv=None):
     if missing:  # analysed, but the recording was damaged or incomplete
         print(f'qrm_main: the results in {folder} cover only what was readable',
               file=sys.stderr)
-        return analysis.EXIT_INCOMPLETE
+        return EXIT_INCOMPLETE
     return 0
 
 

@@ -27,7 +27,13 @@ import os
 import numpy as np
 import pytest
 
-from qrm_ros.analysis import run_analysis as analysis
+from qrm_ros.analysis import joint_state_decoding
+from qrm_ros.analysis import measurement
+from qrm_ros.analysis import recorded_run
+from qrm_ros.analysis import report
+from qrm_ros.cli import exit_codes
+from qrm_ros.cli import qrm_analyze
+from qrm_ros.recording import bag_reader
 from qrm_ros.analysis import figures
 from qrm_ros.core import kinematics as kin
 from synthetic_run import schedule_states, write_run
@@ -41,15 +47,15 @@ TOLERANCE = (2 * math.pi * 0.01) ** 3
 def samples_for(offsets, input_speed=2 * math.pi, **kwargs):
     time, angle, offset, offset_velocity, state = schedule_states(
         PAPER, offsets, input_speed=input_speed, **kwargs)
-    return analysis.Samples(time, angle, np.full_like(time, input_speed), state.flywheel_angle,
-                            state.flywheel_speed, state.ram_position, state.ram_velocity,
-                            offset, offset_velocity)
+    return recorded_run.Samples(time, angle, np.full_like(time, input_speed),
+                                state.flywheel_angle, state.flywheel_speed, state.ram_position,
+                                state.ram_velocity, offset, offset_velocity)
 
 
 @pytest.fixture(scope='module')
 def schedule_analysis():
-    recording = analysis.Recording('synthetic', PAPER, samples_for(SCHEDULE), None)
-    return analysis.analyse(recording)
+    recording = recorded_run.Recording('synthetic', PAPER, samples_for(SCHEDULE), None)
+    return measurement.analyse(recording)
 
 
 def test_segments_are_exactly_the_commanded_offsets(schedule_analysis):
@@ -86,9 +92,9 @@ def test_stroke_times_and_speeds_match_closed_form(schedule_analysis):
 
 
 def test_reverse_running_gives_the_inverse_ratios():
-    recording = analysis.Recording('reverse', PAPER, samples_for([0.01], input_speed=-2 * math.pi),
-                                   None)
-    (row,) = analysis.analyse(recording).rows
+    recording = recorded_run.Recording(
+        'reverse', PAPER, samples_for([0.01], input_speed=-2 * math.pi), None)
+    (row,) = measurement.analyse(recording).rows
     assert row['time_ratio_measured'] == pytest.approx(1 / kin.time_ratio(PAPER, 0.01),
                                                        rel=TOLERANCE)
     assert row['time_ratio_measured'] < 1.0
@@ -138,7 +144,7 @@ def test_figures_are_written_and_theory_curves_are_the_core(schedule_analysis, t
 
 
 def run_main(args, capsys):
-    code = analysis.main([str(a) for a in args])
+    code = qrm_analyze.main([str(a) for a in args])
     out, err = capsys.readouterr()
     assert 'Traceback' not in err
     return code, out, err
@@ -170,7 +176,7 @@ def test_file_round_trip_json_and_csv(tmp_path, capsys):
 
 def test_missing_file(tmp_path, capsys):
     code, _, err = run_main([tmp_path / 'nothing.mcap'], capsys)
-    assert code == analysis.EXIT_BAD_INPUT
+    assert code == exit_codes.EXIT_BAD_INPUT
     assert 'does not exist' in err and len(err.strip().splitlines()) == 1
 
 
@@ -178,7 +184,7 @@ def test_not_an_mcap_file(tmp_path, capsys):
     path = tmp_path / 'notes.mcap'
     path.write_text('just some text\n')
     code, _, err = run_main([path], capsys)
-    assert code == analysis.EXIT_BAD_INPUT
+    assert code == exit_codes.EXIT_BAD_INPUT
     assert 'not an MCAP file' in err
 
 
@@ -189,7 +195,7 @@ def test_truncated_file_is_analysed_up_to_what_is_whole(tmp_path, capsys):
     cut = tmp_path / 'cut.mcap'
     cut.write_bytes(data[:int(len(data) * 0.8)])
     code, out, err = run_main([cut], capsys)
-    assert code == analysis.EXIT_TRUNCATED
+    assert code == exit_codes.EXIT_INCOMPLETE
     assert 'truncated' in err
     assert '0.00' in out  # the first offset's strokes were whole
 
@@ -198,7 +204,7 @@ def test_file_without_joint_states(tmp_path, capsys):
     path = tmp_path / 'run.mcap'
     write_run(path, PAPER, [0.0], joint_states_topic='/other_states')
     code, _, err = run_main([path], capsys)
-    assert code == analysis.EXIT_BAD_INPUT
+    assert code == exit_codes.EXIT_BAD_INPUT
     assert 'no /joint_states topic' in err and '/other_states' in err
 
 
@@ -206,7 +212,7 @@ def test_file_without_geometry_needs_options(tmp_path, capsys):
     path = tmp_path / 'run.mcap'
     write_run(path, PAPER, [0.005], with_geometry=False, hold=3.0)
     code, _, err = run_main([path], capsys)
-    assert code == analysis.EXIT_BAD_INPUT
+    assert code == exit_codes.EXIT_BAD_INPUT
     assert 'no qrm_ros.geometry metadata' in err and '--coupling-radius' in err
     code, out, err = run_main([path, '--coupling-radius', 0.025, '--crank-radius', 0.0505,
                                '--pivot-distance', 0.113, '--ram-height', 0.2], capsys)
@@ -218,7 +224,7 @@ def test_bad_geometry_option(tmp_path, capsys):
     path = tmp_path / 'run.mcap'
     write_run(path, PAPER, [0.0], hold=2.0)
     code, _, err = run_main([path, '--crank-radius', 0.5], capsys)
-    assert code == analysis.EXIT_BAD_INPUT
+    assert code == exit_codes.EXIT_BAD_INPUT
     assert 'crank_radius' in err and 'pivot_distance' in err
 
 
@@ -231,11 +237,11 @@ def test_progress_bar_only_on_a_terminal_and_long_files(tmp_path, monkeypatch):
     path = tmp_path / 'run.mcap'
     count = write_run(path, PAPER, [0.0], hold=60.0)
     terminal, pipe = Terminal(), io.StringIO()
-    analysis.read_recording(str(path), progress_stream=pipe)
-    analysis.read_recording(str(path), progress_stream=terminal)
+    recorded_run.read_recording(str(path), progress_stream=pipe)
+    recorded_run.read_recording(str(path), progress_stream=terminal)
     assert pipe.getvalue() == '' and terminal.getvalue() == ''  # too short for a bar
-    monkeypatch.setattr(analysis, 'PROGRESS_MIN_MESSAGES', 100)
-    analysis.read_recording(str(path), progress_stream=terminal)
+    monkeypatch.setattr(recorded_run, 'PROGRESS_MIN_MESSAGES', 100)
+    recorded_run.read_recording(str(path), progress_stream=terminal)
     bar = terminal.getvalue()
     assert bar.startswith('\rreading joint states [') and bar.endswith('] 100%\n')
     assert bar.count('\r') == count // 5000 + 1
@@ -244,26 +250,26 @@ def test_progress_bar_only_on_a_terminal_and_long_files(tmp_path, monkeypatch):
 def test_parallel_decoding_gives_the_same_samples_as_serial(tmp_path, monkeypatch):
     path = tmp_path / 'run.mcap'
     write_run(path, PAPER, [-0.01, 0.01], hold=15.0, chunk_size=16 * 1024)
-    serial = analysis.read_recording(str(path)).samples
-    monkeypatch.setattr(analysis, 'PARALLEL_MIN_MESSAGES', 0)
-    monkeypatch.setattr(analysis, '_usable_cores', lambda: 3)
-    parts = analysis.open_run(str(path)).parts(3)
+    serial = recorded_run.read_recording(str(path)).samples
+    monkeypatch.setattr(recorded_run, 'PARALLEL_MIN_MESSAGES', 0)
+    monkeypatch.setattr(recorded_run, 'usable_cores', lambda: 3)
+    parts = bag_reader.open_run(str(path)).parts(3)
     assert len(parts) == 3  # really split
-    parallel = analysis.read_recording(str(path)).samples
+    parallel = recorded_run.read_recording(str(path)).samples
     for name, values in serial._asdict().items():
         np.testing.assert_array_equal(getattr(parallel, name), values, err_msg=name)
 
 
 def test_coarse_sampling_is_flagged(capsys):
-    coarse = analysis.Recording('coarse', PAPER, samples_for([0.01], rate=25.0), None)
-    fine = analysis.Recording('fine', PAPER, samples_for([0.01], rate=100.0), None)
-    (coarse_row,) = analysis.analyse(coarse).rows
-    (fine_row,) = analysis.analyse(fine).rows
+    coarse = recorded_run.Recording('coarse', PAPER, samples_for([0.01], rate=25.0), None)
+    fine = recorded_run.Recording('fine', PAPER, samples_for([0.01], rate=100.0), None)
+    (coarse_row,) = measurement.analyse(coarse).rows
+    (fine_row,) = measurement.analyse(fine).rows
     assert coarse_row['samples_per_revolution'] == pytest.approx(25.0)
     assert fine_row['samples_per_revolution'] == pytest.approx(100.0)
-    assert 'only 25 samples per input revolution' in analysis.format_table(
-        analysis.analyse(coarse))
-    assert 'warning' not in analysis.format_table(analysis.analyse(fine))
+    assert 'only 25 samples per input revolution' in report.format_table(
+        measurement.analyse(coarse))
+    assert 'warning' not in report.format_table(measurement.analyse(fine))
 
 
 # --- gaps, damage, outputs and exit codes ---------------------------------------------------
@@ -280,7 +286,7 @@ def _with_jump(samples, at, seconds):
 def test_a_gap_inside_a_steady_segment_splits_it_and_is_listed(seconds):
     steady = samples_for([0.01], hold=8.0)
     middle = steady.time.size // 2 + 7
-    result = analysis.analyse(analysis.Recording('paused', PAPER, _with_jump(
+    result = measurement.analyse(recorded_run.Recording('paused', PAPER, _with_jump(
         steady, middle, seconds), None))
     assert [(row['offset'], row['input_speed']) for row in result.rows] == [
         (0.01, 2 * math.pi)] * 2
@@ -299,7 +305,7 @@ def test_a_gap_inside_a_steady_segment_splits_it_and_is_listed(seconds):
 def test_a_gap_of_a_few_periods_is_tolerated():
     steady = samples_for([0.01], hold=8.0)
     jittered = _with_jump(steady, 300, 0.019)  # a 2.9-period step: still one segment
-    (row,) = analysis.analyse(analysis.Recording('late', PAPER, jittered, None)).rows
+    (row,) = measurement.analyse(recorded_run.Recording('late', PAPER, jittered, None)).rows
     assert row['stroke_pairs'] >= 6
 
 
@@ -339,10 +345,10 @@ def test_a_damaged_chunk_is_skipped_and_what_it_held_reported(tmp_path, capsys, 
     held = _messages_between(path, index.message_start_time, index.message_end_time)
     damaged = _damage(path, index.chunk_start_offset + 80, tmp_path / 'damaged.mcap')
     if parallel:  # the path of long files: worker processes, one part each
-        monkeypatch.setattr(analysis, 'PARALLEL_MIN_MESSAGES', 0)
-        monkeypatch.setattr(analysis, '_usable_cores', lambda: 3)
+        monkeypatch.setattr(recorded_run, 'PARALLEL_MIN_MESSAGES', 0)
+        monkeypatch.setattr(recorded_run, 'usable_cores', lambda: 3)
     code, out, err = run_main([damaged, '--json', tmp_path / 'r.json'], capsys)
-    assert code == analysis.EXIT_INCOMPLETE, err
+    assert code == exit_codes.EXIT_INCOMPLETE, err
     document = json.loads((tmp_path / 'r.json').read_text())
     assert not document['complete']
     assert document['messages'] == {'in_file': total, 'read': total - held,
@@ -368,7 +374,7 @@ def test_a_damaged_chunk_of_an_unfinished_file_ends_the_readable_part(tmp_path, 
     cut.write_bytes(data)
     damaged = _damage(cut, indexes[4].chunk_start_offset + 80, tmp_path / 'damaged.mcap')
     code, _, err = run_main([damaged, '--json', tmp_path / 'r.json'], capsys)
-    assert code == analysis.EXIT_INCOMPLETE
+    assert code == exit_codes.EXIT_INCOMPLETE
     document = json.loads((tmp_path / 'r.json').read_text())
     readable = _messages_between(path, 0, indexes[4].message_start_time - 1)
     assert document['messages']['read'] == readable
@@ -383,7 +389,7 @@ def test_every_chunk_damaged_is_nothing_usable(tmp_path, capsys):
     (index,) = _chunk_indexes(path)
     damaged = _damage(path, index.chunk_start_offset + 80, tmp_path / 'damaged.mcap')
     code, _, err = run_main([damaged, '--json', tmp_path / 'r.json'], capsys)
-    assert code == analysis.EXIT_BAD_INPUT and len(err.strip().splitlines()) == 1
+    assert code == exit_codes.EXIT_BAD_INPUT and len(err.strip().splitlines()) == 1
     assert 'holds 0 usable /joint_states messages' in err
     assert 'damaged chunk at byte' in err
     assert not (tmp_path / 'r.json').exists()
@@ -395,16 +401,16 @@ def test_outputs_are_all_or_nothing(tmp_path, capsys):
     (tmp_path / 'plots').write_text('a file where the figures folder should be')
     code, _, err = run_main([path, '--json', tmp_path / 'r.json', '--csv', tmp_path / 'r.csv',
                              '--plot', tmp_path / 'plots'], capsys)
-    assert code == analysis.EXIT_FAILURE
+    assert code == exit_codes.EXIT_FAILURE
     assert len(err.strip().splitlines()) == 1 and 'no output file was written' in err
     assert sorted(os.listdir(tmp_path)) == ['plots', 'run.mcap']  # no JSON, CSV or temporary
     code, _, err = run_main([path, '--json', tmp_path / 'missing' / 'r.json', '--csv',
                              tmp_path / 'r.csv'], capsys)
-    assert code == analysis.EXIT_FAILURE and 'missing' in err
+    assert code == exit_codes.EXIT_FAILURE and 'missing' in err
     assert sorted(os.listdir(tmp_path)) == ['plots', 'run.mcap']
     (tmp_path / 'r.json').write_text('the previous results')
     code, _, _ = run_main([path, '--json', tmp_path / 'r.json'], capsys)
-    assert code == analysis.EXIT_OK
+    assert code == exit_codes.EXIT_OK
     assert json.loads((tmp_path / 'r.json').read_text())['complete'] is True
     assert oct(os.stat(tmp_path / 'r.json').st_mode & 0o777) == oct(0o666 & ~_umask())
 
@@ -416,11 +422,11 @@ def _umask():
 
 
 def test_json_holds_null_where_a_figure_is_not_finite(capsys):
-    recording = analysis.Recording('huge', PAPER, samples_for([0.01]), None)
-    result = analysis.analyse(recording)
+    recording = recorded_run.Recording('huge', PAPER, samples_for([0.01]), None)
+    result = measurement.analyse(recording)
     result.rows[0]['time_ratio_measured'] = math.inf
     result.rows[0]['speed_ratio_measured'] = math.nan
-    document = analysis.to_document(result)
+    document = report.to_document(result)
     text = json.dumps(document, allow_nan=False)
     assert document['segments'][0]['time_ratio_measured'] is None
     assert json.loads(text)['segments'][0]['speed_ratio_measured'] is None
@@ -433,7 +439,7 @@ def test_exit_status_policy(tmp_path, capsys, case):
     write_run(path, PAPER, [0.0, 0.01], hold=3.0, chunk_size=16 * 1024)
     if case == 'usage':
         with pytest.raises(SystemExit) as stop:
-            analysis.main([str(path), '--crank-radius', 'wide'])
+            qrm_analyze.main([str(path), '--crank-radius', 'wide'])
         assert stop.value.code == 2
         assert 'argument --crank-radius' in capsys.readouterr().err
         return
@@ -454,9 +460,9 @@ def test_fast_decoding_gives_what_rosbags_gives_message_by_message(log, monkeypa
     if not log.endswith('.mcap'):
         return
     path = os.path.join(TEST_DATA, log)
-    fast = analysis.read_recording(path)
-    monkeypatch.setattr(analysis, 'FAST_DECODING', False)
-    slow = analysis.read_recording(path)
+    fast = recorded_run.read_recording(path)
+    monkeypatch.setattr(joint_state_decoding, 'FAST_DECODING', False)
+    slow = recorded_run.read_recording(path)
     assert fast.messages_read == slow.messages_read > 0
     for name, values in slow.samples._asdict().items():
         np.testing.assert_array_equal(getattr(fast.samples, name), values, err_msg=name)
@@ -464,7 +470,7 @@ def test_fast_decoding_gives_what_rosbags_gives_message_by_message(log, monkeypa
 
 def test_figures_of_a_setting_outside_the_closed_form_show_the_measurement_only(tmp_path):
     narrow = kin.Geometry(0.005, PAPER.crank_radius, PAPER.pivot_distance)  # |δ| >= r1 below
-    result = analysis.analyse(analysis.Recording('odd', narrow, samples_for([0.01]), None))
+    result = measurement.analyse(recorded_run.Recording('odd', narrow, samples_for([0.01]), None))
     (row,) = result.rows
     assert row['time_ratio_theory'] is None and row['time_ratio_measured'] is not None
     assert len(figures.write_figures(result, str(tmp_path))) == len(figures.FIGURES)

@@ -32,8 +32,13 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from qrm_ros.analysis import run_analysis as analysis
-from qrm_ros.analysis import animate
+from qrm_ros.analysis import animation
+from qrm_ros.analysis import linkage_figure
+from qrm_ros.analysis import measurement
+from qrm_ros.analysis import recorded_run
+from qrm_ros.cli import exit_codes
+from qrm_ros.cli import qrm_analyze
+from qrm_ros.cli import qrm_animate
 from qrm_ros.core import kinematics as kin
 from qrm_ros.core.linkage import COLOURS, linkage_sizes
 from qrm_ros.core.names import PARAMETERS_METADATA
@@ -96,7 +101,7 @@ def test_frame_plan_shows_the_last_sample_at_or_before_each_frame():
     time = np.arange(0, 1001) * 0.01  # 100 Hz for 10 s
     for start, end, fps, speed in ((None, None, 25.0, 1.0), (2.0, 3.0, 10.0, 1.0),
                                    (1.234, 9.87, 7.0, 3.5), (0.5, 0.6, 50.0, 0.1)):
-        plan = animate.frame_plan(time, start, end, fps, speed)
+        plan = animation.frame_plan(time, start, end, fps, speed)
         first = 0.0 if start is None else start
         last = 10.0 if end is None else end
         assert plan.sample.size == math.floor((last - first) * fps / speed + 1e-9) + 1
@@ -109,7 +114,7 @@ def test_frame_plan_shows_the_last_sample_at_or_before_each_frame():
 
 def test_frame_plan_takes_a_clock_that_jumps_back_in_stamp_order():
     time = np.array([0.0, 0.1, 0.2, 0.05, 0.15, 0.3])  # the clock jumped back after 0.2 s
-    plan = animate.frame_plan(time, fps=20.0)
+    plan = animation.frame_plan(time, fps=20.0)
     assert plan.time.tolist() == pytest.approx([0.0, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3])
     assert plan.sample.tolist() == [0, 3, 1, 4, 2, 2, 5]
 
@@ -128,19 +133,19 @@ def test_frame_plan_takes_a_clock_that_jumps_back_in_stamp_order():
      'too many for .mp4 (at most 180000): shorten the span'),
 ])
 def test_frame_plan_refuses_what_it_cannot_show(start, end, fps, speed, words):
-    with pytest.raises(animate.AnimationError, match='^' + re.escape(words)):
-        animate.frame_plan(np.arange(0, 1001) * 0.01, start, end, fps, speed)
+    with pytest.raises(animation.AnimationError, match='^' + re.escape(words)):
+        animation.frame_plan(np.arange(0, 1001) * 0.01, start, end, fps, speed)
 
 
 def test_gif_frame_rates_are_those_a_gif_plays_exactly():
     for fps, delay in ((50.0, 2), (25.0, 4), (20.0, 5), (12.5, 8), (100 / 7, 7), (1.0, 100),
                        (0.5, 200)):
-        animate.check_rates(fps, 1.0, '.gif')
-        assert animate._gif_delay(fps) == delay
+        animation.check_rates(fps, 1.0, '.gif')
+        assert animation.gif_delay(fps) == delay
     for fps in (100.0, 60.0, 30.0, 24.0, 14.0, 0.3):
-        with pytest.raises(animate.AnimationError, match='cannot be played by a GIF'):
-            animate.check_rates(fps, 1.0, '.gif')
-        animate.check_rates(fps, 1.0, '.mp4')
+        with pytest.raises(animation.AnimationError, match='cannot be played by a GIF'):
+            animation.check_rates(fps, 1.0, '.gif')
+        animation.check_rates(fps, 1.0, '.mp4')
 
 
 # --- frames: count, size, what is drawn ------------------------------------------------------
@@ -148,14 +153,14 @@ def test_gif_frame_rates_are_those_a_gif_plays_exactly():
 def test_gif_has_one_frame_per_planned_time_at_the_frame_size(
         tmp_path, capsys, run_with_efforts):
     out = tmp_path / 'run.gif'
-    code = animate.main([str(run_with_efforts), '-o', str(out), '--start', '0.5', '--end',
-                         '2.5', '--fps', '20', '--speed', '2'])
+    code = qrm_animate.main([str(run_with_efforts), '-o', str(out), '--start', '0.5', '--end',
+                             '2.5', '--fps', '20', '--speed', '2'])
     stdout, stderr = capsys.readouterr()
     assert code == 0, stderr
     count = math.floor((2.5 - 0.5) * 20 / 2) + 1
     assert stdout.strip() == f'{out}: {count} frames, 800 x 640 px, 20 fps, {count / 20:.2f} s'
     frames, size, durations = _gif_frames(out)
-    assert (frames, size) == ((count, animate.FRAME_SIZE))
+    assert (frames, size) == ((count, linkage_figure.FRAME_SIZE))
     assert durations == [50] * count
     assert [p for p in os.listdir(tmp_path) if p != 'run.gif'] == []  # no temporary left
 
@@ -165,8 +170,8 @@ def test_repeated_frames_keep_the_gif_playing_in_real_time(tmp_path, capsys):
     write_run(path, PAPER, [0.0], hold=1.0, rate=20.0)
     out = tmp_path / 'slow.gif'
     # 0.1 s of run at a tenth of real speed and 50 fps: each sample shows for 5 frames.
-    assert animate.main([str(path), '-o', str(out), '--end', '0.1', '--fps', '50',
-                         '--speed', '0.1']) == 0
+    assert qrm_animate.main([str(path), '-o', str(out), '--end', '0.1', '--fps', '50',
+                             '--speed', '0.1']) == 0
     assert '51 frames' in capsys.readouterr().out
     frames, _, durations = _gif_frames(out)
     assert sum(durations) == 51 * 20  # Pillow merges identical frames, adding their delays
@@ -174,20 +179,20 @@ def test_repeated_frames_keep_the_gif_playing_in_real_time(tmp_path, capsys):
 
 
 def test_drawn_pins_equal_the_mechanism_at_the_frames_sample(run_with_efforts):
-    recording = analysis.read_recording(str(run_with_efforts))
+    recording = recorded_run.read_recording(str(run_with_efforts))
     samples = recording.samples
-    efforts = animate.read_efforts(str(run_with_efforts), samples)
-    plan = animate.frame_plan(samples.time, fps=7.0)
-    result = analysis.analyse(recording)
+    efforts = animation.read_efforts(str(run_with_efforts), samples)
+    plan = animation.frame_plan(samples.time, fps=7.0)
+    result = measurement.analyse(recording)
     span = slice(int(plan.sample.min()), int(plan.sample.max()) + 1)
-    figure = animate.LinkageFigure(recording.geometry, samples.time[span],
-                                   samples.ram_velocity[span], efforts[span])
-    row_at = animate.segment_at(result)
+    figure = linkage_figure.LinkageFigure(recording.geometry, samples.time[span],
+                                          samples.ram_velocity[span], efforts[span])
+    row_at = animation.segment_at(result)
     sizes = linkage_sizes(PHASED)
     checked = set()
     try:
-        for index, rgb in animate.render_frames(figure, samples, plan.sample, row_at,
-                                                efforts):
+        for index, rgb in animation.render_frames(figure, samples, plan.sample, row_at,
+                                                  efforts):
             assert rgb.shape == (640, 800, 3) and rgb.dtype == np.uint8
             drawn = figure.drawn_points()
             theta, offset = samples.input_angle[index], samples.offset[index]
@@ -217,7 +222,7 @@ def test_drawn_pins_equal_the_mechanism_at_the_frames_sample(run_with_efforts):
             label = f't = {samples.time[index]:8.3f} s\noffset {offset * 1e3:+7.2f} mm'
             assert figure.label.get_text() == label
             row = row_at(samples.time[index])
-            assert figure.ratios.get_text() == '\n\n' + animate.ratio_text(row)
+            assert figure.ratios.get_text() == '\n\n' + animation.ratio_text(row)
             checked.add(offset)
     finally:
         figure.close()
@@ -226,16 +231,16 @@ def test_drawn_pins_equal_the_mechanism_at_the_frames_sample(run_with_efforts):
 
 
 def test_frame_label_gives_the_segments_measured_ratios(run_with_efforts):
-    result = analysis.analyse(analysis.read_recording(str(run_with_efforts)))
+    result = measurement.analyse(recorded_run.read_recording(str(run_with_efforts)))
     row = result.rows[1]
-    assert animate.ratio_text(row) == (
+    assert animation.ratio_text(row) == (
         f'TR {row["time_ratio_measured"]:.4f}  SR {row["speed_ratio_measured"]:.4f}  '
         f'(measured, {row["stroke_pairs"]} pairs)')
-    assert animate.segment_at(result)(row['start_time']) is row
+    assert animation.segment_at(result)(row['start_time']) is row
     # on the offset ramp between the segments there is no steady segment
     between = 0.5 * (result.rows[0]['end_time'] + row['start_time'])
-    assert animate.segment_at(result)(between) is None
-    assert animate.ratio_text(None) == 'TR, SR: no whole stroke pair at steady settings here'
+    assert animation.segment_at(result)(between) is None
+    assert animation.ratio_text(None) == 'TR, SR: no whole stroke pair at steady settings here'
 
 
 def test_console_script_is_installed_and_runs(tmp_path, run_with_efforts):
@@ -258,9 +263,9 @@ def test_progress_bar_on_a_terminal(tmp_path, run_with_efforts):
             return True
 
     terminal = Terminal()
-    recording = analysis.read_recording(str(run_with_efforts))
-    count = animate.write_animation(recording, str(tmp_path / 'run.gif'), end=0.5, fps=10.0,
-                                    progress_stream=terminal)
+    recording = recorded_run.read_recording(str(run_with_efforts))
+    count = animation.write_animation(recording, str(tmp_path / 'run.gif'), end=0.5, fps=10.0,
+                                      progress_stream=terminal)
     assert count == 6
     shown = terminal.getvalue()
     assert shown.startswith('\rdrawing:   0%|') and '| 0/6 [' in shown
@@ -270,8 +275,8 @@ def test_progress_bar_on_a_terminal(tmp_path, run_with_efforts):
 # --- efforts ---------------------------------------------------------------------------------
 
 def test_efforts_are_the_recorded_input_torque_of_each_sample(run_with_efforts):
-    samples = analysis.read_recording(str(run_with_efforts)).samples
-    efforts = animate.read_efforts(str(run_with_efforts), samples)
+    samples = recorded_run.read_recording(str(run_with_efforts)).samples
+    efforts = animation.read_efforts(str(run_with_efforts), samples)
     schedule_time = schedule_states(**EFFORTS_SCHEDULE)[0]
     assert efforts.tolist() == [_input_torque(t)[0] for t in schedule_time]
 
@@ -285,17 +290,17 @@ def test_efforts_stay_with_their_sample_when_the_first_message_is_excluded(
     first[4] = _encode(decoded)
     path = tmp_path / 'first_excluded.mcap'
     path.write_bytes(put_together(recorded))
-    samples = analysis.read_recording(str(path)).samples
+    samples = recorded_run.read_recording(str(path)).samples
     assert samples.time.size == len(recorded.joint_states()) - 1
-    efforts = animate.read_efforts(str(path), samples)
+    efforts = animation.read_efforts(str(path), samples)
     schedule_time = schedule_states(**EFFORTS_SCHEDULE)[0]
     assert efforts.tolist() == [_input_torque(t)[0] for t in schedule_time[1:]]
 
 
 def test_no_efforts_recorded_means_no_torque_trace():
     path = os.path.join(GOLDEN, 'steady_positive_offset.mcap')
-    samples = analysis.read_recording(path).samples
-    assert animate.read_efforts(path, samples) is None
+    samples = recorded_run.read_recording(path).samples
+    assert animation.read_efforts(path, samples) is None
 
 
 def test_a_run_with_a_cutting_load_shows_the_workpiece(tmp_path, run_with_efforts):
@@ -304,14 +309,15 @@ def test_a_run_with_a_cutting_load_shows_the_workpiece(tmp_path, run_with_effort
                                               'cutting_length': '0.08'}
     path = tmp_path / 'cutting.mcap'
     path.write_bytes(put_together(recorded))
-    assert animate._cutting_length(str(path)) == 0.08
-    assert animate._cutting_length(str(run_with_efforts)) is None  # no parameters recorded
+    assert animation.recorded_cutting_length(str(path)) == 0.08
+    # no parameters recorded
+    assert animation.recorded_cutting_length(str(run_with_efforts)) is None
     recorded.metadata[PARAMETERS_METADATA]['cutting_force'] = '0.0'
     path.write_bytes(put_together(recorded))
-    assert animate._cutting_length(str(path)) is None  # no load, no workpiece
-    samples = analysis.read_recording(str(path)).samples
-    figure = animate.LinkageFigure(PHASED, samples.time, samples.ram_velocity,
-                                   cutting_length=0.08)
+    assert animation.recorded_cutting_length(str(path)) is None  # no load, no workpiece
+    samples = recorded_run.read_recording(str(path)).samples
+    figure = linkage_figure.LinkageFigure(PHASED, samples.time, samples.ram_velocity,
+                                          cutting_length=0.08)
     try:
         sizes = linkage_sizes(PHASED)
         (workpiece,) = [patch for patch in figure.axes.patches
@@ -329,9 +335,9 @@ def test_offset_tour_shows_the_last_revolution_of_a_few_segments(tmp_path):
     path = tmp_path / 'run.mcap'
     offsets = [-0.01, -0.005, 0.0, 0.005, 0.01, 0.015]
     write_run(path, PAPER, offsets, hold=1.6, offset_rate=0.05)
-    result = analysis.analyse(analysis.read_recording(str(path)))
+    result = measurement.analyse(recorded_run.read_recording(str(path)))
     assert [row['offset'] for row in result.rows] == offsets
-    indices = animate.offset_tour_samples(result, offsets=4, fps=20.0)
+    indices = animation.offset_tour_samples(result, offsets=4, fps=20.0)
     samples = result.recording.samples
     shown = sorted(set(samples.offset[indices]))
     assert shown == [-0.01, 0.0, 0.005, 0.015]  # first and last included, spread between
@@ -341,26 +347,26 @@ def test_offset_tour_shows_the_last_revolution_of_a_few_segments(tmp_path):
         segment = next(s for s in result.segments if s.offset == offset)
         assert times[-1] == samples.time[segment.end - 1]
     out = tmp_path / 'tour.gif'
-    assert animate.write_offset_tour(result, str(out), offsets=4, fps=20.0) == str(out)
+    assert animation.write_offset_tour(result, str(out), offsets=4, fps=20.0) == str(out)
     frames, size, _ = _gif_frames(out)
-    assert (frames, size) == (indices.size, animate.FRAME_SIZE)
+    assert (frames, size) == (indices.size, linkage_figure.FRAME_SIZE)
 
 
 def test_offset_tour_draws_the_recorded_torque(tmp_path, run_with_efforts, monkeypatch):
     drawn = []
 
-    class Recorded(animate.LinkageFigure):
+    class Recorded(linkage_figure.LinkageFigure):
         def draw(self, *state, **options):
             frame = super().draw(*state, **options)
             drawn.append(self.drawn_points())
             return frame
 
-    monkeypatch.setattr(animate, 'LinkageFigure', Recorded)
-    result = analysis.analyse(analysis.read_recording(str(run_with_efforts)))
-    animate.write_offset_tour(result, str(tmp_path / 'tour.gif'))
+    monkeypatch.setattr(animation, 'LinkageFigure', Recorded)
+    result = measurement.analyse(recorded_run.read_recording(str(run_with_efforts)))
+    animation.write_offset_tour(result, str(tmp_path / 'tour.gif'))
     samples = result.recording.samples
-    indices = animate.offset_tour_samples(result)
-    efforts = animate.read_efforts(str(run_with_efforts), samples)
+    indices = animation.offset_tour_samples(result)
+    efforts = animation.read_efforts(str(run_with_efforts), samples)
     assert [d['torque_dot'].tolist() for d in drawn] == [
         [samples.time[i], efforts[i]] for i in indices]
 
@@ -374,9 +380,9 @@ def test_offset_tour_shows_each_offset_once_when_a_gap_splits_it(tmp_path):
     recorded.messages[:] = [m for m in recorded.messages if id(m) not in lost]
     split = tmp_path / 'split.mcap'
     split.write_bytes(put_together(recorded))
-    result = analysis.analyse(analysis.read_recording(str(split)))
+    result = measurement.analyse(recorded_run.read_recording(str(split)))
     assert [row['offset'] for row in result.rows] == [0.0, 0.0, 0.01]
-    indices = animate.offset_tour_samples(result, offsets=4, fps=20.0)
+    indices = animation.offset_tour_samples(result, offsets=4, fps=20.0)
     samples = result.recording.samples
     assert sorted(set(samples.offset[indices])) == [0.0, 0.01]
     longer = result.segments[1]  # 1.9 s after the gap, against 1.0 s before it
@@ -388,7 +394,7 @@ def test_offset_tour_shows_each_offset_once_when_a_gap_splits_it(tmp_path):
 # --- bad input and the exit codes -------------------------------------------------------------
 
 def _run(arguments, capsys):
-    code = animate.main([str(a) for a in arguments])
+    code = qrm_animate.main([str(a) for a in arguments])
     out, err = capsys.readouterr()
     return code, out, err
 
@@ -397,7 +403,7 @@ def test_file_without_joint_states_exits_2_with_one_line(tmp_path, capsys):
     path = tmp_path / 'run.mcap'
     write_run(path, PAPER, [0.0], hold=1.0, joint_states_topic='/other_states')
     code, _, err = _run([path, '-o', tmp_path / 'x.gif'], capsys)
-    assert code == analysis.EXIT_BAD_INPUT
+    assert code == exit_codes.EXIT_BAD_INPUT
     assert err.count('\n') == 1 and err.startswith('qrm_animate: error: ')
     assert 'no /joint_states topic' in err and '/other_states' in err
     assert not (tmp_path / 'x.gif').exists()
@@ -407,7 +413,7 @@ def test_unknown_geometry_exits_2_and_names_the_options(tmp_path, capsys):
     path = tmp_path / 'run.mcap'
     write_run(path, PAPER, [0.0], hold=1.0, with_geometry=False)
     code, _, err = _run([path, '-o', tmp_path / 'x.gif'], capsys)
-    assert code == analysis.EXIT_BAD_INPUT and err.count('\n') == 1
+    assert code == exit_codes.EXIT_BAD_INPUT and err.count('\n') == 1
     assert 'has no qrm_ros.geometry metadata' in err and '--crank-radius' in err
     options = ['--coupling-radius', '0.025', '--crank-radius', '0.0505', '--pivot-distance',
                '0.113', '--ram-height', '0.2']
@@ -433,7 +439,7 @@ def test_bad_span_or_rates_exit_2_with_one_line(tmp_path, capsys, arguments, wor
     path = tmp_path / 'run.mcap'
     write_run(path, PAPER, [0.0], hold=2.0)
     code, _, err = _run([path, '-o', tmp_path / 'x.gif'] + arguments, capsys)
-    assert code == analysis.EXIT_BAD_INPUT
+    assert code == exit_codes.EXIT_BAD_INPUT
     assert err.startswith(f'qrm_animate: error: {words}') and err.count('\n') == 1, err
     assert os.listdir(tmp_path) == ['run.mcap']
 
@@ -444,7 +450,7 @@ def test_bad_span_or_rates_exit_2_with_one_line(tmp_path, capsys, arguments, wor
 ])
 def test_bad_output_exits_2_before_reading(tmp_path, capsys, output, words):
     code, _, err = _run([tmp_path / 'does_not_matter.mcap', '-o', tmp_path / output], capsys)
-    assert code == analysis.EXIT_BAD_INPUT
+    assert code == exit_codes.EXIT_BAD_INPUT
     assert err == f'qrm_animate: error: {words.format(folder=tmp_path)}\n'
 
 
@@ -452,8 +458,8 @@ def test_mp4_without_imageio_ffmpeg_names_the_extra(tmp_path, capsys, monkeypatc
     monkeypatch.setitem(sys.modules, 'imageio_ffmpeg', None)  # as if not installed
     code, _, err = _run([os.path.join(GOLDEN, 'steady_positive_offset.mcap'), '-o',
                          tmp_path / 'x.mp4'], capsys)
-    assert code == analysis.EXIT_BAD_INPUT
-    assert err == f'qrm_animate: error: {animate.MP4_MISSING}\n'
+    assert code == exit_codes.EXIT_BAD_INPUT
+    assert err == f'qrm_animate: error: {animation.MP4_MISSING}\n'
     assert "'qrm_ros[video]'" in err and 'imageio-ffmpeg' in err and '.gif' in err
 
 
@@ -462,7 +468,7 @@ def test_an_output_that_cannot_be_written_exits_1_and_leaves_nothing(tmp_path, c
     write_run(path, PAPER, [0.0], hold=1.0)
     (tmp_path / 'taken.gif').mkdir()  # a folder where the file should go
     code, _, err = _run([path, '-o', tmp_path / 'taken.gif', '--end', '0.2'], capsys)
-    assert code == analysis.EXIT_FAILURE
+    assert code == exit_codes.EXIT_FAILURE
     assert err.startswith(f'qrm_animate: error: cannot write {tmp_path / "taken.gif"}')
     assert err.endswith('no animation was written\n') and err.count('\n') == 1
     assert sorted(os.listdir(tmp_path)) == ['run.mcap', 'taken.gif']
@@ -476,10 +482,10 @@ def test_truncated_recording_is_animated_and_exits_3(tmp_path, capsys):
     cut = tmp_path / 'cut.mcap'
     cut.write_bytes(data[:int(len(data) * 0.8)])
     code, out, err = _run([cut, '-o', tmp_path / 'cut.gif', '--fps', '5'], capsys)
-    assert code == analysis.EXIT_INCOMPLETE
+    assert code == exit_codes.EXIT_INCOMPLETE
     assert 'truncated' in err and 'the animation covers only what was readable' in err
     frames, size, _ = _gif_frames(tmp_path / 'cut.gif')
-    assert f'{frames} frames' in out and size == animate.FRAME_SIZE
+    assert f'{frames} frames' in out and size == linkage_figure.FRAME_SIZE
 
 
 def test_mp4_has_the_frame_count_and_size(tmp_path, capsys, run_with_efforts):
@@ -492,7 +498,7 @@ def test_mp4_has_the_frame_count_and_size(tmp_path, capsys, run_with_efforts):
     reader = imageio_ffmpeg.read_frames(str(out))
     meta = next(reader)
     count = sum(1 for _ in reader)
-    assert (count, tuple(meta['size']), meta['fps']) == (31, animate.FRAME_SIZE, 30.0)
+    assert (count, tuple(meta['size']), meta['fps']) == (31, linkage_figure.FRAME_SIZE, 30.0)
     assert os.listdir(tmp_path) == ['run.mp4']
 
 
@@ -515,7 +521,7 @@ def test_damaged_run_is_animated_or_refused_as_qrm_analyze_does(number, fuzz_cas
     case = fuzz_cases[number]
     run = tmp_path / 'run.mcap'
     run.write_bytes(case.data)
-    analysed = analysis.main([str(run)])
+    analysed = qrm_analyze.main([str(run)])
     capsys.readouterr()
     out = tmp_path / 'run.gif'
     code, stdout, err = _run([run, '-o', out, '--fps', '1', '--speed', '8'], capsys)
@@ -523,10 +529,10 @@ def test_damaged_run_is_animated_or_refused_as_qrm_analyze_does(number, fuzz_cas
     assert 'Traceback' not in stdout + err, context
     # A clock that jumps by days makes an animation of days: refused, with what to do.
     assert code == analysed or (code == 2 and ' are too many for .gif' in err), context
-    written = ['run.gif'] if code != analysis.EXIT_BAD_INPUT else []
+    written = ['run.gif'] if code != exit_codes.EXIT_BAD_INPUT else []
     assert sorted(os.listdir(tmp_path)) == sorted(['run.mcap'] + written), context
-    if code == analysis.EXIT_BAD_INPUT:
+    if code == exit_codes.EXIT_BAD_INPUT:
         assert err.startswith('qrm_animate: error: ') and err.count('\n') == 1, context
     else:
         frames, size, _ = _gif_frames(out)
-        assert f'{frames} frames' in stdout and size == animate.FRAME_SIZE, context
+        assert f'{frames} frames' in stdout and size == linkage_figure.FRAME_SIZE, context
