@@ -73,6 +73,13 @@ def drive_from_arguments(args: argparse.Namespace) -> Tuple[Any, ...]:
                  for kind, prefix, _ in DRIVE_PARAMETER_SETS)
 
 
+def add_geometry_override_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the geometry options, as a group without defaults, to a command reading a run."""
+    geometry_group = parser.add_argument_group(
+        'geometry', 'override (or supply, for files without it) the stored geometry')
+    add_geometry_arguments(geometry_group, defaults=False)
+
+
 def geometry_overrides(args: argparse.Namespace) -> Dict[str, Optional[float]]:
     """Return the geometry options as given (None: not given) by add_geometry_arguments."""
     return {name: getattr(args, name) for name in Geometry.field_names()}

@@ -30,7 +30,7 @@ from typing import Optional, Sequence
 from qrm_ros.analysis.measurement import analyse
 from qrm_ros.analysis.recorded_run import AnalysisError, read_recording
 from qrm_ros.analysis.report import format_table, incompleteness, write_outputs
-from qrm_ros.cli.arguments import add_geometry_arguments, geometry_overrides
+from qrm_ros.cli.arguments import add_geometry_override_arguments, geometry_overrides
 from qrm_ros.cli.exit_codes import (EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_INCOMPLETE,
                                     EXIT_INTERRUPTED, EXIT_OK)
 
@@ -47,9 +47,7 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument('--csv', metavar='FILE', help='write the per-segment table as CSV')
     parser.add_argument('--json', metavar='FILE', help='write the results as JSON')
     parser.add_argument('--plot', metavar='DIR', help='write the figures (PNG) into DIR')
-    geometry_group = parser.add_argument_group(
-        'geometry', 'override (or supply, for files without it) the stored geometry')
-    add_geometry_arguments(geometry_group, defaults=False)
+    add_geometry_override_arguments(parser)
     return parser
 
 

@@ -31,7 +31,7 @@ from qrm_ros.analysis.animation import (AnimationError, check_output, check_rate
 from qrm_ros.analysis.linkage_figure import FRAME_SIZE
 from qrm_ros.analysis.recorded_run import AnalysisError, read_recording
 from qrm_ros.analysis.report import incompleteness
-from qrm_ros.cli.arguments import add_geometry_arguments, geometry_overrides
+from qrm_ros.cli.arguments import add_geometry_override_arguments, geometry_overrides
 from qrm_ros.cli.exit_codes import EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_INCOMPLETE, EXIT_OK
 from qrm_ros.recording.bag_reader import RunFileError
 
@@ -59,9 +59,7 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument('--speed', type=float, default=1.0, metavar='X',
                         help='playback speed [-]: run seconds per animation second, > 0 '
                              '(default: 1)')
-    geometry_group = parser.add_argument_group(
-        'geometry', 'override (or supply, for files without it) the stored geometry')
-    add_geometry_arguments(geometry_group, defaults=False)
+    add_geometry_override_arguments(parser)
     return parser
 
 
