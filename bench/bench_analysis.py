@@ -34,7 +34,7 @@ import time
 
 import numpy as np
 
-from qrm_ros.analysis import run_analysis as analysis
+from qrm_ros import analysis
 from qrm_ros.core import kinematics as kin
 from qrm_ros.core.names import JOINT_NAMES
 from qrm_ros.node.recorder import COMPRESSIONS, McapRunFile

@@ -34,8 +34,9 @@ import time
 import numpy as np
 from PIL import Image
 
-from qrm_ros.analysis import run_analysis as analysis
-from qrm_ros.analysis import animate
+from qrm_ros import analysis
+from qrm_ros.analysis import animation
+from qrm_ros.analysis import linkage_figure
 from qrm_ros.cli import qrm_main as main_job
 from qrm_ros.core import kinematics as kin
 
@@ -64,9 +65,9 @@ def main():
                   offset_rate=0.02)
         recording = analysis.read_recording(run)
         samples = recording.samples
-        figure = animate.LinkageFigure(geometry, samples.time, samples.ram_velocity)
+        figure = linkage_figure.LinkageFigure(geometry, samples.time, samples.ram_velocity)
         indices = range(0, args.frames * 5, 5)
-        text = animate.ratio_text(None)
+        text = animation.ratio_text(None)
 
         def blitted():
             for index in indices:
@@ -97,8 +98,8 @@ def main():
         per_frame = 1e3 / args.frames
         print(f'baseline full redraw: {base[0] * per_frame:.1f} ms/frame (spread '
               f'{base[1] * per_frame:.1f}-{base[2] * per_frame:.1f}, median of '
-              f'{args.repeats} x {args.frames} frames, {animate.FRAME_SIZE[0]} x '
-              f'{animate.FRAME_SIZE[1]} px)')
+              f'{args.repeats} x {args.frames} frames, {linkage_figure.FRAME_SIZE[0]} x '
+              f'{linkage_figure.FRAME_SIZE[1]} px)')
         for name, function in (('blitted draw', blitted),
                                ('blitted draw + GIF palette', blitted_and_mapped)):
             median, low, high = timed(function, args.repeats)
@@ -108,8 +109,8 @@ def main():
 
         reading = timed(lambda: analysis.analyse(analysis.read_recording(run)), args.repeats)
         result = analysis.analyse(recording)
-        frames = animate.offset_tour_samples(result).size
-        tour = timed(lambda: animate.write_offset_tour(result, os.path.join(folder, 't.gif')),
+        frames = animation.offset_tour_samples(result).size
+        tour = timed(lambda: animation.write_offset_tour(result, os.path.join(folder, 't.gif')),
                      args.repeats)
         print(f'baseline reading + analysing the default schedule\'s run '
               f'({samples.time.size} samples): {reading[0]:.2f} s')

@@ -12,33 +12,33 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 """
-Design table of the mechanism: what each coupling offset does to the ram's strokes.
+Design tables of the mechanism: what each coupling offset does to the ram's strokes.
 
-Printed by ``qrm_design``, straight from the kinematics and dynamics cores, so a designer can
-pick an offset before running anything: the stroke figures, then what the drive must give per
-stroke pair (and, asked for, the speed fluctuation under the motor). ``qrm_design gearbox``
-plans the gear steps (see qrm_ros.core.gearbox), ``qrm_design flywheel`` sizes the input side's
-inertia for a speed fluctuation (see qrm_ros.core.flywheel_design); further subcommands are one
-line in SUBCOMMANDS.
+Printed by ``qrm_design`` (qrm_ros.cli.qrm_design), straight from the kinematics and
+dynamics cores, so a designer can pick an offset before running anything: the stroke
+figures, then what the drive must give per stroke pair (and, asked for, the speed
+fluctuation under the motor); the gearbox plan (qrm_ros.core.gearbox) and the flywheel
+sizing (qrm_ros.core.flywheel_design) as text. Each table is a JSON-ready dict in SI units
+first, then its text.
 """
 
-import argparse
-import json
 import math
-import sys
+from typing import Any, Dict, Iterable, List, Optional
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from qrm_ros.core import dynamics as dyn
 from qrm_ros.core import flywheel_design
-from qrm_ros.core import gearbox
 from qrm_ros.core import kinematics as kin
 from qrm_ros.core import motor_drive as md
+from qrm_ros.core.gearbox import GearboxPlan
 
 DEFAULT_OFFSETS_MM = np.arange(-20.0, 20.0 + 1e-9, 2.5)
 
 
-def design_rows(geometry, offsets, input_speed):
+def design_rows(geometry: kin.Geometry, offsets: np.ndarray,
+                input_speed: float) -> List[Dict[str, float]]:
     """One dict per offset with every figure the table prints, in SI units."""
     theory = kin.steady_theory(geometry, offsets, input_speed)
     return [dict(offset=float(offsets[i]),
@@ -47,7 +47,9 @@ def design_rows(geometry, offsets, input_speed):
             for i in range(len(offsets))]
 
 
-def drive_rows(geometry, mass, loads, motor, offsets, input_speed):
+def drive_rows(geometry: kin.Geometry, mass: dyn.MassProperties, loads: dyn.Loads,
+               motor: Optional[dyn.MotorDrive], offsets: Iterable[float],
+               input_speed: float) -> List[Dict[str, Any]]:
     """
     One dict per offset: the speed drive's ``PairEfforts``, and Cs under motor if not None.
 
@@ -69,7 +71,9 @@ def drive_rows(geometry, mass, loads, motor, offsets, input_speed):
     return rows
 
 
-def design_table_data(geometry, offsets, input_speed, mass, loads, motor=None):
+def design_table_data(geometry: kin.Geometry, offsets: ArrayLike, input_speed: float,
+                      mass: dyn.MassProperties, loads: dyn.Loads,
+                      motor: Optional[dyn.MotorDrive] = None) -> Dict[str, Any]:
     """Everything the design table prints, as a JSON-ready dict in SI units."""
     offsets = np.asarray(offsets, dtype=float)
     loads.check_against(geometry.ram_stroke)
@@ -79,7 +83,7 @@ def design_table_data(geometry, offsets, input_speed, mass, loads, motor=None):
     rows = [{**kinematic, **drive} for kinematic, drive in zip(
         design_rows(geometry, offsets, input_speed),
         drive_rows(geometry, mass, loads, motor, offsets, input_speed))]
-    time_ratio_offsets = []
+    time_ratio_offsets: List[Dict[str, Any]] = []
     for target in (1.0, 2.0, 3.0):
         try:
             time_ratio_offsets.append({'time_ratio': target,
@@ -99,11 +103,12 @@ def design_table_data(geometry, offsets, input_speed, mass, loads, motor=None):
     }
 
 
-def geometry_dict(geometry):
+def geometry_dict(geometry: kin.Geometry) -> Dict[str, float]:
+    """Return the geometry as plain floats (JSON-ready)."""
     return {name: float(value) for name, value in geometry.as_dict().items()}
 
 
-def describe(title, values, kind):
+def describe(title: str, values: Dict[str, float], kind: Any) -> List[str]:
     """Indented 'title: name value unit, ...' of a parameter set's dict, wrapped at 99."""
     units = kind.units()
     items = [f'{name} {value:g} {units[name]}' for name, value in values.items()]
@@ -117,7 +122,7 @@ def describe(title, values, kind):
     return lines
 
 
-def format_design_table(data):
+def format_design_table(data: Dict[str, Any]) -> str:
     """Format ``design_table_data``'s dict: the kinematics, then the drive per offset."""
     geometry = kin.Geometry(**data['geometry'])
     input_speed = data['input_speed']
@@ -156,7 +161,7 @@ def format_design_table(data):
     return '\n'.join(lines)
 
 
-def format_drive_rows(data):
+def format_drive_rows(data: Dict[str, Any]) -> List[str]:
     """Format the drive's part of the table: efforts per stroke pair and, if asked, Cs."""
     motor = data['motor']
     lines = [
@@ -198,49 +203,7 @@ def format_drive_rows(data):
     return lines + problems
 
 
-def add_geometry_arguments(parser, defaults=True):
-    """Add --coupling-radius etc.; defaults are the paper's geometry, or None if not wanted."""
-    paper = kin.Geometry.paper()
-    for name, unit in (('coupling_radius', 'm'), ('crank_radius', 'm'), ('pivot_distance', 'm'),
-                       ('ram_height', 'm'), ('crank_phase', 'rad')):
-        default = getattr(paper, name) if defaults else None
-        shown = ' (default: %(default)s)' if defaults else ''
-        parser.add_argument('--' + name.replace('_', '-'), type=float, default=default,
-                            help=f'{name.replace("_", " ")} [{unit}]{shown}')
-
-
-def geometry_from_arguments(args):
-    return kin.Geometry(args.coupling_radius, args.crank_radius, args.pivot_distance,
-                        args.ram_height, args.crank_phase)
-
-
-# The parameter sets a drive needs, as (kind, option prefix, group title); the options carry
-# the node's parameter names (dynamics.PARAMETER_PREFIXES: motor_speed_stiffness, ...).
-DRIVE_PARAMETER_SETS = tuple((kind, dyn.PARAMETER_PREFIXES[kind], title) for kind, title in (
-    (dyn.MassProperties, 'mass properties'), (dyn.Loads, 'loads on the ram'),
-    (dyn.MotorDrive, 'motor')))
-
-
-def add_drive_arguments(parser):
-    """Add --input-inertia ... --motor-max-torque; defaults: the small shaper's (dynamics)."""
-    for kind, prefix, title in DRIVE_PARAMETER_SETS:
-        group = parser.add_argument_group(
-            f'{title} (defaults: dynamics.{kind.__name__}.small_shaper(), which says where '
-            'each comes from)')
-        defaults = kind.small_shaper()
-        for name, unit in kind.units().items():
-            group.add_argument('--' + (prefix + name).replace('_', '-'), dest=prefix + name,
-                               type=float, default=getattr(defaults, name),
-                               help=f'{name.replace("_", " ")} [{unit}] (default: %(default)s)')
-
-
-def drive_from_arguments(args):
-    """Return (MassProperties, Loads, MotorDrive) from add_drive_arguments' options."""
-    return tuple(kind(**{name: getattr(args, prefix + name) for name in kind.field_names()})
-                 for kind, prefix, _ in DRIVE_PARAMETER_SETS)
-
-
-def format_gearbox_plan(plan):
+def format_gearbox_plan(plan: GearboxPlan) -> str:
     """Format the plan: steps with the offset, then the conventional gearboxes."""
     offsets = plan.offsets
     lines = [
@@ -270,53 +233,9 @@ def format_gearbox_plan(plan):
     return '\n'.join(lines)
 
 
-def gearbox_main(argv):
-    parser = argparse.ArgumentParser(
-        prog='qrm_design gearbox',
-        description='Plan the fewest gear steps (input speeds in geometric progression) that, '
-                    'with the coupling offset, reach every cutting speed in a range exactly; '
-                    'beside it the conventional gearbox without offset. Forward running.')
-    add_geometry_arguments(parser)
-    parser.add_argument('--min-cutting-speed', type=float, required=True,
-                        help='lowest wanted cutting speed [m/s]')
-    parser.add_argument('--max-cutting-speed', type=float, required=True,
-                        help='highest wanted cutting speed [m/s]')
-    parser.add_argument('--max-offset', type=float, default=None,
-                        help='largest |offset| allowed [m] (default: the node\'s limit, '
-                             f'{kin.SAFE_OFFSET_FRACTION:g} x coupling radius)')
-    parser.add_argument('--min-time-ratio', type=float, default=gearbox.DEFAULT_MIN_TIME_RATIO,
-                        help='smallest time ratio allowed, so the return stays quick [-] '
-                             '(default: %(default)s)')
-    parser.add_argument('--definition', choices=gearbox.DEFINITIONS, default='mean',
-                        help='cutting speed: "mean" = stroke / cutting time, as shop tables '
-                             'give (default); "peak" = largest ram speed during the cut')
-    parser.add_argument('--progression-ratio', type=float, default=1.41,
-                        choices=gearbox.STANDARD_PROGRESSION_RATIOS,
-                        help='the conventional gearbox drawn in the figure [-] (the table and '
-                             'JSON list all standard ratios; default: %(default)s)')
-    parser.add_argument('--json', action='store_true',
-                        help='print the plan as JSON (SI units) instead of a table')
-    parser.add_argument('--figure', metavar='PATH', default=None,
-                        help='also write the speed ladder figure (PNG, PDF or SVG) to PATH')
-    args = parser.parse_args(argv)
-    try:
-        geometry = geometry_from_arguments(args)
-        plan = gearbox.plan_gearbox(geometry, args.min_cutting_speed, args.max_cutting_speed,
-                                    args.definition, args.max_offset, args.min_time_ratio)
-        if args.figure:
-            from qrm_ros.analysis import gearbox_figure
-            gearbox_figure.write_speed_ladder(plan, args.figure, args.progression_ratio)
-    except (kin.KinematicsError, OSError, ValueError) as error:
-        print(f'qrm_design gearbox: {error}', file=sys.stderr)
-        return 2
-    if args.json:
-        print(json.dumps(gearbox.plan_as_dict(plan, geometry), indent=2))
-    else:
-        print(format_gearbox_plan(plan))
-    return 0
-
-
-def flywheel_data(geometry, mass, loads, motor, offset, input_speed, fluctuation):
+def flywheel_data(geometry: kin.Geometry, mass: dyn.MassProperties, loads: dyn.Loads,
+                  motor: dyn.MotorDrive, offset: float, input_speed: float,
+                  fluctuation: float) -> Dict[str, Any]:
     """Size the flywheel; return the sizing and what it was asked with, JSON-ready, SI units."""
     sizing = flywheel_design.size_flywheel(geometry, mass, loads, motor, offset, input_speed,
                                            fluctuation)
@@ -326,7 +245,7 @@ def flywheel_data(geometry, mass, loads, motor, offset, input_speed, fluctuation
             'motor': motor.as_dict(), **sizing._asdict()}
 
 
-def format_flywheel(data):
+def format_flywheel(data: Dict[str, Any]) -> str:
     """Format ``flywheel_data``'s dict: the refined J1, the energy method, the equivalent J2."""
     mass = data['mass_properties']
     input_speed = data['input_speed']
@@ -372,80 +291,3 @@ def format_flywheel(data):
             lines += [simulated + ' (an estimate: with an offset the crank\'s speed swings every',
                       '    revolution, and J2\'s inertia torque with it)']
     return '\n'.join(lines)
-
-
-def flywheel_main(argv):
-    parser = argparse.ArgumentParser(
-        prog='qrm_design flywheel',
-        description='Size the input side\'s total inertia (input_inertia, J1) for a wanted '
-                    'coefficient of speed fluctuation Cs under the motor drive, at one offset and '
-                    'input speed; beside it the energy method\'s estimate, the Cs of the answer '
-                    'simulated again and the flywheel_inertia (J2, on the crank shaft) that would '
-                    'do the same with J1 kept. Takes seconds to a minute (simulations).')
-    parser.add_argument('--fluctuation', type=float, required=True,
-                        help='wanted Cs = (max - min) / mean input speed [-]')
-    parser.add_argument('--offset', type=float, default=0.0,
-                        help='coupling offset [m] (default: %(default)s)')
-    parser.add_argument('--input-speed', type=float, default=2 * math.pi,
-                        help='input speed, the motor\'s speed reference [rad/s] (default: 2 pi)')
-    add_geometry_arguments(parser)
-    add_drive_arguments(parser)
-    parser.add_argument('--json', action='store_true',
-                        help='print the sizing as JSON (SI units) instead of text')
-    args = parser.parse_args(argv)
-    try:
-        geometry = geometry_from_arguments(args)
-        mass, loads, motor = drive_from_arguments(args)
-        data = flywheel_data(geometry, mass, loads, motor, args.offset, args.input_speed,
-                             args.fluctuation)
-    except kin.KinematicsError as error:  # DynamicsError is one
-        print(f'qrm_design flywheel: {error}', file=sys.stderr)
-        return 2
-    print(json.dumps(data, indent=2) if args.json else format_flywheel(data))
-    return 0
-
-
-# Subcommands of qrm_design: name -> main(argv) returning the exit code.
-SUBCOMMANDS = {
-    'gearbox': gearbox_main,
-    'flywheel': flywheel_main,
-}
-
-
-def main(argv=None):
-    argv = sys.argv[1:] if argv is None else list(argv)
-    if argv and argv[0] in SUBCOMMANDS:
-        return SUBCOMMANDS[argv[0]](argv[1:])
-    parser = argparse.ArgumentParser(
-        prog='qrm_design',
-        description='Print TR and SR over a range of coupling offsets, and what the drive must '
-                    'give per stroke pair (peak and RMS input torque, mean power, energy, peak '
-                    'offset force) under the ideal speed drive.',
-        epilog='subcommands: ' + ', '.join(f'qrm_design {name} --help' for name in SUBCOMMANDS))
-    add_geometry_arguments(parser)
-    parser.add_argument('--input-speed', type=float, default=2 * math.pi,
-                        help='input shaft speed [rad/s] (default: 2 pi)')
-    parser.add_argument('--offsets-mm', type=float, nargs='+', default=None,
-                        help='offsets to tabulate [mm] (default: -20 to 20 in 2.5 mm steps)')
-    parser.add_argument('--speed-fluctuation', action='store_true',
-                        help='add the column Cs under the motor drive: a simulation per offset, '
-                             'about 0.35 s each (off by default)')
-    parser.add_argument('--json', action='store_true',
-                        help='print the table as JSON (SI units) instead of text')
-    add_drive_arguments(parser)
-    args = parser.parse_args(argv)
-    try:
-        geometry = geometry_from_arguments(args)
-        mass, loads, motor = drive_from_arguments(args)
-        offsets = (np.asarray(args.offsets_mm) if args.offsets_mm else DEFAULT_OFFSETS_MM) / 1e3
-        data = design_table_data(geometry, offsets, args.input_speed, mass, loads,
-                                 motor if args.speed_fluctuation else None)
-    except kin.KinematicsError as error:
-        print(f'qrm_design: {error}', file=sys.stderr)
-        return 2
-    print(json.dumps(data, indent=2) if args.json else format_design_table(data))
-    return 0
-
-
-if __name__ == '__main__':
-    sys.exit(main())

@@ -21,13 +21,16 @@ Every axis is labelled with its unit so a figure reads without the table.
 
 import math
 import os
+from typing import Callable, cast, Dict, List, Optional
 
-import matplotlib
-matplotlib.use('Agg')
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+from matplotlib.figure import Figure
+import numpy as np
 
-from qrm_ros.core import kinematics as kin  # noqa: E402
+from qrm_ros.analysis.measurement import Analysis
+from qrm_ros.analysis.plotting import plt
+from qrm_ros.analysis.theory import flywheel_speed_swing, input_torque_parts
+from qrm_ros.core import kinematics as kin
+from qrm_ros.core.motor_drive import pair_efforts
 
 THEORY = 'theory'
 THEORY_FAMILY = 'theory-family'
@@ -53,7 +56,8 @@ def _measured(analysis, key):
     return x, y, spread
 
 
-def time_ratio_figure(analysis):
+def time_ratio_figure(analysis: Analysis) -> Figure:
+    """TR against δ/h: the closed form (and other crank radii) and the measured means."""
     geometry = analysis.recording.geometry
     offsets = _offset_axis(geometry)
     figure, axes = plt.subplots(figsize=(8, 5.5))
@@ -68,7 +72,8 @@ def time_ratio_figure(analysis):
             other = kin.Geometry(geometry.coupling_radius, crank_radius,
                                  geometry.pivot_distance, geometry.ram_height,
                                  geometry.crank_phase)
-            x, y = offsets / geometry.pivot_distance, kin.time_ratio(other, offsets)
+            x = offsets / geometry.pivot_distance
+            y = cast(np.ndarray, kin.time_ratio(other, offsets))
             axes.plot(x, y, color='0.6', linewidth=0.9, linestyle='--', gid=THEORY_FAMILY,
                       label='theory, other crank radii' if crank_radius == OTHER_CRANK_RADII[0]
                       else None)
@@ -89,7 +94,8 @@ def time_ratio_figure(analysis):
     return figure
 
 
-def speed_ratio_figure(analysis):
+def speed_ratio_figure(analysis: Analysis) -> Figure:
+    """Mid-stroke and peak SR against δ/h: the closed forms and the measured means."""
     geometry = analysis.recording.geometry
     offsets = _offset_axis(geometry)
     figure, axes = plt.subplots(figsize=(8, 5.5))
@@ -104,7 +110,7 @@ def speed_ratio_figure(analysis):
         x, y, spread = _measured(analysis, key)
         axes.errorbar(x, y, yerr=spread, fmt=marker, color=color, capsize=3, label=label,
                       markerfacecolor='none' if marker == 's' else color)
-    unity = kin.offset_for_speed_ratio(geometry, 1.0) / geometry.pivot_distance
+    unity = cast(float, kin.offset_for_speed_ratio(geometry, 1.0)) / geometry.pivot_distance
     axes.axhline(1.0, color='0.6', linewidth=0.8)
     axes.axvline(unity, color='0.6', linewidth=0.8, linestyle=':',
                  label=f'SR = 1 at δ/h = {unity:.4f} (eq. 26)')
@@ -135,7 +141,8 @@ def _input_angle_grid():
     return np.linspace(0.0, 2 * math.pi, CURVE_POINTS)
 
 
-def flywheel_speed_figure(analysis):
+def flywheel_speed_figure(analysis: Analysis) -> Figure:
+    """Flywheel speed over one input revolution per segment: theory and recorded."""
     geometry = analysis.recording.geometry
     samples = analysis.recording.samples
     figure, axes = plt.subplots(figsize=(8, 5.5))
@@ -160,7 +167,8 @@ def flywheel_speed_figure(analysis):
     return figure
 
 
-def ram_motion_figure(analysis):
+def ram_motion_figure(analysis: Analysis) -> Figure:
+    """Ram position and velocity over one input revolution per segment."""
     geometry = analysis.recording.geometry
     samples = analysis.recording.samples
     figure, (top, bottom) = plt.subplots(2, 1, figsize=(8, 8), sharex=True)
@@ -205,9 +213,8 @@ def _no_data(axes, text):
               color='0.4', wrap=True)
 
 
-def input_torque_figure(analysis):
+def input_torque_figure(analysis: Analysis) -> Figure:
     """Input torque over one revolution per segment: recorded, theory and its parts."""
-    from qrm_ros.analysis.run_analysis import input_torque_parts
     recording = analysis.recording
     geometry, samples = recording.geometry, recording.samples
     shown = list(zip(analysis.rows, analysis.segments))[:MAX_TORQUE_PANELS]
@@ -264,10 +271,8 @@ def _cost_speeds(analysis):
                    if row['input_speed'] != 0.0 and math.isfinite(row['input_speed'])})
 
 
-def offset_cost_figure(analysis):
+def offset_cost_figure(analysis: Analysis) -> Figure:
     """Peak input torque and flywheel speed swing against δ/h: what the offset costs."""
-    from qrm_ros.analysis.run_analysis import flywheel_speed_swing
-    from qrm_ros.core.motor_drive import pair_efforts
     recording = analysis.recording
     geometry, drive = recording.geometry, recording.drive
     figure, (top, bottom) = plt.subplots(2, 1, figsize=(8, 8), sharex=True)
@@ -310,7 +315,7 @@ def offset_cost_figure(analysis):
     return figure
 
 
-FIGURES = {
+FIGURES: Dict[str, Callable[[Analysis], Figure]] = {
     'fig10_time_ratio.png': time_ratio_figure,
     'fig11_speed_ratio.png': speed_ratio_figure,
     'fig12_flywheel_speed.png': flywheel_speed_figure,
@@ -320,7 +325,8 @@ FIGURES = {
 }
 
 
-def write_figures(analysis, directory, stage=None):
+def write_figures(analysis: Analysis, directory: str,
+                  stage: Optional[Callable[[str], str]] = None) -> List[str]:
     """
     Write every figure as PNG into directory (created); return the paths.
 

@@ -22,10 +22,12 @@ the offset, down to 1/phi without. Artists carry gids so tests can read the data
 
 import os
 
+from matplotlib.figure import Figure
 import numpy as np
 
+from qrm_ros.analysis.plotting import plt
+from qrm_ros.core.gearbox import ConventionalGearbox, GearboxPlan
 from qrm_ros.recording.atomic_files import staged_outputs
-from qrm_ros.analysis.figures import plt
 
 BAND = 'band'
 REACH = 'reach'
@@ -35,7 +37,7 @@ WITH_OFFSET = 'with-offset'
 SAWTOOTH_POINTS = 2000
 
 
-def conventional_for(plan, progression_ratio):
+def conventional_for(plan: GearboxPlan, progression_ratio: float) -> ConventionalGearbox:
     """Return the plan's conventional gearbox with this progression ratio."""
     for box in plan.conventional:
         if box.progression_ratio == progression_ratio:
@@ -44,14 +46,15 @@ def conventional_for(plan, progression_ratio):
                      f'in the plan (it has {[b.progression_ratio for b in plan.conventional]})')
 
 
-def obtained_without_offset(box, wanted):
+def obtained_without_offset(box: ConventionalGearbox, wanted: np.ndarray) -> np.ndarray:
     """Cutting speed obtained without offset: the fastest step not above the wanted one."""
     speeds = np.asarray(box.cutting_speeds)
     index = np.searchsorted(speeds, wanted, side='right') - 1
     return speeds[np.clip(index, 0, None)]
 
 
-def speed_ladder_figure(plan, progression_ratio=1.41):
+def speed_ladder_figure(plan: GearboxPlan, progression_ratio: float = 1.41) -> Figure:
+    """Draw the ray diagram and the sawtooth chart of a plan, beside one conventional box."""
     box = conventional_for(plan, progression_ratio)
     figure, (rays, saw) = plt.subplots(1, 2, figsize=(12, 5.5))
     offsets = plan.offsets
@@ -97,7 +100,7 @@ def speed_ladder_figure(plan, progression_ratio=1.41):
     return figure
 
 
-def write_speed_ladder(plan, path, progression_ratio=1.41):
+def write_speed_ladder(plan: GearboxPlan, path: str, progression_ratio: float = 1.41) -> None:
     """Write the figure atomically; the format follows the name's extension (default PNG)."""
     figure = speed_ladder_figure(plan, progression_ratio)
     extension = os.path.splitext(path)[1].lstrip('.').lower() or 'png'

@@ -69,15 +69,15 @@ def mcap_recorder():
 
 
 def qrm_analyze():
-    return _run('qrm_ros.analysis.run_analysis')
+    return _run('qrm_ros.cli.qrm_analyze')
 
 
 def qrm_animate():
-    return _run('qrm_ros.analysis.animate')
+    return _run('qrm_ros.cli.qrm_animate')
 
 
 def qrm_design():
-    return _run('qrm_ros.analysis.design_table')
+    return _run('qrm_ros.cli.qrm_design')
 
 
 def qrm_main():
@@ -85,4 +85,4 @@ def qrm_main():
 
 
 def qrm_urdf():
-    return _run('qrm_ros.recording.urdf_model')
+    return _run('qrm_ros.cli.qrm_urdf')

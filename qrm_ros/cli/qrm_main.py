@@ -39,7 +39,7 @@ import sys
 import time
 from typing import List, Optional
 
-from qrm_ros.analysis import run_analysis as analysis
+from qrm_ros import analysis
 from qrm_ros.cli.exit_codes import (EXIT_FAILURE, EXIT_INCOMPLETE, EXIT_INTERRUPTED, EXIT_OK,
                                     exit_code_for_signal)
 from qrm_ros.core import kinematics as kin
@@ -57,7 +57,7 @@ DEFAULT_OFFSETS_MM = [-15.0, UNITY_SPEED_RATIO_MM, -10.0, -5.0, 0.0, 5.0, 10.0, 
 # Margin after the recorder's subscription appears before its data is surely flowing.
 RECORDER_SETTLE_TIME = 0.5
 CHILD_STOP_TIMEOUT = 15.0  # s, after SIGINT, before SIGKILL
-# Beside the figures: one input revolution at each of a few offsets (qrm_ros.analysis.animate).
+# Beside the figures: one input revolution at each of a few offsets (qrm_ros.analysis.animation).
 TOUR_FILE = 'offset_tour.gif'
 
 
@@ -239,10 +239,10 @@ def report(recording, folder):
 
 def _write_tour(result, path):
     """Write the linkage at a few offsets beside the figures; a failure only warns."""
-    from qrm_ros.analysis import animate  # matplotlib: only once there is something to draw
+    from qrm_ros.analysis import animation  # matplotlib: only once there is something to draw
     try:
-        return animate.write_offset_tour(result, path)
-    except (OSError, animate.AnimationError) as error:
+        return animation.write_offset_tour(result, path)
+    except (OSError, animation.AnimationError) as error:
         print(f'qrm_main: warning: no animation written: {error}', file=sys.stderr)
         return None
 

@@ -25,19 +25,15 @@ Numbers are written with 12 significant digits, so the file is the same on every
 (libm may differ in the last bit) and pins meet to about 1e-13 m.
 """
 
-import argparse
 import math
 import os
-import sys
 import tempfile
 import xml.etree.ElementTree as ET
 
-from qrm_ros.core import kinematics as kin
-from qrm_ros.analysis.design_table import add_geometry_arguments, geometry_from_arguments
 from qrm_ros.core.linkage import COLOURS, linkage_sizes
 from qrm_ros.core.names import JOINT_NAMES
 
-__all__ = ['BASE_LINK', 'ROBOT_NAME', 'URDF_FILE_NAME', 'main', 'urdf_text', 'write_urdf']
+__all__ = ['BASE_LINK', 'ROBOT_NAME', 'URDF_FILE_NAME', 'urdf_text', 'write_urdf']
 
 ROBOT_NAME = 'qrm_shaper'
 URDF_FILE_NAME = ROBOT_NAME + '.urdf'
@@ -248,32 +244,3 @@ def write_urdf(path, geometry, mass_properties=None):
     except BaseException:
         os.unlink(temporary)
         raise
-
-
-def main(argv=None):
-    parser = argparse.ArgumentParser(
-        prog='qrm_urdf',
-        description='Write the URDF of the shaper for a geometry (default: the node\'s '
-                    'default geometry, the paper\'s Table 1).')
-    parser.add_argument('-o', '--output', metavar='FILE',
-                        help='write to FILE (default: standard output)')
-    add_geometry_arguments(parser)
-    args = parser.parse_args(argv)
-    try:
-        geometry = geometry_from_arguments(args)
-        if args.output:
-            write_urdf(args.output, geometry)
-        else:
-            sys.stdout.write(urdf_text(geometry))
-    except kin.KinematicsError as error:
-        print(f'qrm_urdf: error: {error}', file=sys.stderr)
-        return 2
-    except OSError as error:
-        print(f'qrm_urdf: error: {error.filename or args.output}: {error.strerror}',
-              file=sys.stderr)
-        return 1
-    return 0
-
-
-if __name__ == '__main__':
-    sys.exit(main())

@@ -24,7 +24,7 @@ import sys
 from PIL import Image
 import pytest
 
-from qrm_ros.analysis import animate
+from qrm_ros.analysis import linkage_figure
 from qrm_ros.cli import qrm_main as main_job
 from qrm_ros.core import kinematics as kin
 from qrm_ros.core.dynamics import Loads
@@ -48,7 +48,7 @@ def test_main_job_runs_a_short_schedule_end_to_end(tmp_path, capsys):
          'ram_motion.png', 'fig_input_torque.png', 'fig_offset_cost.png', main_job.TOUR_FILE])
     # the last input revolution (0.5 s) of each offset at 20 frames per second, both ends
     with Image.open(folder / 'figures' / main_job.TOUR_FILE) as tour:
-        assert (tour.n_frames, tour.size) == (2 * 11, animate.FRAME_SIZE)
+        assert (tour.n_frames, tour.size) == (2 * 11, linkage_figure.FRAME_SIZE)
     assert f'qrm_main: animation  {folder / "figures" / main_job.TOUR_FILE}' in out
     assert str(folder / 'run.mcap') in out
     document = json.loads((folder / 'results.json').read_text())

@@ -44,7 +44,10 @@ import numpy as np
 import pytest
 from rosbags.typesys import get_typestore, Stores
 
-from qrm_ros.analysis import run_analysis as analysis
+from qrm_ros.analysis import measurement
+from qrm_ros.analysis import recorded_drive
+from qrm_ros.analysis import recorded_run
+from qrm_ros.analysis import segments
 from qrm_ros.core import dynamics as dyn
 from qrm_ros.core import kinematics as kin
 from qrm_ros.recording.bag_reader import open_run
@@ -383,7 +386,7 @@ def test_a_load_change_mid_run_is_recoverable_from_the_file(motor_log):
 @pytest.mark.parametrize('name', sorted(COMMANDED))
 def test_analysis_finds_the_commanded_settings_and_theory(name):
     path = os.path.join(DATA, name + '.mcap')
-    result = analysis.analyse(analysis.read_recording(path))
+    result = measurement.analyse(recorded_run.read_recording(path))
     assert [(row['offset'], row['input_speed']) for row in result.rows] == COMMANDED[name]
     for row in result.rows:
         assert row['stroke_pairs'] >= 2
@@ -397,7 +400,7 @@ def test_analysis_finds_the_commanded_settings_and_theory(name):
 def test_analysis_reads_a_motor_logs_drive_as_started(motor_log, request):
     """The analysis takes the drive, masses and loads from the metadata: the start-up values."""
     path = request.node.callspec.params['motor_log']
-    drive = analysis.read_recording(path).drive
+    drive = recorded_run.read_recording(path).drive
     mass, loads, motor = _dynamics(motor_log.parameters)
     assert [part.as_dict() for part in drive] == [part.as_dict() for part in (mass, loads, motor)]
 
@@ -427,9 +430,9 @@ def _steady_spans(log, samples):
         settled = (max(samples.time[start] + ramp, samples.time[at_rest[0]])
                    + 30.0 * inertia / motor.speed_stiffness)
         held = [k for k in at_rest if samples.time[k] >= settled]
-        yield (analysis.Segment(held[0], held[-1] + 1, parameters['coupling_offset'],
+        yield (segments.Segment(held[0], held[-1] + 1, parameters['coupling_offset'],
                                 parameters['input_speed']),
-               analysis.Drive(mass, loads, motor))
+               recorded_drive.Drive(mass, loads, motor))
 
 
 def _motor_bounds(geometry, samples, segment, row, loads):
@@ -479,15 +482,15 @@ def test_analysis_measures_a_motor_logs_efforts_within_sampling(motor_log, reque
 
     The settled spans are given here (qrm_analyze's own segments start at the ramp's end,
     settling included: the test below); each is
-    measured by analysis.measure_segment with the drive in force there (the load change
+    measured by measurement.measure_segment with the drive in force there (the load change
     included), against motor_drive.speed_fluctuation's steady state.
     """
     path = request.node.callspec.params['motor_log']
-    recording = analysis.read_recording(path)
+    recording = recorded_run.read_recording(path)
     samples = recording.samples
     rows = 0
     for segment, drive in _steady_spans(motor_log, samples):
-        row = analysis.measure_segment(samples, segment, recording.geometry, drive)
+        row = measurement.measure_segment(samples, segment, recording.geometry, drive)
         assert row['stroke_pairs'] >= 2 and row['stroke_pairs_with_efforts'] >= 2
         bounds = _motor_bounds(recording.geometry, samples, segment, row, drive.loads)
         for name, bound in bounds.items():
@@ -501,7 +504,7 @@ def test_analysis_finds_a_motor_logs_commanded_settings(request, motor_log):
     # One segment per held setting: the offset, the speed reference (recovered from each
     # sample's speed and torque, to round-off) and the loads (the 800 N change splits one).
     path = request.node.callspec.params['motor_log']
-    result = analysis.analyse(analysis.read_recording(path))
+    result = measurement.analyse(recorded_run.read_recording(path))
     settings = [(motor_log.parameters['coupling_offset'], motor_log.parameters['input_speed'])]
     for _, name, value in motor_log.events:
         offset, speed = settings[-1]

@@ -26,7 +26,8 @@ import pytest
 
 from qrm_ros.core import kinematics as kin
 from qrm_ros.core.names import JOINT_NAMES
-from qrm_ros.recording.urdf_model import BASE_LINK, main, URDF_FILE_NAME, urdf_text, write_urdf
+from qrm_ros.cli.qrm_urdf import main
+from qrm_ros.recording.urdf_model import BASE_LINK, URDF_FILE_NAME, urdf_text, write_urdf
 from repo_paths import REPO_ROOT
 
 yourdfpy = pytest.importorskip('yourdfpy')

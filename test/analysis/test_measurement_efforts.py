@@ -38,7 +38,13 @@ import time
 import numpy as np
 import pytest
 
-from qrm_ros.analysis import run_analysis as analysis
+from qrm_ros.analysis import joint_state_decoding
+from qrm_ros.analysis import measurement
+from qrm_ros.analysis import recorded_drive
+from qrm_ros.analysis import recorded_run
+from qrm_ros.analysis import report
+from qrm_ros.analysis import segments
+from qrm_ros.analysis import theory
 from qrm_ros.analysis import figures
 from qrm_ros.core import motor_drive
 from qrm_ros.core import dynamics as dyn
@@ -111,7 +117,7 @@ def synthetic(tmp_path_factory):
     """Three offsets at 500 Hz with the small shaper's masses and loads (core efforts)."""
     path = tmp_path_factory.mktemp('efforts') / 'run.mcap'
     write_run(path, PAPER, [-0.012, 0.0, 0.015], hold=2.3, rate=500.0, mass=MASS, loads=LOADS)
-    return analysis.analyse(analysis.read_recording(str(path)))
+    return measurement.analyse(recorded_run.read_recording(str(path)))
 
 
 def test_recorded_parameters_give_the_theory(synthetic):
@@ -138,15 +144,15 @@ def test_flywheel_speed_swing_is_eq4s_extremes():
     theta = np.linspace(0.0, 2 * math.pi, 200_001)
     for offset in (-0.02, -0.005, 0.0, 0.0111, 0.02):
         speed = kin.state(PAPER, offset, theta, 1.0).flywheel_speed
-        assert analysis.flywheel_speed_swing(PAPER, offset) == pytest.approx(
+        assert theory.flywheel_speed_swing(PAPER, offset) == pytest.approx(
             speed.max() / speed.min(), rel=1e-12)
 
 
 def test_input_torque_parts_add_up_and_mean_what_they_say():
-    drive = analysis.Drive(MASS, LOADS, None)
+    drive = recorded_drive.Drive(MASS, LOADS, None)
     theta = np.linspace(0.0, 2 * math.pi, 3001)
     speed, offset = 5.0, 0.01
-    parts = analysis.input_torque_parts(PAPER, drive, offset, theta, speed)
+    parts = theory.input_torque_parts(PAPER, drive, offset, theta, speed)
     motion = kin.state(PAPER, offset, theta, speed)
     load = dyn.ram_load_force(LOADS, motion.ram_position, motion.ram_velocity, PAPER.ram_stroke)
     total = dyn.efforts(PAPER, MASS, offset, theta, speed, external_ram_force=load).input_torque
@@ -165,8 +171,8 @@ def test_input_torque_parts_add_up_and_mean_what_they_say():
 
 def test_fast_decoding_reads_the_efforts_as_rosbags_does(synthetic, monkeypatch):
     path = synthetic.recording.path
-    monkeypatch.setattr(analysis, 'FAST_DECODING', False)
-    slow = analysis.read_recording(path)
+    monkeypatch.setattr(joint_state_decoding, 'FAST_DECODING', False)
+    slow = recorded_run.read_recording(path)
     for name, values in slow.samples._asdict().items():
         np.testing.assert_array_equal(getattr(synthetic.recording.samples, name), values,
                                       err_msg=name)
@@ -174,7 +180,7 @@ def test_fast_decoding_reads_the_efforts_as_rosbags_does(synthetic, monkeypatch)
 
 
 def test_effort_keys_in_json_and_csv(synthetic, tmp_path):
-    analysis.write_outputs(synthetic, str(tmp_path / 'r.csv'), str(tmp_path / 'r.json'))
+    report.write_outputs(synthetic, str(tmp_path / 'r.csv'), str(tmp_path / 'r.json'))
     document = json.loads((tmp_path / 'r.json').read_text())
     header = (tmp_path / 'r.csv').read_text().splitlines()[0].split(',')
     for name in EFFORT_FIGURES + ('speed_fluctuation', 'flywheel_speed_swing'):
@@ -186,7 +192,7 @@ def test_effort_keys_in_json_and_csv(synthetic, tmp_path):
 
 
 def test_table_shows_the_efforts(synthetic):
-    table = analysis.format_table(synthetic)
+    table = report.format_table(synthetic)
     assert 'efforts: theory for the recorded masses and loads, ideal speed drive' in table
     row = synthetic.rows[2]
     assert f'{row["peak_input_torque_theory"]:10.4f}' in table
@@ -208,8 +214,8 @@ def test_input_torque_figure_plots_the_theory_and_the_recorded_torque(synthetic,
         assert len(lines) == len(synthetic.rows)
         for line, row in zip(lines, synthetic.rows):
             theta, torque = line.get_data()
-            parts = analysis.input_torque_parts(PAPER, drive, row['offset'], np.radians(theta),
-                                                row['input_speed'])
+            parts = theory.input_torque_parts(PAPER, drive, row['offset'], np.radians(theta),
+                                              row['input_speed'])
             np.testing.assert_allclose(torque, getattr(parts, name), rtol=1e-12, atol=1e-9)
     samples = synthetic.recording.samples
     for line in _lines(figure, 'recorded'):
@@ -239,12 +245,12 @@ def test_offset_cost_figure_plots_pair_efforts_and_eq4(synthetic):
 @pytest.mark.parametrize('log', GOLDEN)
 def test_golden_logs_without_efforts_analyse_as_before(log, tmp_path):
     """Recorded before the node published efforts: kinematics as ever, efforts absent."""
-    recording = analysis.read_recording(os.path.join(DATA, log))
+    recording = recorded_run.read_recording(os.path.join(DATA, log))
     assert recording.samples.input_torque is None and recording.samples.offset_force is None
     assert recording.drive is None
     assert 'lacks' in recording.drive_problem and 'cutting_force' in recording.drive_problem
     assert recording.complete
-    result = analysis.analyse(recording)
+    result = measurement.analyse(recording)
     for row in result.rows:
         assert row['stroke_pairs_with_efforts'] == 0
         for name in EFFORT_FIGURES:
@@ -252,7 +258,7 @@ def test_golden_logs_without_efforts_analyse_as_before(log, tmp_path):
         assert row['speed_fluctuation_measured'] == 0.0  # the speed is recorded
         assert row['flywheel_speed_swing_measured'] == pytest.approx(
             row['flywheel_speed_swing_theory'], rel=(abs(row['input_speed']) * 0.01) ** 3)
-    assert 'efforts: not recorded in this file' in analysis.format_table(result)
+    assert 'efforts: not recorded in this file' in report.format_table(result)
     figure = figures.input_torque_figure(result)
     texts = [text.get_text() for axes in figure.axes for text in axes.texts]
     assert texts and all('not recorded' in text for text in texts)
@@ -260,19 +266,22 @@ def test_golden_logs_without_efforts_analyse_as_before(log, tmp_path):
 
 
 def test_missing_or_bad_parameters_say_why_there_is_no_theory():
-    assert analysis._drive(None, PAPER) == (None, 'the file has no qrm_ros.parameters metadata')
+    assert recorded_drive.drive_from_metadata(None, PAPER) == (
+        None, 'the file has no qrm_ros.parameters metadata')
     stored = {name: json.dumps(value) for name, value in {**MASS.as_dict(),
                                                           **LOADS.as_dict()}.items()}
-    drive, problem = analysis._drive(stored, PAPER)
+    drive, problem = recorded_drive.drive_from_metadata(stored, PAPER)
     assert problem is None and drive.motor is None
     long_cut = dict(stored, cutting_length='0.5')
-    assert 'cutting_length = 0.5 m is out of range' in analysis._drive(long_cut, PAPER)[1]
+    assert 'cutting_length = 0.5 m is out of range' in recorded_drive.drive_from_metadata(
+        long_cut, PAPER)[1]
     odd = dict(stored, drive='"steam"')
-    assert "the recorded drive 'steam' is unknown" in analysis._drive(odd, PAPER)[1]
+    assert "the recorded drive 'steam' is unknown" in recorded_drive.drive_from_metadata(
+        odd, PAPER)[1]
     motor = dict(stored, drive='"motor"', motor_speed_stiffness='360.0')
-    assert analysis._drive(motor, PAPER)[1].endswith(
+    assert recorded_drive.drive_from_metadata(motor, PAPER)[1].endswith(
         'lacks motor_max_torque (recorded before the node had them)')
-    drive, _ = analysis._drive(dict(motor, motor_max_torque='250.0'), PAPER)
+    drive, _ = recorded_drive.drive_from_metadata(dict(motor, motor_max_torque='250.0'), PAPER)
     assert drive.motor.as_dict() == {'speed_stiffness': 360.0, 'max_torque': 250.0}
 
 
@@ -311,7 +320,7 @@ def real_run(tmp_path_factory):
         if recorder is not None:
             _stop(recorder)
         _stop(sim)
-    return analysis.analyse(analysis.read_recording(path))
+    return measurement.analyse(recorded_run.read_recording(path))
 
 
 def test_a_real_recording_measures_the_theory(real_run):
@@ -330,10 +339,10 @@ def _motor_samples(simulation, offset=0.01):
     """Samples of a motor simulation (the fields the segmenting reads; the ram's exact)."""
     motion = kin.state(PAPER, offset, simulation.input_angle, simulation.input_speed)
     zeros = np.zeros(simulation.time.shape)
-    return analysis.Samples(simulation.time, simulation.input_angle, simulation.input_speed,
-                            motion.flywheel_angle, motion.flywheel_speed, motion.ram_position,
-                            motion.ram_velocity, zeros + offset, zeros,
-                            simulation.efforts.input_torque, simulation.efforts.offset_force)
+    return recorded_run.Samples(simulation.time, simulation.input_angle, simulation.input_speed,
+                                motion.flywheel_angle, motion.flywheel_speed,
+                                motion.ram_position, motion.ram_velocity, zeros + offset, zeros,
+                                simulation.efforts.input_torque, simulation.efforts.offset_force)
 
 
 def test_the_motor_speed_reference_is_recovered_from_each_sample():
@@ -347,15 +356,15 @@ def test_the_motor_speed_reference_is_recovered_from_each_sample():
     np.testing.assert_allclose(simulation.efforts.input_torque, simulation.motor_torque,
                                rtol=0.0, atol=1e-12 * motor.max_torque)
     reference = np.minimum(4.0 + 4.0 * simulation.time, 2 * math.pi)
-    found = analysis.setting_speed(_motor_samples(simulation),
-                                   analysis.Drive(mass, LOADS, motor))
+    found = segments.setting_speed(_motor_samples(simulation),
+                                   recorded_drive.Drive(mass, LOADS, motor))
     limited = np.abs(simulation.motor_torque) >= motor.max_torque
     assert limited.any() and not limited.all()  # the ramp's start pulls at the limit
     assert np.all(np.isnan(found[limited]))
     np.testing.assert_allclose(found[~limited], reference[~limited], rtol=1e-13)
     # Under the ideal speed drive the setting is the recorded speed itself.
     samples = _motor_samples(simulation)
-    assert analysis.setting_speed(samples, analysis.Drive(mass, LOADS, None)) is (
+    assert segments.setting_speed(samples, recorded_drive.Drive(mass, LOADS, None)) is (
         samples.input_speed)
 
 
@@ -366,14 +375,14 @@ def test_a_motor_run_is_one_segment_per_setting_and_a_load_change_splits_it():
     samples = _motor_samples(simulation)
     assert np.ptp(samples.input_speed) > 1e-3  # it fluctuates: no run of equal speeds
     heavier = dyn.Loads(2 * LOADS.cutting_force, LOADS.ram_friction, LOADS.cutting_length)
-    spans = (analysis.DriveSpan(-math.inf, analysis.Drive(mass, LOADS, motor), None),
-             analysis.DriveSpan(2.0025, analysis.Drive(mass, heavier, motor), None))
+    spans = (recorded_drive.DriveSpan(-math.inf, recorded_drive.Drive(mass, LOADS, motor), None),
+             recorded_drive.DriveSpan(2.0025, recorded_drive.Drive(mass, heavier, motor), None))
     # The simulation ran the first load throughout; only the segmenting is under test here.
-    segments, transitions = analysis.split_segments(samples, spans[:1])
-    assert [(s.start, s.end) for s in segments] == [(0, samples.time.size)]
-    assert segments[0].input_speed == pytest.approx(2 * math.pi, rel=1e-13)
-    segments, transitions = analysis.split_segments(samples, spans)
-    assert [(s.start, s.end) for s in segments] == [(0, 401), (401, samples.time.size)]
-    assert [s.drive for s in segments] == [span.drive for span in spans]
+    found, transitions = segments.split_segments(samples, spans[:1])
+    assert [(s.start, s.end) for s in found] == [(0, samples.time.size)]
+    assert found[0].input_speed == pytest.approx(2 * math.pi, rel=1e-13)
+    found, transitions = segments.split_segments(samples, spans)
+    assert [(s.start, s.end) for s in found] == [(0, 401), (401, samples.time.size)]
+    assert [s.drive for s in found] == [span.drive for span in spans]
     assert transitions[0]['change'] == (
         f'cutting_force {LOADS.cutting_force!r} -> {heavier.cutting_force!r}')

@@ -29,6 +29,7 @@ import numpy as np
 import pytest
 
 from qrm_ros.analysis import design_table
+from qrm_ros.cli import qrm_design
 from qrm_ros.core import kinematics as kin
 
 R1, R, H_PIVOT = 0.025, 0.0505, 0.113
@@ -38,7 +39,7 @@ R1, R, H_PIVOT = 0.025, 0.0505, 0.113
 def printed():
     buffer = io.StringIO()
     with redirect_stdout(buffer):
-        assert design_table.main([]) == 0
+        assert qrm_design.main([]) == 0
     return buffer.getvalue()
 
 
@@ -87,22 +88,22 @@ def test_printed_stroke_is_the_closed_form(printed):
 
 
 def test_bad_geometry_exits_with_a_message(capsys):
-    assert design_table.main(['--crank-radius', '0.2']) == 2
+    assert qrm_design.main(['--crank-radius', '0.2']) == 2
     assert 'crank_radius' in capsys.readouterr().err
-    assert design_table.main(['--offsets-mm', '30']) == 2
+    assert qrm_design.main(['--offsets-mm', '30']) == 2
     assert 'offset 0.03 m is out of range' in capsys.readouterr().err
 
 
 def test_usage_errors_exit_2_naming_the_argument(capsys):
     # One exit-code policy for every command: 2 for usage or configuration errors.
     with pytest.raises(SystemExit) as stopped:
-        design_table.main(['--input-speed', 'fast'])
+        qrm_design.main(['--input-speed', 'fast'])
     assert stopped.value.code == 2
     assert '--input-speed' in capsys.readouterr().err
 
 
 def run_design(argv, capsys):
-    code = design_table.main(argv)
+    code = qrm_design.main(argv)
     captured = capsys.readouterr()
     return code, captured.out, captured.err
 
@@ -195,16 +196,16 @@ def test_gearbox_usage_errors_exit_2(capsys):
     for argv in (['gearbox'], GEARBOX_ARGS + ['--definition', 'median'],
                  GEARBOX_ARGS + ['--progression-ratio', '1.3']):
         with pytest.raises(SystemExit) as stopped:
-            design_table.main(argv)
+            qrm_design.main(argv)
         assert stopped.value.code == 2
     assert '--progression-ratio' in capsys.readouterr().err
 
 
 def test_subcommands_are_listed_in_the_table_help(capsys):
     with pytest.raises(SystemExit):
-        design_table.main(['--help'])
+        qrm_design.main(['--help'])
     assert 'qrm_design gearbox --help' in capsys.readouterr().out
-    assert set(design_table.SUBCOMMANDS) >= {'gearbox'}
+    assert set(qrm_design.SUBCOMMANDS) >= {'gearbox'}
 
 
 def test_gearbox_figure_draws_the_plan(tmp_path, capsys):
@@ -215,7 +216,7 @@ def test_gearbox_figure_draws_the_plan(tmp_path, capsys):
     assert [p.name for p in tmp_path.iterdir()] == ['ladder.png']  # no temporary left
     from qrm_ros.core import gearbox
     from qrm_ros.analysis import gearbox_figure
-    from qrm_ros.analysis.figures import plt
+    from qrm_ros.analysis.plotting import plt
     data = json.loads(out)
     plan = gearbox.plan_gearbox(kin.Geometry.paper(), 0.1, 0.5)
     figure = gearbox_figure.speed_ladder_figure(plan, 1.41)

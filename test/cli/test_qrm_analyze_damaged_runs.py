@@ -30,8 +30,10 @@ import os
 
 import pytest
 
+from qrm_ros.analysis import recorded_run
+from qrm_ros.cli import exit_codes
+from qrm_ros.cli import qrm_analyze
 from damaged_runs import cases
-from qrm_ros.analysis import run_analysis as analysis
 from repo_paths import TEST_DATA
 
 DATA = TEST_DATA
@@ -58,7 +60,7 @@ def baselines(logs, tmp_path_factory):
     for name, data in logs.items():
         path = folder / f'{name}.mcap'
         path.write_bytes(data)
-        assert analysis.main([str(path), '--json', str(folder / f'{name}.json')]) == 0
+        assert qrm_analyze.main([str(path), '--json', str(folder / f'{name}.json')]) == 0
         found[name] = json.loads((folder / f'{name}.json').read_text())
     return found
 
@@ -76,13 +78,13 @@ def test_damaged_run_ends_cleanly_and_loses_nothing_silently(number, fuzz_cases,
     run = tmp_path / 'run.mcap'
     run.write_bytes(case.data)
     output = tmp_path / 'out.json'
-    code = analysis.main([str(run), '--json', str(output)])
+    code = qrm_analyze.main([str(run), '--json', str(output)])
     out, err = capsys.readouterr()
     context = f'{case.name}: exit {code}\n{err}'
     assert 'Traceback' not in err + out, context
     assert code in case.allowed, context
     assert not [p for p in os.listdir(tmp_path) if p.endswith('.part')], context
-    if code == analysis.EXIT_BAD_INPUT:
+    if code == exit_codes.EXIT_BAD_INPUT:
         assert len(err.strip().splitlines()) == 1 and err.startswith('qrm_analyze: error: '), \
             context
         assert not output.exists(), context
@@ -91,13 +93,14 @@ def test_damaged_run_ends_cleanly_and_loses_nothing_silently(number, fuzz_cases,
     counts, losses = document['messages'], document['losses']
     # Messages used without their efforts are counted in used.
     excluded = sum(loss['messages'] for loss in losses
-                   if loss['stage'] == analysis.IN_MESSAGE)
+                   if loss['stage'] == recorded_run.IN_MESSAGE)
     assert counts['read'] == counts['used'] + counts['repeated'] + excluded, context
-    unknown = any(loss['messages'] is None for loss in losses if loss['stage'] == analysis.IN_FILE)
+    unknown = any(loss['messages'] is None for loss in losses
+                  if loss['stage'] == recorded_run.IN_FILE)
     if not unknown:
-        lost = sum(loss['messages'] for loss in losses if loss['stage'] == analysis.IN_FILE)
+        lost = sum(loss['messages'] for loss in losses if loss['stage'] == recorded_run.IN_FILE)
         assert counts['read'] + lost == case.messages, context
-    if code == analysis.EXIT_OK:
+    if code == exit_codes.EXIT_OK:
         assert document['complete'] and not losses, context
         assert counts['used'] + counts['repeated'] == case.messages, context
     else:

@@ -34,6 +34,8 @@ import pytest
 from scipy import integrate
 
 from qrm_ros.analysis import design_table
+from qrm_ros.cli import arguments
+from qrm_ros.cli import qrm_design
 from qrm_ros.core import dynamics as dyn
 from qrm_ros.core import motor_drive as md
 from qrm_ros.core.geometry import Geometry
@@ -51,7 +53,7 @@ README = Path(REPO_ROOT) / 'README.md'
 
 
 def run_design(argv, capsys):
-    code = design_table.main(argv)
+    code = qrm_design.main(argv)
     captured = capsys.readouterr()
     return code, captured.out, captured.err
 
@@ -94,7 +96,7 @@ def table():
     for argv in (['--json'], []):
         buffer = io.StringIO()
         with redirect_stdout(buffer):
-            assert design_table.main(argv) == 0
+            assert qrm_design.main(argv) == 0
         outputs.append(buffer.getvalue())
     return json.loads(outputs[0]), outputs[1]
 
@@ -233,7 +235,7 @@ def sized():
     """The README's worked example, as JSON (the default motor: fast to simulate)."""
     buffer = io.StringIO()
     with redirect_stdout(buffer):
-        assert design_table.main(FLYWHEEL_ARGS + ['--json']) == 0
+        assert qrm_design.main(FLYWHEEL_ARGS + ['--json']) == 0
     return json.loads(buffer.getvalue())
 
 
@@ -401,10 +403,10 @@ def test_flywheel_refusals_are_one_line_exit_2(capsys, extra, words):
 def test_flywheel_usage_errors_exit_2(capsys):
     for argv in (['flywheel'], ['flywheel', '--fluctuation', 'small']):
         with pytest.raises(SystemExit) as stopped:
-            design_table.main(argv)
+            qrm_design.main(argv)
         assert stopped.value.code == 2
     with pytest.raises(SystemExit):
-        design_table.main(['--help'])
+        qrm_design.main(['--help'])
     assert 'qrm_design flywheel --help' in capsys.readouterr().out
 
 
@@ -420,7 +422,7 @@ def test_readme_speed_fluctuation_at_the_largest_default_offset(capsys):
 
 def test_drive_options_are_the_node_parameter_names():
     from qrm_ros.node import shaper_parameters
-    names = {name for kind, prefix, _ in design_table.DRIVE_PARAMETER_SETS
+    names = {name for kind, prefix, _ in arguments.DRIVE_PARAMETER_SETS
              for name in (prefix + field for field in kind.field_names())}
     assert names <= set(shaper_parameters.PARAMETERS)
 

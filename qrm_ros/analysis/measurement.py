@@ -1,0 +1,187 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+Measurement of a recorded run against the closed form, one steady segment at a time.
+
+In each segment every stroke pair is measured (qrm_ros.core.strokes: reversals and peaks
+located between samples): the time ratio TR, the speed ratio SR, stroke times and speeds,
+and, when the joint states carry them, the drive's efforts, speed fluctuation and flywheel
+speed swing. Each figure's mean and spread over the pairs stands beside its theory for the
+recorded geometry and drive, with the relative error.
+"""
+
+import contextlib
+import math
+from typing import Any, Dict, List, NamedTuple, Optional, Tuple
+
+import numpy as np
+from scipy import interpolate
+
+from qrm_ros.analysis.recorded_drive import Drive
+from qrm_ros.analysis.recorded_run import Recording, Samples
+from qrm_ros.analysis.segments import Segment, split_segments
+from qrm_ros.analysis.theory import flywheel_speed_swing
+from qrm_ros.core import kinematics as kin
+from qrm_ros.core.effort_theory import (EFFORT_FIGURES, Setting, steady_effort_theory,
+                                        THEORY_FIGURES, ZERO_CAN_BE_EXACT)
+from qrm_ros.core.strokes import find_stroke_pairs, measure_pair_efforts
+
+
+def finite_or_none(value: Any) -> Any:
+    """Map NaN and infinities (and numpy scalars) to JSON-safe values, recursively."""
+    if isinstance(value, dict):
+        return {key: finite_or_none(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [finite_or_none(item) for item in value]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else None
+    return value
+
+
+def _relative_error(measured: float, theory: float) -> Optional[float]:
+    if not (math.isfinite(measured) and math.isfinite(theory)) or theory == 0.0:
+        return None
+    return measured / theory - 1.0
+
+
+def _mean_and_spread(values) -> Tuple[Optional[float], Optional[float]]:
+    values = np.asarray(values, dtype=float)
+    values = values[np.isfinite(values)]
+    if values.size == 0:
+        return None, None
+    spread = float(np.std(values, ddof=1)) if values.size > 1 else 0.0
+    return float(np.mean(values)), spread
+
+
+def _speed_extremes(time: np.ndarray, angle: np.ndarray, speed: np.ndarray,
+                    starts: np.ndarray, ends: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """
+    Max and min of a sampled speed over each [start, end], between samples too.
+
+    The angle is taken as scipy's cubic Hermite interpolant of the sampled angles and speeds
+    (its derivative matches every sample), so a peak between samples is found where that
+    derivative turns, to O((w dt)^3), not at the nearest sample.
+    """
+    rate = interpolate.CubicHermiteSpline(time, np.unwrap(angle), speed).derivative()
+    turning = rate.derivative().roots(extrapolate=False)
+    high, low = np.empty(starts.size), np.empty(starts.size)
+    for index, (start, end) in enumerate(zip(starts, ends)):
+        inside = np.concatenate([[start, end], turning[(turning > start) & (turning < end)]])
+        values = np.concatenate([rate(inside), speed[(time > start) & (time < end)]])
+        high[index], low[index] = np.max(values), np.min(values)
+    return high, low
+
+
+def _measured_and_theory(row: Dict[str, Any], name: str, values: np.ndarray,
+                         theory: Optional[float]) -> None:
+    """Put a figure's mean and spread over pairs, its theory and relative error in row."""
+    mean, spread = _mean_and_spread(values)
+    row[f'{name}_measured'] = mean
+    row[f'{name}_measured_std'] = spread
+    row[f'{name}_theory'] = finite_or_none(theory)
+    row[f'{name}_relative_error'] = (None if mean is None or row[f'{name}_theory'] is None
+                                     else _relative_error(mean, row[f'{name}_theory']))
+
+
+def _not_recorded(samples: Samples) -> np.ndarray:
+    return np.full(samples.time.shape, np.nan)
+
+
+def measure_segment(samples: Samples, segment: Segment, geometry: kin.Geometry,
+                    drive: Optional[Drive] = None) -> Dict[str, Any]:
+    """Measured and theoretical figures of one steady segment, as a JSON-ready dict."""
+    span = slice(segment.start, segment.end)
+    pairs = find_stroke_pairs(samples.time[span], samples.ram_position[span],
+                              samples.ram_velocity[span])
+    row: Dict[str, Any] = {
+        'offset': segment.offset,
+        'offset_over_pivot_distance': segment.offset / geometry.pivot_distance,
+        'input_speed': segment.input_speed,
+        'start_time': float(samples.time[segment.start]),
+        'end_time': float(samples.time[segment.end - 1]),
+        'stroke_pairs': int(len(pairs.time_ratio)),
+        'samples_per_revolution': None,
+    }
+    if segment.input_speed != 0.0:
+        step = float(np.median(np.diff(samples.time[span])))
+        row['samples_per_revolution'] = 2 * math.pi / (abs(segment.input_speed) * step)
+    measured = {
+        'time_ratio': pairs.time_ratio, 'speed_ratio': pairs.speed_ratio,
+        'peak_speed_ratio': pairs.peak_speed_ratio, 'cutting_time': pairs.cutting_time,
+        'return_time': pairs.return_time, 'peak_cutting_speed': pairs.peak_cutting_speed,
+        'peak_return_speed': pairs.peak_return_speed}
+    theory: Dict[str, Any] = {name: None for name in measured}
+    if segment.input_speed != 0.0 and abs(segment.offset) < geometry.coupling_radius:
+        with contextlib.suppress(kin.KinematicsError):  # e.g. a speed too large to be finite
+            theory.update(kin.steady_theory(geometry, segment.offset,
+                                            segment.input_speed)._asdict())
+    for name, values in measured.items():
+        _measured_and_theory(row, name, values, theory[name])
+    _measure_efforts(row, samples, span, pairs, geometry, drive)
+    return row
+
+
+def _measure_efforts(row: Dict[str, Any], samples: Samples, span: slice, pairs: Any,
+                     geometry: kin.Geometry, drive: Optional[Drive]) -> None:
+    """Add the drive's figures per pair (efforts, speed fluctuation, flywheel swing) to row."""
+    time = samples.time[span]
+    torque = samples.input_torque if samples.input_torque is not None else _not_recorded(
+        samples)
+    force = samples.offset_force if samples.offset_force is not None else _not_recorded(
+        samples)
+    measured = measure_pair_efforts(time, samples.input_speed[span], torque[span], force[span],
+                                    pairs)
+    row['stroke_pairs_with_efforts'] = int(np.count_nonzero(
+        np.isfinite(measured.energy_per_pair)))
+    theory = (dict.fromkeys(THEORY_FIGURES) if drive is None else steady_effort_theory(
+        Setting(geometry, drive.mass, drive.loads, drive.motor, row['offset'],
+                row['input_speed'])))
+    for name in EFFORT_FIGURES:
+        _measured_and_theory(row, name, getattr(measured, name), theory[name])
+    _measured_and_theory(row, 'speed_fluctuation', measured.speed_fluctuation,
+                         theory['speed_fluctuation'])
+    for name in ZERO_CAN_BE_EXACT:
+        mean, expected = row[f'{name}_measured'], row[f'{name}_theory']
+        row[f'{name}_absolute_error'] = (None if mean is None or expected is None
+                                         else mean - expected)
+    swing = np.empty(0)
+    if pairs.cutting_start.size:
+        high, low = _speed_extremes(time, samples.flywheel_angle[span],
+                                    samples.flywheel_speed[span], pairs.cutting_start,
+                                    pairs.return_end)
+        # The flywheel turns one way within a pair (w2 / w1 > 0), so |max| / |min| is it.
+        swing = np.maximum(np.abs(high), np.abs(low)) / np.minimum(np.abs(high), np.abs(low))
+    swing_theory = (flywheel_speed_swing(geometry, row['offset'])
+                    if abs(row['offset']) < geometry.coupling_radius else None)
+    _measured_and_theory(row, 'flywheel_speed_swing', swing, swing_theory)
+
+
+class Analysis(NamedTuple):
+    recording: Recording
+    segments: List[Segment]
+    rows: List[Dict[str, Any]]
+    transitions: List[Dict[str, Any]]
+
+
+def analyse(recording: Recording) -> Analysis:
+    """Segment the recording and measure every segment against the closed form."""
+    with np.errstate(all='ignore'):  # absurd recorded values give inf/NaN, reported as null
+        segments, transitions = split_segments(recording.samples, recording.drive_spans())
+        rows = [measure_segment(recording.samples, s, recording.geometry, s.drive)
+                for s in segments]
+    return Analysis(recording, segments, rows, transitions)

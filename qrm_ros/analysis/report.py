@@ -1,0 +1,220 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+What an analysis tells: the table a person reads, the CSV, the JSON, and what was lost.
+
+The outputs are written all or none (qrm_ros.recording.atomic_files): a failure leaves no
+half-written file. JSON holds null where a figure is not finite.
+"""
+
+import contextlib
+import csv
+import json
+import os
+from typing import Any, Dict, List, Optional
+
+import numpy as np
+
+from qrm_ros.analysis.joint_state_decoding import JOINT_STATES_TOPIC
+from qrm_ros.analysis.measurement import Analysis, finite_or_none
+from qrm_ros.analysis.recorded_run import IN_EFFORTS, IN_FILE, IN_MESSAGE, Recording
+from qrm_ros.recording.atomic_files import staged_outputs
+
+# Below this, the between-sample interpolation can miss sharp speed peaks (large offsets).
+MIN_SAMPLES_PER_REVOLUTION = 60
+_LOSS_VERBS = {IN_FILE: 'lost', IN_MESSAGE: 'excluded', IN_EFFORTS: 'used without their efforts'}
+
+
+def _fmt(value, spec):
+    width = spec.lstrip('+-').split('.')[0]
+    return format('-', '>' + width) if value is None else format(value, spec)
+
+
+def format_table(analysis: Analysis) -> str:
+    """Return the per-segment table a person reads, with warnings and transitions."""
+    recording = analysis.recording
+    geometry = recording.geometry
+    samples = recording.samples
+    span = float(np.ptp(samples.time)) if samples.time.size else 0.0
+    lines = [
+        f'{recording.path}: {samples.time.size} joint-state samples over {span:.3f} s',
+        f'geometry: r1 = {geometry.coupling_radius * 1e3:g} mm, r = '
+        f'{geometry.crank_radius * 1e3:g} mm, h = {geometry.pivot_distance * 1e3:g} mm, '
+        f'H = {geometry.ram_height * 1e3:g} mm, crank phase = {geometry.crank_phase:g} rad',
+        '',
+        ' offset  offset/h    input  pairs |      TR measured  TR theory  rel.err |'
+        '      SR measured  SR theory  rel.err | peak SR measured  theory   rel.err',
+        '   [mm]       [-]  [rad/s]    [-] |                                      |'
+        '                                      |',
+    ]
+    for row in analysis.rows:
+        parts = [f'{row["offset"] * 1e3:7.2f} {row["offset_over_pivot_distance"]:+9.5f} '
+                 f'{row["input_speed"]:8.4f} {row["stroke_pairs"]:6d} |']
+        for name in ('time_ratio', 'speed_ratio', 'peak_speed_ratio'):
+            mean, spread = row[f'{name}_measured'], row[f'{name}_measured_std']
+            measured = '-' if mean is None else f'{mean:8.5f} ± {spread:.1e}'
+            parts.append(f' {measured:>16} {_fmt(row[name + "_theory"], "10.5f")} '
+                         f'{_fmt(row[name + "_relative_error"], "+8.1e")} |')
+        lines.append(''.join(parts)[:-2])
+    if not analysis.rows:
+        lines.append('  (no segment of steady offset and input speed)')
+    lines += _effort_lines(analysis)
+    for row in analysis.rows:
+        per_turn = row['samples_per_revolution']
+        if per_turn is not None and per_turn < MIN_SAMPLES_PER_REVOLUTION:
+            lines.append(
+                f'warning: offset {row["offset"] * 1e3:g} mm at {row["input_speed"]:g} rad/s '
+                f'has only {per_turn:.0f} samples per input revolution (fewer than '
+                f'{MIN_SAMPLES_PER_REVOLUTION}): reversals and peaks between samples are '
+                'uncertain; record at a higher publish_rate')
+    for t in analysis.transitions:
+        lines.append(f'transition {t["start_time"]:.3f}-{t["end_time"]:.3f} s excluded: '
+                     f'{t["change"]}')
+    if recording.repeated_stamps:
+        lines.append(f'note: {recording.repeated_stamps} messages repeat the previous one '
+                     '(same stamp, same values) and were counted once')
+    return '\n'.join(lines)
+
+
+# Rows of the effort block: figure, what it is [unit], value format.
+_EFFORT_ROWS = (
+    ('peak_input_torque', 'peak |input torque| [N m]', '10.4f'),
+    ('rms_input_torque', 'RMS input torque [N m]', '10.4f'),
+    ('mean_input_power', 'mean input power [W]', '10.4f'),
+    ('energy_per_pair', 'energy per stroke pair [J]', '10.4f'),
+    ('peak_offset_force', 'peak |offset force| [N]', '10.3f'),
+    ('speed_fluctuation', 'input speed fluctuation Cs [-]', '10.2e'),
+    ('flywheel_speed_swing', 'flywheel speed max/min [-]', '10.6f'),
+)
+
+
+def _effort_lines(analysis: Analysis) -> List[str]:
+    """Return the drive's figures per segment: measured mean ± s.d., theory, error."""
+    recording = analysis.recording
+    if not analysis.rows:
+        return []
+    drive = recording.drive
+    lines = ['']
+    if drive is None:
+        lines.append(f'efforts: no theory ({recording.drive_problem})')
+    else:
+        kind = ('ideal speed drive' if drive.motor is None else
+                f'motor drive, {drive.motor.speed_stiffness:g} N m s/rad, '
+                f'{drive.motor.max_torque:g} N m')
+        lines.append(f'efforts: theory for the recorded masses and loads, {kind} (cutting '
+                     f'{drive.loads.cutting_force:g} N over {drive.loads.cutting_length:g} m, '
+                     f'friction {drive.loads.ram_friction:g} N)')
+    if recording.samples.input_torque is None:
+        lines.append('efforts: not recorded in this file (joint states without effort)')
+    for row in analysis.rows:
+        lines.append(f'  offset {row["offset"] * 1e3:.2f} mm at {row["input_speed"]:.4f} rad/s, '
+                     f'{row["stroke_pairs_with_efforts"]} of {row["stroke_pairs"]} stroke pairs '
+                     'with efforts:        measured       theory     error')
+        for name, title, spec in _EFFORT_ROWS:
+            mean, spread = row[f'{name}_measured'], row[f'{name}_measured_std']
+            measured = '-' if mean is None else f'{format(mean, spec)} ± {spread:.1e}'
+            if row.get(f'{name}_theory') == 0.0:
+                error = _fmt(row[f'{name}_absolute_error'], '+9.1e') + ' (abs.)'
+            else:
+                error = _fmt(row[f'{name}_relative_error'], '+9.1e')
+            lines.append(f'    {title:<32} {measured:>20} {_fmt(row[name + "_theory"], spec)} '
+                         f'{error}')
+    return lines
+
+
+def incompleteness(recording: Recording) -> List[str]:
+    """Lines saying what the analysis lacks; empty when the recording was read whole."""
+    lines = []
+    if recording.problem:
+        lines.append(f'{recording.path} is damaged or truncated: {recording.problem}')
+    for loss in recording.losses:
+        count = ('an unknown number of' if loss.messages is None else
+                 f'{loss.messages}')
+        when = ''
+        if loss.start_time is not None:
+            when = (f', log time {loss.start_time:.3f} s' + (
+                '' if loss.end_time is None else f' to {loss.end_time:.3f} s')
+                + ' after the first message')
+        verb = _LOSS_VERBS[loss.stage]
+        lines.append(f'{count} {JOINT_STATES_TOPIC} messages {verb}{when}: {loss.reason}')
+    return lines
+
+
+def to_document(analysis: Analysis) -> Dict[str, Any]:
+    """Return the JSON document of an analysis (no NaN or infinity: null instead)."""
+    recording = analysis.recording
+    return finite_or_none({
+        'file': recording.path,
+        'complete': recording.complete,
+        'truncated': recording.problem,
+        'units': 'SI (m, s, rad, rad/s, m/s); ratios dimensionless',
+        'geometry': recording.geometry.as_dict(),
+        'messages': {'in_file': recording.messages_in_file, 'read': recording.messages_read,
+                     'used': int(recording.samples.time.size),
+                     'repeated': recording.repeated_stamps},
+        'losses': [loss._asdict() for loss in recording.losses],
+        'segments': analysis.rows,
+        'transitions': analysis.transitions,
+    })
+
+
+def _write_csv(analysis: Analysis, path: str) -> None:
+    fields = list(analysis.rows[0]) if analysis.rows else ['offset']
+    with open(path, 'w', newline='') as handle:
+        writer = csv.DictWriter(handle, fieldnames=fields)
+        writer.writeheader()
+        for row in finite_or_none(analysis.rows):
+            writer.writerow({k: ('' if v is None else v) for k, v in row.items()})
+
+
+def _write_json(analysis: Analysis, path: str) -> None:
+    with open(path, 'w') as handle:
+        json.dump(to_document(analysis), handle, indent=2, allow_nan=False)
+        handle.write('\n')
+
+
+def write_csv(analysis: Analysis, path: str) -> None:
+    """Write the per-segment table as CSV, all or nothing."""
+    with staged_outputs() as stage:
+        _write_csv(analysis, stage(path))
+
+
+def write_json(analysis: Analysis, path: str) -> None:
+    """Write the results as JSON, all or nothing."""
+    with staged_outputs() as stage:
+        _write_json(analysis, stage(path))
+
+
+def write_outputs(analysis: Analysis, csv_path: Optional[str] = None,
+                  json_path: Optional[str] = None, plot_folder: Optional[str] = None
+                  ) -> List[str]:
+    """Write the asked-for outputs together, all or none; return the figure paths."""
+    figure_paths: List[str] = []
+    created = plot_folder is not None and not os.path.isdir(plot_folder)
+    try:
+        with staged_outputs() as stage:
+            if csv_path:
+                _write_csv(analysis, stage(csv_path))
+            if json_path:
+                _write_json(analysis, stage(json_path))
+            if plot_folder:
+                os.makedirs(plot_folder, exist_ok=True)
+                from qrm_ros.analysis.figures import write_figures
+                figure_paths = write_figures(analysis, plot_folder, stage)
+    except BaseException:
+        if created:
+            with contextlib.suppress(OSError):
+                os.rmdir(plot_folder)  # type: ignore[arg-type]
+        raise
+    return figure_paths

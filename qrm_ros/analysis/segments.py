@@ -1,0 +1,125 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+The steady spans of a run: one offset, one commanded input speed, one drive, no gap.
+
+Only whole stroke pairs inside such a span are measured; what lies between two spans (a
+ramp of the offset, a speed change, a load change, a pause or a clock jump) is a transition,
+excluded from the measurement and reported.
+"""
+
+import math
+from typing import Any, Dict, List, NamedTuple, Optional, Sequence, Tuple
+
+import numpy as np
+
+from qrm_ros.analysis.recorded_drive import Drive, drive_differences, DriveSpan
+from qrm_ros.analysis.recorded_run import MIN_SEGMENT_SAMPLES, Samples
+
+# Samples whose offset and input speed differ by less than this (relative) are one setting.
+STEADY_TOLERANCE = 1e-12
+# A step between stamps longer than this many median sample periods is a gap (a pause, a
+# clock jump, lost messages): segments end there, so no stroke is measured across it.
+GAP_PERIODS = 3.0
+
+
+class Segment(NamedTuple):
+    start: int  # sample indices, end exclusive
+    end: int
+    offset: float
+    input_speed: float  # rad/s, commanded (setting_speed)
+    drive: Optional[Drive] = None  # what drove it (None: no theory of the efforts)
+
+
+def sample_period(samples: Samples) -> Optional[float]:
+    """Return the median step between stamps (s), None with fewer than two samples."""
+    steps = np.diff(samples.time)
+    steps = steps[steps > 0]
+    return float(np.median(steps)) if steps.size else None
+
+
+def setting_speed(samples: Samples, drive: Optional[Drive] = None) -> np.ndarray:
+    """
+    Return the input speed each sample was commanded to run at (rad/s).
+
+    The ideal speed drive runs at it. A motor's speed fluctuates about its reference, but
+    its torque is k (reference - speed) (dynamics.md), so the reference is the recorded
+    speed plus the recorded input torque over k, exact to round-off at every sample. Where
+    the motor is at its torque limit the reference is unknown (NaN: no steady setting).
+    """
+    if drive is None or drive.motor is None or samples.input_torque is None:
+        return samples.input_speed
+    torque = samples.input_torque
+    reference = samples.input_speed + torque / drive.motor.speed_stiffness
+    limited = np.abs(torque) >= drive.motor.max_torque * (1.0 - STEADY_TOLERANCE)
+    return np.where(limited, np.nan, reference)
+
+
+def split_segments(samples: Samples, drives: Sequence[DriveSpan] = ()
+                   ) -> Tuple[List[Segment], List[Dict[str, Any]]]:
+    """
+    Split into spans of steady offset and input speed; return (segments, transitions).
+
+    A segment is a maximal run of samples that share one offset, one commanded input speed
+    (setting_speed: under a motor, its speed reference) and one drive (drives: the masses,
+    loads and drive from when on; none: the ideal speed drive, no theory) with the offset
+    actuator at rest (a ramp changes the speed at every sample, so its samples never form a
+    run) and no gap between stamps (longer than GAP_PERIODS sample periods, or backwards: a
+    pause, a clock jump, lost messages); what lies between segments is a transition,
+    excluded from the measurement and reported.
+    """
+    drives = list(drives) or [DriveSpan(-math.inf, None, None)]
+    offset, time = samples.offset, samples.time
+    span = np.searchsorted([d.start_time for d in drives], time, side='right') - 1
+    span = np.maximum(span, 0)
+    speed = np.empty(time.shape)
+    for index, drive in enumerate(drives):
+        chosen = span == index
+        speed[chosen] = setting_speed(samples, drive.drive)[chosen]
+    finite = np.abs(speed[np.isfinite(speed)])
+    scale = max(1.0, float(np.max(finite))) if finite.size else 1.0
+    step = sample_period(samples) or 0.0
+    steps = np.diff(time)
+    gap = (steps > GAP_PERIODS * step) | (steps < 0)
+    changed = ((np.abs(np.diff(offset)) > STEADY_TOLERANCE)
+               | ~(np.abs(np.diff(speed)) <= STEADY_TOLERANCE * scale) | gap
+               | (np.diff(span) != 0))
+    steady = samples.offset_rate == 0.0
+    starts = np.flatnonzero(np.concatenate([[True], changed | (steady[1:] != steady[:-1])]))
+    ends = np.append(starts[1:], offset.size)
+    segments = [Segment(int(a), int(b), float(offset[a]), float(speed[a]),
+                        drives[span[a]].drive)
+                for a, b in zip(starts, ends) if steady[a] and b - a >= MIN_SEGMENT_SAMPLES]
+    transitions = []
+    for before, after in zip(segments, segments[1:]):
+        changes = []
+        jumps = steps[before.end - 1:after.start][gap[before.end - 1:after.start]]
+        if jumps.size:
+            largest = jumps[np.argmax(np.abs(jumps))]
+            changes.append(f'a gap of {largest:.3f} s between stamps (a pause, a clock jump or '
+                           'lost messages)' if largest > 0 else
+                           f'the clock jumps back by {-largest:.3f} s')
+        if after.offset != before.offset:
+            changes.append(f'offset {before.offset * 1e3:g} -> {after.offset * 1e3:g} mm')
+        if after.input_speed != before.input_speed:
+            changes.append(f'input speed {before.input_speed:g} -> {after.input_speed:g} rad/s')
+        changes += drive_differences(before.drive, after.drive)
+        transitions.append({
+            'kind': 'gap' if jumps.size else 'change',
+            'start_time': float(time[before.end - 1]),
+            'end_time': float(time[after.start]),
+            'offset_from': before.offset, 'offset_to': after.offset,
+            'input_speed_from': before.input_speed, 'input_speed_to': after.input_speed,
+            'change': ', '.join(changes) or 'interruption'})
+    return segments, transitions
