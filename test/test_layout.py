@@ -45,7 +45,7 @@ DEFERRED_IMPORTS = {
     'qrm_ros.core.motor_kernel': 'numba kernels: compiled only when a motor is stepped',
     'qrm_ros.analysis.figures': 'matplotlib: loaded only by a command that draws',
     'qrm_ros.analysis.gearbox_figure': 'matplotlib: loaded only by a command that draws',
-    'qrm_ros.analysis.animate': 'matplotlib: loaded only by a command that animates',
+    'qrm_ros.analysis.animation': 'matplotlib: loaded only by a command that animates',
 }
 MAX_MODULE_LINES = 600
 MAX_CLASS_LINES = 300

@@ -28,10 +28,15 @@ Numbers are written with 12 significant digits, so the file is the same on every
 import math
 import os
 import tempfile
+from typing import Optional, TYPE_CHECKING
 import xml.etree.ElementTree as ET
 
+from qrm_ros.core.geometry import Geometry
 from qrm_ros.core.linkage import COLOURS, linkage_sizes
 from qrm_ros.core.names import JOINT_NAMES
+
+if TYPE_CHECKING:  # the fields it reads; any object with them will do
+    from qrm_ros.core.dynamics import MassProperties
 
 __all__ = ['BASE_LINK', 'ROBOT_NAME', 'URDF_FILE_NAME', 'urdf_text', 'write_urdf']
 
@@ -137,7 +142,7 @@ def _lever_inertia_about_centre(mass_properties):
     return centre
 
 
-def urdf_text(geometry, mass_properties=None):
+def urdf_text(geometry: Geometry, mass_properties: Optional['MassProperties'] = None) -> str:
     """
     Return the URDF (XML text) of the machine with this geometry.
 
@@ -231,7 +236,8 @@ def urdf_text(geometry, mass_properties=None):
             + ET.tostring(build.robot, encoding='unicode') + '\n')
 
 
-def write_urdf(path, geometry, mass_properties=None):
+def write_urdf(path: str, geometry: Geometry,
+               mass_properties: Optional['MassProperties'] = None) -> None:
     """Write the URDF atomically (a temporary file renamed), so no half file is left."""
     text = urdf_text(geometry, mass_properties)
     folder = os.path.dirname(os.path.abspath(path))
