@@ -267,7 +267,7 @@ def _cost_speeds(analysis):
 def offset_cost_figure(analysis):
     """Peak input torque and flywheel speed swing against δ/h: what the offset costs."""
     from qrm_ros.analysis.run_analysis import flywheel_speed_swing
-    from qrm_ros.core.motor_drive import pair_efforts
+    from qrm_ros.core.speed_drive import pair_efforts
     recording = analysis.recording
     geometry, drive = recording.geometry, recording.drive
     figure, (top, bottom) = plt.subplots(2, 1, figsize=(8, 8), sharex=True)

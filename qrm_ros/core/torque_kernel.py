@@ -14,10 +14,10 @@
 """
 Compiled (numba) search of the peak input torque under the ideal speed drive.
 
-motor_drive.peak_input_torque's loop, one configuration at a time, in the crank angle
+speed_drive.peak_input_torque's loop, one configuration at a time, in the crank angle
 phi_c (no coupling atan2). The revolution is split where the ram load switches (the two
 reversals and the cutting stroke's workpiece edges, in closed form as
-motor_drive._load_switch_angles, their sin and cos too; the other stroke's edges switch
+speed_drive.load_switch_angles, their sin and cos too; the other stroke's edges switch
 nothing); each smooth piece carries its own constant ram force, taken at a point inside it.
 Consecutive configurations that repeat the lever geometry or crank phase reuse these. The
 samples come first: on each piece evenly spread crank angles (sin and cos by rotation, put
@@ -490,9 +490,12 @@ def _peak_torques(r1, r, h, height, phase, offset, speed, flywheel_inertia, leve
     return result
 
 
-def peak_torques(r1, r, h, height, phase, offset, speed, flywheel_inertia, lever_inertia,
-                 ram_mass, gravity_moment, cutting_force, ram_friction, cutting_length,
-                 cut_samples, return_samples, tolerance, max_steps):
+def peak_torques(r1: np.ndarray, r: np.ndarray, h: np.ndarray, height: np.ndarray,
+                 phase: np.ndarray, offset: np.ndarray, speed: np.ndarray,
+                 flywheel_inertia: float, lever_inertia: float, ram_mass: float,
+                 gravity_moment: float, cutting_force: float, ram_friction: float,
+                 cutting_length: float, cut_samples: int, return_samples: int,
+                 tolerance: float, max_steps: int) -> np.ndarray:
     """
     Peak |input torque| (N m) of flat configuration arrays; samples per stroke.
 

@@ -36,7 +36,7 @@ from qrm_ros.core.cutting_speed_hold import CUTTING_SPEED_FIGURES, hold_offset
 from qrm_ros.core.dynamics import (efforts, Loads, MassProperties, MotorDrive, parameter_names,
                                    ram_load_force)
 from qrm_ros.core.effort_theory import BackgroundTheory, Setting, THEORY_FIGURES
-from qrm_ros.core.motor_drive import MotorStepper
+from qrm_ros.core.motor_stepper import MotorStepper
 from qrm_ros.core.geometry import Geometry
 from qrm_ros.node.linkage_markers import (delete_all_marker_array, linkage_marker_array,
                                           stamp_message)
