@@ -109,7 +109,7 @@ class EquationOfMotion:
 
     @staticmethod
     def acceleration(chain: dyn.Chain, torque: float, load: float) -> float:
-        """Return the input's acceleration (rad/s^2) under the torque (N m) and ram load (N)."""
+        """Return the input speed's rate, rad/s^2, under the torque (N m) and ram load (N)."""
         bias = chain.efforts.input_torque - load * chain.ram_lever_arm
         return (torque - bias) / chain.generalized_inertia
 
