@@ -57,14 +57,16 @@ def lean_constants(geometry: Geometry, mass: MassProperties) -> Tuple[float, ...
 def lean_coefficients(constants: LeanConstants, offset: float,
                       angle: float) -> Tuple[float, ...]:
     """
-    Return the chain's velocity coefficients and their derivatives at (offset, angle).
+    Return the masses and the chain's velocity coefficients at (offset, angle).
 
-    (phi_t, phi_d, phi_tt, phi_td, phi_dd, psi_p, psi_pp, tan_l, sec2, x_p, x_pp): the part
-    of the chain that holds the configuration alone, shared by ``lean_acceleration_of`` and
-    ``lean_efforts_of`` (and compiled into them, qrm_ros.core.motor_kernel).
+    (input_inertia, flywheel_inertia, lever_inertia, ram_mass, lever_weight, phi_t, phi_d,
+    phi_tt, phi_td, phi_dd, psi_p, psi_pp, tan_l, sec2, x_p, x_pp): the constants and the
+    part of the chain that hold the configuration alone, shared by ``lean_acceleration_of``
+    and ``lean_efforts_of`` (and compiled into them, qrm_ros.core.motor_kernel).
     """
-    (r1, r, h, height, phase, _, _, _, _, _, r1_r1, two_r1, r_h, two_r_h, minus_r, minus_r_h,
-     h_h_r_r, two_height, minus_two_r1) = constants
+    (r1, r, h, height, phase, input_inertia, flywheel_inertia, lever_inertia, ram_mass,
+     lever_weight, r1_r1, two_r1, r_h, two_r_h, minus_r, minus_r_h, h_h_r_r, two_height,
+     minus_two_r1) = constants
     sin_t, cos_t = math.sin(angle), math.cos(angle)
     n = r1_r1 + offset * offset + two_r1 * offset * sin_t
     phi_t = r1 * (r1 + offset * sin_t) / n
@@ -80,7 +82,8 @@ def lean_coefficients(constants: LeanConstants, offset: float,
     psi_p = minus_r * (r + h * sin_c) / m
     psi_pp = minus_r_h * cos_c * h_h_r_r / (m * m)
     sec2 = 1.0 + tan_l * tan_l
-    return (phi_t, phi_d, phi_tt, phi_td, phi_dd, psi_p, psi_pp, tan_l, sec2, height * sec2,
+    return (input_inertia, flywheel_inertia, lever_inertia, ram_mass, lever_weight, phi_t,
+            phi_d, phi_tt, phi_td, phi_dd, psi_p, psi_pp, tan_l, sec2, height * sec2,
             two_height * tan_l * sec2)
 
 
@@ -95,10 +98,9 @@ def lean_acceleration_of(constants: LeanConstants, offset: float, angle: float, 
     dict), so it gives its numbers bit for bit (a test holds it to it) at under half its
     cost.
     """
-    (phi_t, phi_d, phi_tt, phi_td, phi_dd, psi_p, psi_pp, tan_l, sec2, x_p,
+    (input_inertia, flywheel_inertia, lever_inertia, ram_mass, lever_weight, phi_t, phi_d,
+     phi_tt, phi_td, phi_dd, psi_p, psi_pp, tan_l, sec2, x_p,
      x_pp) = lean_coefficients(constants, offset, angle)
-    input_inertia, flywheel_inertia = constants[5], constants[6]
-    lever_inertia, ram_mass, lever_weight = constants[7], constants[8], constants[9]
     flywheel_speed = phi_t * speed + phi_d * offset_rate
     flywheel_acc = (phi_tt * (speed * speed) + 2.0 * phi_td * speed * offset_rate
                     + phi_dd * offset_rate * offset_rate)
@@ -126,10 +128,9 @@ def lean_efforts_of(constants: LeanConstants, offset: float, angle: float, speed
     zeros agree), none of the rest; the chain's numbers bit for bit (a test holds them to
     it).
     """
-    (phi_t, phi_d, phi_tt, phi_td, phi_dd, psi_p, psi_pp, tan_l, sec2, x_p,
+    (input_inertia, flywheel_inertia, lever_inertia, ram_mass, lever_weight, phi_t, phi_d,
+     phi_tt, phi_td, phi_dd, psi_p, psi_pp, tan_l, sec2, x_p,
      x_pp) = lean_coefficients(constants, offset, angle)
-    input_inertia, flywheel_inertia = constants[5], constants[6]
-    lever_inertia, ram_mass, lever_weight = constants[7], constants[8], constants[9]
     flywheel_speed = phi_t * speed + phi_d * offset_rate
     flywheel_acc = (phi_t * acceleration + phi_d * 0.0 + phi_tt * (speed * speed)
                     + 2.0 * phi_td * speed * offset_rate + phi_dd * offset_rate * offset_rate)
