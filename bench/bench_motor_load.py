@@ -42,13 +42,14 @@ def _lateness(values):
 def ticker(ticks, load):
     sys.setswitchinterval(1e-4)
     from qrm_ros.core import dynamics as dyn
-    from qrm_ros.core import motor_drive as md
     from qrm_ros.core.geometry import Geometry
+    from qrm_ros.core.motor_kernel_loading import COMPILED_MOTOR_KERNEL
+    from qrm_ros.core.motor_stepper import MotorStepper
     if not load:
-        md._start_loading_compiled_kernel = lambda: None
-    stepper = md.MotorStepper(Geometry.paper(), dyn.MassProperties.small_shaper(),
-                              dyn.Loads.small_shaper(), dyn.MotorDrive.small_shaper(),
-                              2 * math.pi, 0.01, 50.0, 0.01)
+        COMPILED_MOTOR_KERNEL.start_loading = lambda: None
+    stepper = MotorStepper(Geometry.paper(), dyn.MassProperties.small_shaper(),
+                           dyn.Loads.small_shaper(), dyn.MotorDrive.small_shaper(),
+                           2 * math.pi, 0.01, 50.0, 0.01)
     late, loaded_at = [], None
     start = time.perf_counter()
     for tick in range(ticks):
@@ -61,9 +62,9 @@ def ticker(ticks, load):
         late.append(now - due)
         stepper.advance_to(tick * 1_000_000 + 1)
         stepper.efforts()
-        if loaded_at is None and md._COMPILED_LOADED.is_set():
+        if loaded_at is None and COMPILED_MOTOR_KERNEL.loaded.is_set():
             loaded_at = tick
-    compiled = md._COMPILED_KERNEL[0] is not None
+    compiled = COMPILED_MOTOR_KERNEL.module is not None
     print(f'{"loading" if load else "baseline"}: compiled forms '
           f'{"loaded by tick " + str(loaded_at) if compiled else "not loaded"}')
     print(f'  first 1000 ticks: {_lateness(late[:1000])}')

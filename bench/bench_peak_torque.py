@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 """
-Benchmark: peak input torque (motor_drive.peak_input_torque) in configurations/s.
+Benchmark: peak input torque (speed_drive.peak_input_torque) in configurations/s.
 
 On a 1000 x 1000 (offset, crank radius) grid of the paper design and on random designs
 (offsets to 0.99 r1, random phases, crank radii and pivots, both speed signs), with the
@@ -34,7 +34,7 @@ import numpy as np
 from qrm_ros.core import dynamics as dyn
 from qrm_ros.core.geometry import Geometry
 from qrm_ros.core.kinematics import state
-from qrm_ros.core.motor_drive import pair_efforts, peak_input_torque
+from qrm_ros.core.speed_drive import pair_efforts, peak_input_torque
 
 from bench_dynamics import median_seconds  # this folder: run as python bench/<name>.py
 

@@ -31,8 +31,9 @@ from numpy.typing import ArrayLike
 from qrm_ros.core import dynamics as dyn
 from qrm_ros.core import flywheel_design
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core import motor_drive as md
 from qrm_ros.core.gearbox import GearboxPlan
+from qrm_ros.core.speed_drive import pair_efforts
+from qrm_ros.core.steady_running import speed_fluctuation
 
 DEFAULT_OFFSETS_MM = np.arange(-20.0, 20.0 + 1e-9, 2.5)
 
@@ -58,11 +59,11 @@ def drive_rows(geometry: kin.Geometry, mass: dyn.MassProperties, loads: dyn.Load
     """
     rows = []
     for offset in offsets:
-        figures = md.pair_efforts(geometry, mass, loads, float(offset), input_speed)
+        figures = pair_efforts(geometry, mass, loads, float(offset), input_speed)
         row = dict(figures._asdict())
         if motor is not None:
             try:
-                row['speed_fluctuation'] = md.speed_fluctuation(
+                row['speed_fluctuation'] = speed_fluctuation(
                     geometry, mass, loads, motor, float(offset), input_speed).fluctuation
             except dyn.DynamicsError as error:
                 row['speed_fluctuation'] = None

@@ -30,7 +30,7 @@ from qrm_ros.analysis.measurement import Analysis
 from qrm_ros.analysis.plotting import plt
 from qrm_ros.analysis.theory import flywheel_speed_swing, input_torque_parts
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.motor_drive import pair_efforts
+from qrm_ros.core.speed_drive import pair_efforts
 
 THEORY = 'theory'
 THEORY_FAMILY = 'theory-family'

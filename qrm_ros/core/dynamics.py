@@ -27,29 +27,33 @@ from dataclasses import dataclass, fields
 import functools
 import math
 from types import SimpleNamespace
-from typing import ClassVar, NamedTuple
+from typing import Any, ClassVar, Dict, NamedTuple, Optional, Tuple, Type, Union
 
 import numpy as np
 
 from qrm_ros.core.checks import as_float
-from qrm_ros.core.geometry import check_offset, KinematicsError
+from qrm_ros.core.geometry import check_offset, Geometry, KinematicsError
 from qrm_ros.core.names import MOTOR_PREFIX
 
 __all__ = [
-    'DynamicsError', 'Efforts', 'Loads', 'MassProperties', 'MotorDrive', 'efforts',
+    'DynamicsError', 'Efforts', 'Loads', 'MassProperties', 'MotorDrive', 'checked_quantity',
+    'efforts',
     'generalized_inertia', 'ram_load_force',
 ]
 
+# A float, or a numpy array of them in vectorised use.
+FloatOrArray = Union[float, np.ndarray]
 # The two arithmetic back ends of the chain: numpy for arrays, math for one sample.
-_ARRAY_OPS = SimpleNamespace(sin=np.sin, cos=np.cos, sqrt=np.sqrt, atan2=np.arctan2)
-_SCALAR_OPS = SimpleNamespace(sin=math.sin, cos=math.cos, sqrt=math.sqrt, atan2=math.atan2)
+ARRAY_OPS = SimpleNamespace(sin=np.sin, cos=np.cos, sqrt=np.sqrt, atan2=np.arctan2)
+SCALAR_OPS = SimpleNamespace(sin=math.sin, cos=math.cos, sqrt=math.sqrt, atan2=math.atan2)
 
 
 class DynamicsError(KinematicsError):
     """A mass, load, drive or target the dynamics cannot take; the message names it."""
 
 
-def _checked(name, value, unit, minimum=None, strict=False):
+def checked_quantity(name: str, value: Any, unit: str, minimum: Optional[float] = None,
+                     strict: bool = False) -> FloatOrArray:
     """Return value as float (or array), refusing non-numbers, non-finite and out-of-range."""
     checked = as_float(name, value, unit, DynamicsError, refuse_bool=True)
     if minimum is not None:
@@ -75,30 +79,30 @@ class _Validated:
     # name -> (unit, minimum or None, strictly greater)
     _LIMITS: ClassVar[dict[str, tuple[str, float | None, bool]]] = {}
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for name, (unit, minimum, strict) in self._LIMITS.items():
-            object.__setattr__(self, name, _checked(name, getattr(self, name), unit, minimum,
-                                                    strict))
+            object.__setattr__(self, name, checked_quantity(name, getattr(self, name), unit,
+                                                            minimum, strict))
 
     @classmethod
-    def field_names(cls):
+    def field_names(cls) -> Tuple[str, ...]:
         """Names of the fields, in order: node parameter names and metadata keys."""
-        return _field_names(cls)
+        return _field_names(cls)  # type: ignore[arg-type]  # a class is hashable
 
     @classmethod
-    def units(cls):
+    def units(cls) -> Dict[str, str]:
         """Return the unit of each field (for parameter descriptions and help texts)."""
         return {name: cls._LIMITS[name][0] for name in cls.field_names()}
 
     @classmethod
-    def lower_limits(cls):
+    def lower_limits(cls) -> Dict[str, Tuple[Optional[float], bool]]:
         """(minimum, strictly greater) of each field, for parameter ranges."""
         return {name: cls._LIMITS[name][1:] for name in cls.field_names()}
 
-    def as_dict(self):
+    def as_dict(self) -> Dict[str, Any]:
         return {name: getattr(self, name) for name in self.field_names()}
 
-    def scalars(self):
+    def scalars(self) -> Dict[str, Any]:
         """Return the fields as plain floats (the stepper's arithmetic); refuse array fields."""
         values = self.as_dict()
         for name, value in values.items():
@@ -135,7 +139,7 @@ class MassProperties(_Validated):
         'gravity': ('m/s^2', 0.0, False),
     }
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         super().__post_init__()
         if np.any(np.asarray(self.input_inertia) + self.flywheel_inertia <= 0.0):
             raise DynamicsError(
@@ -143,7 +147,7 @@ class MassProperties(_Validated):
                 f'({self.flywheel_inertia!r} kg*m^2) are both zero: at least one must be > 0')
 
     @classmethod
-    def small_shaper(cls):
+    def small_shaper(cls) -> 'MassProperties':
         """
         Return estimates for a small bench shaper of the paper's size (about 200 mm stroke).
 
@@ -182,7 +186,7 @@ class Loads(_Validated):
     }
 
     @classmethod
-    def small_shaper(cls):
+    def small_shaper(cls) -> 'Loads':
         """
         Return estimates for the small shaper of ``MassProperties.small_shaper``.
 
@@ -193,11 +197,11 @@ class Loads(_Validated):
         return cls(cutting_force=400.0, ram_friction=20.0, cutting_length=0.15)
 
     @classmethod
-    def none(cls):
+    def none(cls) -> 'Loads':
         """No cutting and no friction: free running."""
         return cls(cutting_force=0.0, ram_friction=0.0, cutting_length=0.0)
 
-    def check_against(self, stroke):
+    def check_against(self, stroke: float) -> 'Loads':
         """Refuse a workpiece longer than the ram stroke (m); return self."""
         length = self.cutting_length  # a float but in vectorised use; this runs every tick
         if (length > stroke if type(length) is float
@@ -226,7 +230,7 @@ class MotorDrive(_Validated):
     }
 
     @classmethod
-    def small_shaper(cls):
+    def small_shaper(cls) -> 'MotorDrive':
         """
         Return estimates for the 0.75 kW 4-pole motor and 24:1 gearbox of the small shaper.
 
@@ -243,7 +247,7 @@ PARAMETER_PREFIXES: dict[type[_Validated], str] = {
     MassProperties: '', Loads: '', MotorDrive: MOTOR_PREFIX}
 
 
-def parameter_names(kind):
+def parameter_names(kind: Type[_Validated]) -> Tuple[str, ...]:
     """Return the node's names of a parameter set's fields (motor_speed_stiffness, ...)."""
     return tuple(PARAMETER_PREFIXES[kind] + name for name in kind.field_names())
 
@@ -251,36 +255,44 @@ def parameter_names(kind):
 class Efforts(NamedTuple):
     """What drives each joint, in the joint's positive sense (N m, N m, N m, N, N)."""
 
-    input_torque: object
-    flywheel_torque: object
-    lever_torque: object
-    ram_force: object
-    offset_force: object
+    # Each a float, or an array in vectorised use (Any: the callers know which).
+    input_torque: Any
+    flywheel_torque: Any
+    lever_torque: Any
+    ram_force: Any
+    offset_force: Any
 
 
-class _Chain(NamedTuple):
-    """Positions, rates, efforts and inertia of the chain at one instant (internal)."""
+class Chain(NamedTuple):
+    """Positions, rates, efforts and inertia of the chain at one instant (floats or arrays)."""
 
-    flywheel_angle: object
-    flywheel_speed: object
-    flywheel_acceleration: object
-    lever_angle: object
-    lever_speed: object
-    lever_acceleration: object
-    ram_position: object
-    ram_velocity: object
-    ram_acceleration: object
+    flywheel_angle: Any
+    flywheel_speed: Any
+    flywheel_acceleration: Any
+    lever_angle: Any
+    lever_speed: Any
+    lever_acceleration: Any
+    ram_position: Any
+    ram_velocity: Any
+    ram_acceleration: Any
     efforts: Efforts
-    generalized_inertia: object
-    ram_lever_arm: object  # dx/d(theta) at a fixed offset, m/rad: F_ext's torque arm
-    offset_coupling_inertia: object  # d^2 T / d(theta_dot) d(offset_rate), kg m
+    generalized_inertia: Any
+    ram_lever_arm: Any  # dx/d(theta) at a fixed offset, m/rad: F_ext's torque arm
+    offset_coupling_inertia: Any  # d^2 T / d(theta_dot) d(offset_rate), kg m
 
 
-def _chain(ops, coupling_radius, crank_radius, pivot_distance, ram_height, crank_phase, mass,
-           offset, input_angle, input_speed, input_acceleration, offset_rate,
-           offset_acceleration, external_ram_force):
+def evaluate_chain(ops: SimpleNamespace, coupling_radius: FloatOrArray,
+                   crank_radius: FloatOrArray, pivot_distance: FloatOrArray,
+                   ram_height: FloatOrArray, crank_phase: FloatOrArray,
+                   mass: Dict[str, Any], offset: FloatOrArray, input_angle: FloatOrArray,
+                   input_speed: FloatOrArray, input_acceleration: FloatOrArray,
+                   offset_rate: FloatOrArray, offset_acceleration: FloatOrArray,
+                   external_ram_force: FloatOrArray) -> Chain:
     """
     Evaluate the whole chain through its velocity coefficients; ``mass`` is a dict.
+
+    ops is ARRAY_OPS (numpy arrays) or SCALAR_OPS (plain floats, one sample); the geometry's
+    fields are geometry_fields' order.
 
     Coupling: n = |pin - O2|^2, phi_t = d(phi)/d(theta), phi_d = d(phi)/d(offset), and their
     derivatives; lever: m = |pin - O3|^2, psi_p = d(psi)/d(phi); ram: x = H tan(psi).
@@ -327,156 +339,23 @@ def _chain(ops, coupling_radius, crank_radius, pivot_distance, ram_height, crank
         mass['lever_inertia'] + mass['ram_mass'] * x_p * x_p)
     inertia = mass['input_inertia'] + phi_t * phi_t * downstream
     ram_lever_arm = x_p * psi_p * phi_t
-    return _Chain(flywheel_angle, flywheel_speed, flywheel_acc, ops.atan2(r * cos_c, below),
-                  lever_speed, lever_acc, ram_height * tan_l, ram_velocity, ram_acc,
-                  Efforts(input_torque, flywheel_torque, lever_torque, ram_force,
-                          offset_force), inertia, ram_lever_arm, phi_t * phi_d * downstream)
+    return Chain(flywheel_angle, flywheel_speed, flywheel_acc, ops.atan2(r * cos_c, below),
+                 lever_speed, lever_acc, ram_height * tan_l, ram_velocity, ram_acc,
+                 Efforts(input_torque, flywheel_torque, lever_torque, ram_force,
+                         offset_force), inertia, ram_lever_arm, phi_t * phi_d * downstream)
 
 
-def _lean_constants(geometry, mass):
+def speed_drive_torque_of(sin_c: Any, cos_c: Any, r1: Any, r: Any, h: Any, height: Any,
+                          cos0: Any, sin0: Any, offset: Any, clearance: Any, input_speed: Any,
+                          ram_force: Any, flywheel_inertia: Any, lever_inertia: Any,
+                          ram_mass: Any, gravity_moment: Any) -> Tuple[Any, Any]:
     """
-    Return the lean chain's constants: the geometry, the masses, and their fixed groupings.
+    Return the chain's input torque and its slope d/d(phi_c) at a constant speed and offset.
 
-    A tuple of floats in ``_lean_acceleration_of``'s order (qrm_ros.core.motor_kernel takes them
-    as an array); the groupings are the chain's own sub-expressions that hold the geometry
-    alone, grouped as it groups them.
-    """
-    r1, r, h = geometry.coupling_radius, geometry.crank_radius, geometry.pivot_distance
-    height = geometry.ram_height
-    fields = mass.scalars()
-    return (r1, r, h, height, geometry.crank_phase, fields['input_inertia'],
-            fields['flywheel_inertia'], fields['lever_inertia'], fields['ram_mass'],
-            fields['lever_mass'] * fields['gravity'] * fields['lever_com_distance'],
-            r1 * r1, 2.0 * r1, r * r + h * h, 2.0 * r * h, -r, -r * h, h * h - r * r,
-            2.0 * height, -2.0 * r1)
-
-
-def _lean_acceleration_of(constants, offset, angle, speed, offset_rate, torque, load):
-    """
-    Return the input acceleration (rad/s^2) from the equation of motion; plain floats.
-
-    The input torque and ram load given, at zero input and offset acceleration; constants
-    from ``_lean_constants``. The chain's own operations in its order, with what it does not
-    need left out (terms times an exact zero, the lever angle, the named tuples, the mass
-    dict), so it gives its numbers bit for bit (a test holds it to it) at under half its
-    cost. Math functions and floats only: qrm_ros.core.motor_kernel compiles this same function
-    (numba, no fast-math), which gives the same numbers bit for bit (a test holds it too).
-    """
-    (r1, r, h, height, phase, input_inertia, flywheel_inertia, lever_inertia, ram_mass,
-     lever_weight, r1_r1, two_r1, r_h, two_r_h, minus_r, minus_r_h, h_h_r_r, two_height,
-     minus_two_r1) = constants
-    sin_t, cos_t = math.sin(angle), math.cos(angle)
-    n = r1_r1 + offset * offset + two_r1 * offset * sin_t
-    phi_t = r1 * (r1 + offset * sin_t) / n
-    phi_d = r1 * cos_t / n
-    crank_angle = angle + math.atan2(offset * cos_t, r1 + offset * sin_t) + phase
-    sin_c, cos_c = math.sin(crank_angle), math.cos(crank_angle)
-    tan_l = r * cos_c / (h + r * sin_c)
-    n2 = n * n
-    phi_tt = r1 * offset * cos_t * (offset * offset - r1_r1) / n2
-    phi_td = -r1 * (sin_t * (r1_r1 + offset * offset) + two_r1 * offset) / n2
-    phi_dd = minus_two_r1 * cos_t * (offset + r1 * sin_t) / n2
-    m = r_h + two_r_h * sin_c
-    psi_p = minus_r * (r + h * sin_c) / m
-    psi_pp = minus_r_h * cos_c * h_h_r_r / (m * m)
-    sec2 = 1.0 + tan_l * tan_l
-    x_p = height * sec2
-    x_pp = two_height * tan_l * sec2
-    flywheel_speed = phi_t * speed + phi_d * offset_rate
-    flywheel_acc = (phi_tt * (speed * speed) + 2.0 * phi_td * speed * offset_rate
-                    + phi_dd * offset_rate * offset_rate)
-    lever_speed = psi_p * flywheel_speed
-    lever_acc = psi_p * flywheel_acc + psi_pp * flywheel_speed * flywheel_speed
-    ram_force = ram_mass * (x_p * lever_acc + x_pp * lever_speed * lever_speed)
-    lever_torque = (lever_inertia * lever_acc - lever_weight * tan_l / math.sqrt(sec2)
-                    + ram_force * x_p)
-    flywheel_torque = flywheel_inertia * flywheel_acc + lever_torque * psi_p
-    inertia = input_inertia + phi_t * phi_t * (
-        flywheel_inertia + psi_p * psi_p * (lever_inertia + ram_mass * x_p * x_p))
-    bias = flywheel_torque * phi_t - load * (x_p * psi_p * phi_t)
-    return (torque - bias) / inertia
-
-
-def _lean_efforts_of(constants, offset, angle, speed, acceleration, offset_rate, load):
-    """
-    Return the chain's Efforts fields as a tuple, at zero offset acceleration; plain floats.
-
-    (input torque, flywheel torque, lever torque, ram force, offset force) under the ram
-    load (N), constants from ``_lean_constants``: every operation of the chain that they
-    depend on, in its order (the offset acceleration's zero term kept, so even the signs of
-    zeros agree), none of the rest; the chain's numbers bit for bit (a test holds them to
-    it). Compiled by qrm_ros.core.motor_kernel as ``_lean_acceleration_of`` is.
-    """
-    (r1, r, h, height, phase, input_inertia, flywheel_inertia, lever_inertia, ram_mass,
-     lever_weight, r1_r1, two_r1, r_h, two_r_h, minus_r, minus_r_h, h_h_r_r, two_height,
-     minus_two_r1) = constants
-    sin_t, cos_t = math.sin(angle), math.cos(angle)
-    n = r1_r1 + offset * offset + two_r1 * offset * sin_t
-    phi_t = r1 * (r1 + offset * sin_t) / n
-    phi_d = r1 * cos_t / n
-    n2 = n * n
-    phi_tt = r1 * offset * cos_t * (offset * offset - r1_r1) / n2
-    phi_td = -r1 * (sin_t * (r1_r1 + offset * offset) + two_r1 * offset) / n2
-    phi_dd = minus_two_r1 * cos_t * (offset + r1 * sin_t) / n2
-    crank_angle = angle + math.atan2(offset * cos_t, r1 + offset * sin_t) + phase
-    sin_c, cos_c = math.sin(crank_angle), math.cos(crank_angle)
-    m = r_h + two_r_h * sin_c
-    psi_p = minus_r * (r + h * sin_c) / m
-    psi_pp = minus_r_h * cos_c * h_h_r_r / (m * m)
-    tan_l = r * cos_c / (h + r * sin_c)
-    sec2 = 1.0 + tan_l * tan_l
-    x_p = height * sec2
-    x_pp = two_height * tan_l * sec2
-    flywheel_speed = phi_t * speed + phi_d * offset_rate
-    flywheel_acc = (phi_t * acceleration + phi_d * 0.0 + phi_tt * (speed * speed)
-                    + 2.0 * phi_td * speed * offset_rate + phi_dd * offset_rate * offset_rate)
-    lever_speed = psi_p * flywheel_speed
-    lever_acc = psi_p * flywheel_acc + psi_pp * flywheel_speed * flywheel_speed
-    ram_force = ram_mass * (x_p * lever_acc + x_pp * lever_speed * lever_speed) - load
-    lever_torque = (lever_inertia * lever_acc - lever_weight * tan_l / math.sqrt(sec2)
-                    + ram_force * x_p)
-    flywheel_torque = flywheel_inertia * flywheel_acc + lever_torque * psi_p
-    return (input_inertia * acceleration + flywheel_torque * phi_t, flywheel_torque,
-            lever_torque, ram_force, flywheel_torque * phi_d)
-
-
-def _lean_ram_motion(constants):
-    """
-    Return ram_motion(offset, angle, speed, offset_rate): the ram's (position m, velocity m/s).
-
-    The stepper's switch checks' lean evaluation of ``dynamics._chain`` on plain floats,
-    constants from ``_lean_constants``: at zero input and offset acceleration, the chain's
-    numbers bit for bit (a test holds them to it) at a quarter of its cost.
-    """
-    (r1, r, h, height, phase, *_, r1_r1, two_r1, r_h, two_r_h, minus_r, _, _, _,
-     _) = constants
-    sin, cos, atan2 = math.sin, math.cos, math.atan2
-
-    # The coupling and the lever's angle as _lean_acceleration_of starts (a call shared by
-    # both would cost about a tenth of the right-hand side).
-    def ram_motion(offset, angle, speed, offset_rate):
-        sin_t, cos_t = sin(angle), cos(angle)
-        n = r1_r1 + offset * offset + two_r1 * offset * sin_t
-        crank_angle = angle + atan2(offset * cos_t, r1 + offset * sin_t) + phase
-        sin_c = sin(crank_angle)
-        tan_l = r * cos(crank_angle) / (h + r * sin_c)
-        psi_p = minus_r * (r + h * sin_c) / (r_h + two_r_h * sin_c)
-        flywheel_speed = r1 * (r1 + offset * sin_t) / n * speed + r1 * cos_t / n * offset_rate
-        return height * tan_l, height * (1.0 + tan_l * tan_l) * (psi_p * flywheel_speed)
-
-    return ram_motion
-
-
-def speed_drive_torque_of(sin_c, cos_c, r1, r, h, height, cos0, sin0, offset, clearance,
-                          input_speed, ram_force, flywheel_inertia, lever_inertia, ram_mass,
-                          gravity_moment):
-    """
-    Return _chain's input torque and its slope d/d(phi_c) at a constant speed and offset.
-
-    The ideal speed drive's case of ``_chain`` (input and offset accelerations and offset rate
-    zero) written in the crank angle phi_c (sin_c, cos_c) for one ram force F (N): with the
-    coupling's speed ratio w = d(phi)/d(theta) = S / r2 in the flywheel angle (kinematics
-    ._ram_speed_terms), x_c = dx/d(phi_c), psi_c = d(psi)/d(phi_c), the reduced inertia
+    The ideal speed drive's case of ``evaluate_chain`` (input and offset accelerations and
+    offset rate zero) written in the crank angle phi_c (sin_c, cos_c) for one ram force F
+    (N): with the coupling's speed ratio w = d(phi)/d(theta) = S / r2 in the flywheel angle
+    (kinematics._ram_speed_terms), x_c = dx/d(phi_c), psi_c = d(psi)/d(phi_c), the reduced inertia
     D = I_f + I_l psi_c^2 + m_ram x_c^2 (so M = I_in + w^2 D) and the gravity term
     g_c = psi_c m_l g l_com sin(psi),
 
@@ -542,18 +421,22 @@ def speed_drive_torque_of(sin_c, cos_c, r1, r, h, height, cos0, sin0, offset, cl
     return torque, slope
 
 
-def _array_chain(geometry, mass, offset, input_angle, input_speed=0.0, input_acceleration=0.0,
-                 offset_rate=0.0, offset_acceleration=0.0, external_ram_force=0.0):
+def array_chain(geometry: Geometry, mass: MassProperties, offset: FloatOrArray,
+                input_angle: FloatOrArray, input_speed: FloatOrArray = 0.0,
+                input_acceleration: FloatOrArray = 0.0, offset_rate: FloatOrArray = 0.0,
+                offset_acceleration: FloatOrArray = 0.0,
+                external_ram_force: FloatOrArray = 0.0) -> Chain:
+    """Return the whole chain on arrays (checked arguments; they broadcast)."""
     offset = check_offset(geometry, offset)
-    arguments = [_checked(name, value, unit) for name, value, unit in (
+    arguments = [checked_quantity(name, value, unit) for name, value, unit in (
         ('input_angle', input_angle, 'rad'), ('input_speed', input_speed, 'rad/s'),
         ('input_acceleration', input_acceleration, 'rad/s^2'),
         ('offset_rate', offset_rate, 'm/s'),
         ('offset_acceleration', offset_acceleration, 'm/s^2'),
         ('external_ram_force', external_ram_force, 'N'))]
-    return _chain(_ARRAY_OPS, geometry.coupling_radius, geometry.crank_radius,
-                  geometry.pivot_distance, geometry.ram_height, geometry.crank_phase,
-                  mass.as_dict(), offset, *arguments)
+    return evaluate_chain(ARRAY_OPS, geometry.coupling_radius, geometry.crank_radius,
+                          geometry.pivot_distance, geometry.ram_height, geometry.crank_phase,
+                          mass.as_dict(), offset, *arguments)
 
 
 def _scalar_result(values, kind):
@@ -562,8 +445,11 @@ def _scalar_result(values, kind):
     return kind(*np.broadcast_arrays(*values))
 
 
-def efforts(geometry, mass, offset, input_angle, input_speed, input_acceleration=0.0,
-            offset_rate=0.0, offset_acceleration=0.0, external_ram_force=0.0):
+def efforts(geometry: Geometry, mass: MassProperties, offset: FloatOrArray,
+            input_angle: FloatOrArray, input_speed: FloatOrArray,
+            input_acceleration: FloatOrArray = 0.0, offset_rate: FloatOrArray = 0.0,
+            offset_acceleration: FloatOrArray = 0.0,
+            external_ram_force: FloatOrArray = 0.0) -> Efforts:
     """
     Return what drives each joint, exactly, for a prescribed input and offset motion.
 
@@ -575,29 +461,34 @@ def efforts(geometry, mass, offset, input_angle, input_speed, input_acceleration
     fixed = _scalar_set_up(geometry, mass)
     if fixed is not None and _one_sample(fixed[1], arguments):
         # One sample of floats (the node, every tick): math's functions, no array checks.
-        return _chain(*fixed, *arguments).efforts
-    chain = _array_chain(geometry, mass, *arguments)
+        return evaluate_chain(*fixed, *arguments).efforts
+    chain = array_chain(geometry, mass, *arguments)
     return _scalar_result(chain.efforts, Efforts)
 
 
-def _geometry_fields(geometry):
+def geometry_fields(geometry: Geometry) -> Tuple[FloatOrArray, ...]:
+    """Return the geometry's fields in the chain's order (evaluate_chain's arguments)."""
     return (geometry.coupling_radius, geometry.crank_radius, geometry.pivot_distance,
             geometry.ram_height, geometry.crank_phase)
 
 
+# The chain's fixed arguments for one sample: math's functions, the geometry, the masses.
+_ScalarSetUp = Tuple[SimpleNamespace, float, float, float, float, float, Dict[str, Any]]
+
+
 @functools.lru_cache(maxsize=16)
-def _scalar_set_up(geometry, mass):
+def _scalar_set_up(geometry: Geometry, mass: MassProperties) -> Optional[_ScalarSetUp]:
     """
     Return the chain's fixed arguments for one-sample calls, or None if any is not a float.
 
     Both are frozen and hash by identity, so this runs once per pair of objects (the node
     keeps them between changes), not at every tick.
     """
-    fields = _geometry_fields(geometry)
+    fields = geometry_fields(geometry)
     masses = mass.as_dict()
     if all(type(value) is float and math.isfinite(value)
            for value in (*fields, *masses.values())):
-        return (_SCALAR_OPS, *fields, masses)
+        return (SCALAR_OPS, *fields, masses)  # type: ignore[return-value]  # floats, checked
     return None
 
 
@@ -607,14 +498,16 @@ def _one_sample(coupling_radius, arguments):
             and abs(arguments[0]) < coupling_radius)
 
 
-def generalized_inertia(geometry, mass, offset, input_angle):
+def generalized_inertia(geometry: Geometry, mass: MassProperties, offset: FloatOrArray,
+                        input_angle: FloatOrArray) -> FloatOrArray:
     """M(theta, offset) of dynamics.md: input torque per unit input acceleration, kg m^2."""
-    chain = _array_chain(geometry, mass, offset, input_angle)
+    chain = array_chain(geometry, mass, offset, input_angle)
     value = chain.generalized_inertia
     return float(value) if np.ndim(value) == 0 else value
 
 
-def ram_load_force(loads, ram_position, ram_velocity, stroke):
+def ram_load_force(loads: 'Loads', ram_position: FloatOrArray, ram_velocity: FloatOrArray,
+                   stroke: float) -> FloatOrArray:
     """
     F_ext on the ram (N, along +x): cutting force while cutting, and Coulomb friction.
 

@@ -15,8 +15,8 @@
 The theory of one stroke pair's effort figures at a steady setting (pure numpy/scipy).
 
 The analysis and the node compare what they measure with the same answers: the ideal speed
-drive's exact figures (motor_drive.pair_efforts) or the motor drive's steady running
-(motor_drive.speed_fluctuation). The motor drive's answer takes a simulation of many
+drive's exact figures (speed_drive.pair_efforts) or the motor drive's steady running
+(steady_running.speed_fluctuation). The motor drive's answer takes a simulation of many
 revolutions, far longer than a node's tick, so ``BackgroundTheory`` works it out in a
 worker process and the node picks it up once it is there: no tick waits for it.
 """
@@ -31,11 +31,12 @@ import subprocess
 import sys
 import threading
 import time
-from typing import BinaryIO, Dict, NamedTuple, Optional
+from typing import BinaryIO, Dict, NamedTuple, Optional, Tuple
 
 from qrm_ros.core import dynamics as dyn
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core import motor_drive
+from qrm_ros.core.speed_drive import pair_efforts
+from qrm_ros.core.steady_running import speed_fluctuation
 
 __all__ = ['BackgroundTheory', 'EFFORT_FIGURES', 'Setting', 'steady_effort_theory',
            'THEORY_FIGURES', 'ZERO_CAN_BE_EXACT']
@@ -63,7 +64,7 @@ class Setting(NamedTuple):
     offset: float       # m
     input_speed: float  # rad/s: the drive's speed, or the motor's speed reference
 
-    def key(self):
+    def key(self) -> tuple:
         """Return the setting's values, hashable (the parameter sets compare by identity)."""
         def values(part):
             return None if part is None else tuple(sorted(part.as_dict().items()))
@@ -85,21 +86,22 @@ def steady_effort_theory(setting: Setting) -> Dict[str, Optional[float]]:
     geometry, mass, loads = setting.geometry, setting.mass, setting.loads
     with contextlib.suppress(kin.KinematicsError):
         if setting.motor is None:  # the ideal speed drive holds the speed: no fluctuation
-            figures = motor_drive.pair_efforts(geometry, mass, loads, setting.offset,
-                                               setting.input_speed)
+            figures = pair_efforts(geometry, mass, loads, setting.offset, setting.input_speed)
             if (loads.cutting_force == 0.0 and loads.ram_friction == 0.0
                     and abs(figures.energy_per_pair)
                     <= _ROUNDOFF * 2 * math.pi * figures.rms_input_torque):
                 figures = figures._replace(energy_per_pair=0.0, mean_input_power=0.0)
             theory.update(figures._asdict(), speed_fluctuation=0.0)
         else:
-            steady = motor_drive.speed_fluctuation(geometry, mass, loads, setting.motor,
-                                                   setting.offset, setting.input_speed)
+            steady = speed_fluctuation(geometry, mass, loads, setting.motor, setting.offset,
+                                       setting.input_speed)
             theory.update(steady.pair_efforts._asdict(),
                           speed_fluctuation=steady.fluctuation)
     return {name: None if value is None else float(value) for name, value in theory.items()}
 
 
+# A lookup's answer: (theory or None, problem or None).
+Answer = Tuple[Optional[Dict[str, Optional[float]]], Optional[str]]
 # The worker's niceness: its simulations must not take the CPU from the caller's ticks.
 WORKER_NICENESS = 10
 
@@ -137,7 +139,7 @@ class BackgroundTheory:
     the pipe (close(), or the caller's exit, however it happens).
     """
 
-    def __init__(self, limit: int = 64):
+    def __init__(self, limit: int = 64) -> None:
         self._limit = limit
         self._known: Dict[tuple, Dict[str, Optional[float]]] = {}
         self._problems: Dict[tuple, str] = {}
@@ -145,7 +147,7 @@ class BackgroundTheory:
         self._replies: queue.Queue = queue.Queue()
         self._worker: Optional[subprocess.Popen] = None
 
-    def lookup(self, setting: Setting):
+    def lookup(self, setting: Setting) -> Answer:
         """Return (theory or None, problem or None): None, None while it is being worked out."""
         key = setting.key()
         self._collect()
@@ -160,7 +162,7 @@ class BackgroundTheory:
             self._ask(key, setting)
         return None, None
 
-    def wait(self, setting: Setting, timeout: float = 60.0):
+    def wait(self, setting: Setting, timeout: float = 60.0) -> Answer:
         """Start the work if needed and wait for it (for tests and tools, not for ticks)."""
         deadline = time.monotonic() + timeout
         answer = self.lookup(setting)
@@ -209,13 +211,13 @@ class BackgroundTheory:
             except queue.Empty:
                 return
 
-    def close(self):
+    def close(self) -> None:
         """Stop the worker at once, work under way included (a stop must not wait)."""
         if self._worker is not None:
             self._worker.kill()
             self._worker.wait()  # its replies' pipe ends too: the reading thread closes it
             with contextlib.suppress(OSError):
-                self._worker.stdin.close()
+                self._worker.stdin.close()  # type: ignore[union-attr]  # made a PIPE
             self._worker = None
         self._pending.clear()
 

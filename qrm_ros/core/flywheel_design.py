@@ -14,7 +14,7 @@
 """
 Flywheel sizing for ``qrm_design flywheel`` (pure numpy/scipy, no ROS).
 
-The sizing itself is motor_drive's (``input_inertia_for_speed_fluctuation``): it sizes J1,
+The sizing itself is steady_running's (``input_inertia_for_speed_fluctuation``): it sizes J1,
 the input side's total inertia (motor rotor and gearbox referred to the input shaft, the
 input shaft and coupling, and any flywheel added there). This module puts it in a designer's
 terms: what J1 must be added to the given one, what the textbook energy method would have
@@ -36,7 +36,8 @@ from typing import NamedTuple, Optional
 import numpy as np
 
 from qrm_ros.core import dynamics as dyn
-from qrm_ros.core import motor_drive as md
+from qrm_ros.core.geometry import Geometry
+from qrm_ros.core import steady_running
 
 __all__ = ['FlywheelSizing', 'revolution_mean_inertia', 'size_flywheel']
 
@@ -61,30 +62,34 @@ class FlywheelSizing(NamedTuple):
     equivalent_speed_fluctuation: Optional[float]  # Cs simulated with that J2
 
 
-def revolution_mean_inertia(geometry, mass, offset):
+def revolution_mean_inertia(geometry: Geometry, mass: dyn.MassProperties,
+                            offset: float) -> float:
     """Mean of the generalised inertia M over one input revolution at a fixed offset, kg m^2."""
     angles = np.linspace(0.0, 2.0 * math.pi, _MEAN_SAMPLES, endpoint=False)
     return float(np.mean(dyn.generalized_inertia(geometry, mass, offset, angles)))
 
 
-def size_flywheel(geometry, mass, loads, motor, offset, input_speed, fluctuation):
+def size_flywheel(geometry: Geometry, mass: dyn.MassProperties, loads: dyn.Loads,
+                  motor: dyn.MotorDrive, offset: float, input_speed: float,
+                  fluctuation: float) -> FlywheelSizing:
     """
     Size the input side for a steady Cs under the motor; return a ``FlywheelSizing``.
 
     offset (m) is fixed, input_speed (rad/s, > 0) is the motor's speed reference. A Cs the
     drive cannot reach, a stall and bad numbers raise DynamicsError or KinematicsError with
-    the reason (motor_drive's messages).
+    the reason (steady_running's messages).
     """
-    input_inertia = md.input_inertia_for_speed_fluctuation(geometry, mass, loads, motor, offset,
-                                                           input_speed, fluctuation)
+    input_inertia = steady_running.input_inertia_for_speed_fluctuation(
+        geometry, mass, loads, motor, offset, input_speed, fluctuation)
 
     def fluctuation_with(changed):
-        return md.speed_fluctuation(geometry, changed, loads, motor, offset,
-                                    input_speed).fluctuation
+        return steady_running.speed_fluctuation(geometry, changed, loads, motor, offset,
+                                                input_speed).fluctuation
 
     given = fluctuation_with(mass)
     simulated = fluctuation_with(dataclasses.replace(mass, input_inertia=input_inertia))
-    total = md.energy_method_inertia(geometry, mass, loads, offset, input_speed, fluctuation)
+    total = steady_running.energy_method_inertia(geometry, mass, loads, offset, input_speed,
+                                                 fluctuation)
     chain = revolution_mean_inertia(geometry, mass, offset) - mass.input_inertia
     unit_flywheel = dyn.MassProperties(input_inertia=0.0, flywheel_inertia=1.0,
                                        lever_inertia=0.0, lever_mass=0.0,

@@ -14,23 +14,27 @@
 """
 Compiled (numba) right-hand side of the motor drive's equation of motion.
 
-dynamics._lean_acceleration_of (the right-hand side's acceleration) and _lean_efforts_of (the
+lean_chain.lean_acceleration_of (the right-hand side's acceleration) and lean_efforts_of (the
 efforts at a stamp), the same functions compiled for floats (their constants as a float64
 array): about a quarter of their cost in Python, the same numbers bit for bit (no fast-math
-flag, so nothing is fused or reordered; tests hold the forms together).
-motor_drive.MotorStepper imports this on a thread of its own and takes it up once loaded
-(importing numba and loading the cached machine code take about 0.3 s; the first import
-compiles, about 1 s, cached beside this file or in numba's user cache); until then, and
-without numba, it runs the Python form. Compiled for its one signature on import, so no
+flag, so nothing is fused or reordered; tests hold the forms together). The head they share,
+lean_coefficients, is registered as callable from compiled code and compiled into both.
+motor_kernel_loading imports this on a thread of its own and the MotorStepper takes it up
+once loaded (importing numba and loading the cached machine code take about 0.3 s; the first
+import compiles, about 1 s, cached beside this file or in numba's user cache); until then,
+and without numba, it runs the Python form. Compiled for its one signature on import, so no
 call can start a compilation.
 """
 
 import numba
+from numba.extending import register_jitable
 
-from qrm_ros.core.dynamics import _lean_acceleration_of, _lean_efforts_of
+from qrm_ros.core.lean_chain import lean_acceleration_of, lean_coefficients, lean_efforts_of
+
+register_jitable(lean_coefficients)
 
 _ARGUMENTS = '(float64[::1], float64, float64, float64, float64, float64, float64)'
 lean_acceleration = numba.njit('float64' + _ARGUMENTS, cache=True,
-                               nogil=True)(_lean_acceleration_of)
+                               nogil=True)(lean_acceleration_of)
 lean_efforts = numba.njit('UniTuple(float64, 5)' + _ARGUMENTS, cache=True,
-                          nogil=True)(_lean_efforts_of)
+                          nogil=True)(lean_efforts_of)

@@ -14,10 +14,10 @@
 """
 Compiled (numba) search of the peak input torque under the ideal speed drive.
 
-motor_drive.peak_input_torque's loop, one configuration at a time, in the crank angle
+speed_drive.peak_input_torque's loop, one configuration at a time, in the crank angle
 phi_c (no coupling atan2). The revolution is split where the ram load switches (the two
 reversals and the cutting stroke's workpiece edges, in closed form as
-motor_drive._load_switch_angles, their sin and cos too; the other stroke's edges switch
+speed_drive.load_switch_angles, their sin and cos too; the other stroke's edges switch
 nothing); each smooth piece carries its own constant ram force, taken at a point inside it.
 Consecutive configurations that repeat the lever geometry or crank phase reuse these. The
 samples come first: on each piece evenly spread crank angles (sin and cos by rotation, put
@@ -43,7 +43,7 @@ import numba
 import numpy as np
 
 from qrm_ros.core.dynamics import speed_drive_torque_of
-from qrm_ros.core.kernel_tools import compiler as _compiler, rotate as _rotate
+from qrm_ros.core.kernel_tools import compiler, rotate
 
 _TWO_PI = 2.0 * math.pi
 # Return-stroke samples grow as sqrt(h / (h - r)) times this, once above the base count.
@@ -58,7 +58,7 @@ _EPSILON = float(np.finfo(np.float64).eps)
 # Brent's method stops once the torque's possible gain is below this part of it (eps / 64).
 _GAIN_RESOLUTION = _EPSILON / 64.0
 
-_jit = _compiler()
+_jit = compiler()
 _torque = _jit(speed_drive_torque_of)
 # The same formula, inlined by numba itself (LLVM inlines only after its loop vectoriser
 # ran), so that _evaluate's loop runs on SIMD lanes.
@@ -112,7 +112,7 @@ def _refine(low, high, low_torque, high_torque, low_slope, high_slope, low_sin, 
             fraction = low_slope / (low_slope - high_slope)  # the secant's
     fraction = min(max(fraction, 0.01), 0.99)
     step = fraction * width
-    sin_b, cos_b = _rotate(low_sin, low_cos, step)
+    sin_b, cos_b = rotate(low_sin, low_cos, step)
     norm = 1.5 - 0.5 * (sin_b * sin_b + cos_b * cos_b)  # back onto the circle
     sin_b *= norm
     cos_b *= norm
@@ -162,7 +162,7 @@ def _refine(low, high, low_torque, high_torque, low_slope, high_slope, low_sin, 
         a, fa, sin_a, cos_a = b, fb, sin_b, cos_b
         step = d if abs(d) > tol else (tol if m > 0.0 else -tol)
         b += step
-        sin_b, cos_b = _rotate(sin_b, cos_b, step)
+        sin_b, cos_b = rotate(sin_b, cos_b, step)
         norm = 1.5 - 0.5 * (sin_b * sin_b + cos_b * cos_b)  # back onto the circle
         sin_b *= norm
         cos_b *= norm
@@ -335,7 +335,7 @@ def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
                 intervals = max(1, int(math.ceil(return_samples * return_density * width
                                                  / (start + _TWO_PI - turn))))
             spacing = width / intervals
-            step_sin, step_cos = _rotate(0.0, 1.0, spacing)
+            step_sin, step_cos = rotate(0.0, 1.0, spacing)
             sin_c, cos_c = bounds[piece, 1], bounds[piece, 2]
             # The next even sample's sin and cos, rotated from the previous one's and put
             # back onto the unit circle (one Newton step for 1 / sqrt): rotations drift off
@@ -490,9 +490,12 @@ def _peak_torques(r1, r, h, height, phase, offset, speed, flywheel_inertia, leve
     return result
 
 
-def peak_torques(r1, r, h, height, phase, offset, speed, flywheel_inertia, lever_inertia,
-                 ram_mass, gravity_moment, cutting_force, ram_friction, cutting_length,
-                 cut_samples, return_samples, tolerance, max_steps):
+def peak_torques(r1: np.ndarray, r: np.ndarray, h: np.ndarray, height: np.ndarray,
+                 phase: np.ndarray, offset: np.ndarray, speed: np.ndarray,
+                 flywheel_inertia: float, lever_inertia: float, ram_mass: float,
+                 gravity_moment: float, cutting_force: float, ram_friction: float,
+                 cutting_length: float, cut_samples: int, return_samples: int,
+                 tolerance: float, max_steps: int) -> np.ndarray:
     """
     Peak |input torque| (N m) of flat configuration arrays; samples per stroke.
 

@@ -33,7 +33,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from qrm_ros.core.cutting_speed_hold import hold_offset
 from qrm_ros.core.dynamics import (efforts, Loads, MassProperties, MotorDrive, parameter_names,
                                    ram_load_force)
-from qrm_ros.core.motor_drive import MotorStepper
+from qrm_ros.core.motor_stepper import MotorStepper
 from qrm_ros.core.names import (DIAGNOSTICS_TOPIC, LINKAGE_MARKERS_TOPIC, SIM_NODE_NAME,
                                 SPEED_COMMAND_TOPIC)
 from qrm_ros.core.stepping import ShaperStepper, wrap_angle

@@ -32,7 +32,7 @@ from diagnostic_msgs.msg import KeyValue
 from qrm_ros.core.dynamics import Loads, MassProperties, MotorDrive
 from qrm_ros.core.effort_theory import BackgroundTheory, Setting, THEORY_FIGURES
 from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.motor_drive import MotorStepper
+from qrm_ros.core.motor_stepper import MotorStepper
 from qrm_ros.core.stroke_monitor import CompletedSamples, PairReport, StrokeMonitor
 from qrm_ros.core.strokes import run_steps
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND

@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 """
-qrm_analyze's effort figures, against the drive's exact theory (qrm_ros.core.motor_drive).
+qrm_analyze's effort figures, against the drive's exact theory (speed_drive, steady_running).
 
 The recorded efforts are exact at their stamps (the node's, or the core's in synthetic runs),
 so a measured figure differs from theory only by what sampling loses. The bounds, for a
@@ -46,11 +46,11 @@ from qrm_ros.analysis import report
 from qrm_ros.analysis import segments
 from qrm_ros.analysis import theory
 from qrm_ros.analysis import figures
-from qrm_ros.core import motor_drive
 from qrm_ros.core import dynamics as dyn
 from qrm_ros.core import kinematics as kin
 from qrm_ros.core.effort_theory import EFFORT_FIGURES, ZERO_CAN_BE_EXACT
-from qrm_ros.core.motor_drive import pair_efforts
+from qrm_ros.core.motor_stepper import simulate
+from qrm_ros.core.speed_drive import pair_efforts
 from synthetic_run import write_run
 from repo_paths import TEST_DATA
 
@@ -349,8 +349,8 @@ def test_the_motor_speed_reference_is_recovered_from_each_sample():
     motor = dyn.MotorDrive(speed_stiffness=50.0, max_torque=45.0)
     mass = dyn.MassProperties.small_shaper()
     # Starting at 4 rad/s the reference ramps to 2 pi at 4 rad/s^2, then holds.
-    simulation = motor_drive.simulate(PAPER, mass, LOADS, motor, 0.01, 2 * math.pi, 3.0, 500.0,
-                                      initial_speed=4.0, input_acceleration_limit=4.0)
+    simulation = simulate(PAPER, mass, LOADS, motor, 0.01, 2 * math.pi, 3.0, 500.0,
+                          initial_speed=4.0, input_acceleration_limit=4.0)
     # The published input torque is the inverse dynamics' at the state: the motor's torque
     # to round-off.
     np.testing.assert_allclose(simulation.efforts.input_torque, simulation.motor_torque,
@@ -371,7 +371,7 @@ def test_the_motor_speed_reference_is_recovered_from_each_sample():
 def test_a_motor_run_is_one_segment_per_setting_and_a_load_change_splits_it():
     motor = dyn.MotorDrive.small_shaper()
     mass = dyn.MassProperties.small_shaper()
-    simulation = motor_drive.simulate(PAPER, mass, LOADS, motor, 0.01, 2 * math.pi, 4.0, 200.0)
+    simulation = simulate(PAPER, mass, LOADS, motor, 0.01, 2 * math.pi, 4.0, 200.0)
     samples = _motor_samples(simulation)
     assert np.ptp(samples.input_speed) > 1e-3  # it fluctuates: no run of equal speeds
     heavier = dyn.Loads(2 * LOADS.cutting_force, LOADS.ram_friction, LOADS.cutting_length)

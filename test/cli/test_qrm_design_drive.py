@@ -37,7 +37,7 @@ from qrm_ros.analysis import design_table
 from qrm_ros.cli import arguments
 from qrm_ros.cli import qrm_design
 from qrm_ros.core import dynamics as dyn
-from qrm_ros.core import motor_drive as md
+from qrm_ros.core.motor_stepper import simulate
 from qrm_ros.core.geometry import Geometry
 from qrm_ros.core.kinematics import state
 
@@ -70,7 +70,7 @@ def path_work(loads=LOADS):
 
 def simulated_fluctuation(mass, offset, duration, motor=MOTOR, rate=5000.0):
     """Cs of the last whole revolution of an independent 5 kHz simulation."""
-    run = md.simulate(GEOMETRY, mass, LOADS, motor, offset, SPEED, duration, rate)
+    run = simulate(GEOMETRY, mass, LOADS, motor, offset, SPEED, duration, rate)
     turns = np.floor(run.input_angle / (2 * math.pi))
     last = turns == turns[-1] - 1
     times = run.time[last]
@@ -340,7 +340,7 @@ def test_readme_worked_example_is_the_sizing(sized):
     documented = re.split(NUMBER, example.strip())
     printed = re.split(NUMBER, design_table.format_flywheel(sized).strip())
     # The words exactly; the numbers within 0.1 % (the simulations' settling and root
-    # tolerances are 1e-4: a faster motor_drive may move the last printed digit).
+    # tolerances are 1e-4: a faster motor drive may move the last printed digit).
     assert documented[::2] == printed[::2]
     assert [float(n) for n in documented[1::2]] == pytest.approx(
         [float(n) for n in printed[1::2]], rel=1e-3)

@@ -228,8 +228,8 @@ def test_ram_acceleration_agrees_with_the_kinematics_core():
     angles, speeds = rng.uniform(-4, 4, 200), rng.uniform(-30, 30, 200)
     accelerations, offsets = rng.uniform(-80, 80, 200), rng.uniform(-0.02, 0.02, 200)
     rates = rng.uniform(-0.01, 0.01, 200)
-    chain = dyn._array_chain(geometry, dyn.MassProperties.small_shaper(), offsets, angles,
-                             speeds, accelerations, rates)
+    chain = dyn.array_chain(geometry, dyn.MassProperties.small_shaper(), offsets, angles,
+                            speeds, accelerations, rates)
     reference = state(geometry, offsets, angles, speeds, accelerations, rates)
     scale = np.abs(reference.ram_acceleration).max()
     assert np.abs(chain.ram_acceleration - reference.ram_acceleration).max() <= 1e-12 * scale

@@ -24,7 +24,7 @@ from qrm_ros.core import dynamics as dyn
 from qrm_ros.core import kinematics as kin
 from qrm_ros.core.effort_theory import (BackgroundTheory, Setting, steady_effort_theory,
                                         THEORY_FIGURES, WORKER_NICENESS)
-from qrm_ros.core.motor_drive import pair_efforts
+from qrm_ros.core.speed_drive import pair_efforts
 
 GEOMETRY = kin.Geometry.paper()
 LOADS = dyn.Loads(400.0, 20.0, 0.15)

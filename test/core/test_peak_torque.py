@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 """
-motor_drive.peak_input_torque against pair_efforts and dense sampling of dynamics.efforts.
+speed_drive.peak_input_torque against pair_efforts and dense sampling of dynamics.efforts.
 
 dynamics.speed_drive_torque_of (the kernel's formula) is held to dynamics.efforts and its
 slope to finite differences.
@@ -30,7 +30,7 @@ import pytest
 
 from qrm_ros.core import dynamics as dyn
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core import motor_drive as md
+from qrm_ros.core import speed_drive as sd
 from qrm_ros.core import torque_kernel
 from repo_paths import REPO_ROOT
 
@@ -110,21 +110,21 @@ def test_paper_design_matches_pair_efforts(name):
     loads = LOADS[name]
     offsets = np.array([-0.0225, -0.01, 0.0, 0.007, 0.0225])
     speeds = np.array([2.0 * math.pi, -2.0 * math.pi, 30.0, -0.5])
-    peaks = md.peak_input_torque(PAPER, MASS, loads, offsets[:, None], speeds[None, :])
+    peaks = sd.peak_input_torque(PAPER, MASS, loads, offsets[:, None], speeds[None, :])
     assert peaks.shape == (5, 4)
     for i, offset in enumerate(offsets):
         for j, speed in enumerate(speeds):
-            reference = md.pair_efforts(PAPER, MASS, loads, float(offset), float(speed))
+            reference = sd.pair_efforts(PAPER, MASS, loads, float(offset), float(speed))
             assert peaks[i, j] == pytest.approx(reference.peak_input_torque, rel=1e-12)
 
 
 def test_random_designs_match_pair_efforts():
     geometry, offset, speed = random_designs(40, 5)
     loads = dyn.Loads(400.0, 20.0, 0.8 * float(np.min(geometry.ram_stroke)))
-    peaks = md.peak_input_torque(geometry, MASS, loads, offset, speed)
+    peaks = sd.peak_input_torque(geometry, MASS, loads, offset, speed)
     for index in range(40):
         design = one(geometry, index)
-        reference = md.pair_efforts(design, MASS, loads, offset[index], speed[index])
+        reference = sd.pair_efforts(design, MASS, loads, offset[index], speed[index])
         # pair_efforts' own round-off grows as (r1 / (r1 - |offset|))^2 (its docstring).
         closeness = design.coupling_radius / (design.coupling_radius - abs(offset[index]))
         tolerance = 1e-12 * max(1.0, (0.1 * closeness) ** 2)
@@ -141,7 +141,7 @@ def dense_peak(geometry, loads, offset, speed, samples=2_000_000):
                          external_ram_force=load).input_torque
     best = np.max(np.abs(torque))
     # One-sided values at the switches: each with the load just before and just after.
-    for switch in md._load_switch_angles(geometry, loads, offset):
+    for switch in sd.load_switch_angles(geometry, loads, offset):
         for side in (-1e-9, 1e-9):
             near = kin.state(geometry, offset, switch + side, speed)
             force = dyn.ram_load_force(loads, near.ram_position, near.ram_velocity,
@@ -163,7 +163,7 @@ def test_matches_dense_sampling(case):
     if case == 0:
         design, offset, speed = PAPER, 0.015, -2.0 * math.pi
     loads = dyn.Loads(400.0, 20.0, 0.7 * design.ram_stroke)
-    peak = md.peak_input_torque(design, MASS, loads, offset, speed)
+    peak = sd.peak_input_torque(design, MASS, loads, offset, speed)
     dense, bound = dense_peak(design, loads, offset, speed)
     assert peak >= dense * (1.0 - 1e-13)
     assert peak <= dense + bound + 1e-13 * dense
@@ -172,15 +172,15 @@ def test_matches_dense_sampling(case):
 
 def test_broadcast_shapes_and_floats():
     loads = dyn.Loads.small_shaper()
-    value = md.peak_input_torque(PAPER, MASS, loads, 0.01, 2.0 * math.pi)
+    value = sd.peak_input_torque(PAPER, MASS, loads, 0.01, 2.0 * math.pi)
     assert type(value) is float
     radii = kin.Geometry(0.025, np.array([0.03, 0.04, 0.0505]), 0.113)
-    peaks = md.peak_input_torque(radii, MASS, dyn.Loads(400.0, 20.0, 0.05),
+    peaks = sd.peak_input_torque(radii, MASS, dyn.Loads(400.0, 20.0, 0.05),
                                  np.array([[0.0], [0.01]]), 2.0 * math.pi)
     assert peaks.shape == (2, 3)
     for i, offset in enumerate((0.0, 0.01)):
         for j in range(3):
-            reference = md.pair_efforts(one(radii, j), MASS, dyn.Loads(400.0, 20.0, 0.05),
+            reference = sd.pair_efforts(one(radii, j), MASS, dyn.Loads(400.0, 20.0, 0.05),
                                         offset, 2.0 * math.pi).peak_input_torque
             assert peaks[i, j] == pytest.approx(reference, rel=1e-12)
 
@@ -188,16 +188,16 @@ def test_broadcast_shapes_and_floats():
 def test_refuses_bad_input():
     loads = dyn.Loads.small_shaper()
     with pytest.raises(kin.KinematicsError, match='input_speed must be non-zero'):
-        md.peak_input_torque(PAPER, MASS, loads, 0.01, np.array([1.0, 0.0]))
+        sd.peak_input_torque(PAPER, MASS, loads, 0.01, np.array([1.0, 0.0]))
     with pytest.raises(kin.KinematicsError, match='offset 0.025 m is out of range'):
-        md.peak_input_torque(PAPER, MASS, loads, 0.025, 1.0)
+        sd.peak_input_torque(PAPER, MASS, loads, 0.025, 1.0)
     with pytest.raises(dyn.DynamicsError, match='input_speed must be finite'):
-        md.peak_input_torque(PAPER, MASS, loads, 0.01, math.nan)
+        sd.peak_input_torque(PAPER, MASS, loads, 0.01, math.nan)
     with pytest.raises(dyn.DynamicsError, match='cutting_length = 0.3 m is out of range'):
-        md.peak_input_torque(PAPER, MASS, dyn.Loads(400.0, 20.0, 0.3), 0.01, 1.0)
+        sd.peak_input_torque(PAPER, MASS, dyn.Loads(400.0, 20.0, 0.3), 0.01, 1.0)
     heavy = dyn.MassProperties(1.2, 0.08, 0.15, 5.0, 0.15, np.array([20.0, 30.0]))
     with pytest.raises(dyn.DynamicsError, match='ram_mass must be a single number'):
-        md.peak_input_torque(PAPER, heavy, loads, 0.01, 1.0)
+        sd.peak_input_torque(PAPER, heavy, loads, 0.01, 1.0)
 
 
 def test_order_does_not_change_results():
@@ -206,10 +206,10 @@ def test_order_does_not_change_results():
     radii = kin.Geometry(0.025, np.linspace(0.02, 0.1, 40)[:, None], 0.113)
     offsets = np.linspace(-0.0225, 0.0225, 50)[None, :]
     loads = dyn.Loads(400.0, 20.0, 0.9 * float(np.min(radii.ram_stroke)))
-    grid = md.peak_input_torque(radii, MASS, loads, offsets, -2.0 * math.pi)
+    grid = sd.peak_input_torque(radii, MASS, loads, offsets, -2.0 * math.pi)
     order = np.random.default_rng(8).permutation(grid.size)
     crank = np.broadcast_to(radii.crank_radius, grid.shape).ravel()[order]
-    shuffled = md.peak_input_torque(kin.Geometry(0.025, crank, 0.113), MASS, loads,
+    shuffled = sd.peak_input_torque(kin.Geometry(0.025, crank, 0.113), MASS, loads,
                                     np.broadcast_to(offsets, grid.shape).ravel()[order],
                                     -2.0 * math.pi)
     np.testing.assert_array_equal(shuffled, grid.ravel()[order])
@@ -221,10 +221,10 @@ def test_thread_count_does_not_change_results():
     threads = numba.get_num_threads()
     try:
         numba.set_num_threads(1)
-        alone = md.peak_input_torque(geometry, MASS, loads, offset, speed)
+        alone = sd.peak_input_torque(geometry, MASS, loads, offset, speed)
     finally:
         numba.set_num_threads(threads)
-    shared = md.peak_input_torque(geometry, MASS, loads, offset, speed)
+    shared = sd.peak_input_torque(geometry, MASS, loads, offset, speed)
     np.testing.assert_array_equal(alone, shared)
 
 
@@ -233,12 +233,12 @@ def test_the_readme_sweep():
     geometry = kin.Geometry.paper()
     mass, loads = dyn.MassProperties.small_shaper(), dyn.Loads.small_shaper()
     offsets = np.array([-0.02, -0.01, 0.0, 0.01, 0.02])
-    peaks = md.peak_input_torque(geometry, mass, loads, offsets, 2 * math.pi)
+    peaks = sd.peak_input_torque(geometry, mass, loads, offsets, 2 * math.pi)
     readme = ' '.join((Path(REPO_ROOT) / 'README.md').read_text().split())
     assert ('offsets −20, −10, 0, +10, +20 mm give 480.25, 48.128, 26.225, 104.72 and 2923.9 N·m'
             in readme)
     for offset, peak, shown in zip(offsets, peaks, (480.25, 48.128, 26.225, 104.72, 2923.9)):
-        assert peak == pytest.approx(md.pair_efforts(geometry, mass, loads, offset,
+        assert peak == pytest.approx(sd.pair_efforts(geometry, mass, loads, offset,
                                                      2 * math.pi).peak_input_torque,
                                      rel=1e-12)
         assert float(f'{peak:.5g}') == shown
@@ -249,7 +249,7 @@ import math, threading
 import numpy as np
 from qrm_ros.core import dynamics as dyn
 from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.motor_drive import peak_input_torque
+from qrm_ros.core.speed_drive import peak_input_torque
 geometry = Geometry.paper()
 mass, loads = dyn.MassProperties.small_shaper(), dyn.Loads.small_shaper()
 offsets = np.linspace(-0.02, 0.02, 20000)

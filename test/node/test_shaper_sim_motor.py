@@ -18,7 +18,9 @@ import time
 
 import pytest
 from qrm_ros.core.effort_theory import THEORY_FIGURES
-from qrm_ros.core.motor_drive import MotorStepper, pair_efforts, speed_fluctuation
+from qrm_ros.core.motor_stepper import MotorStepper
+from qrm_ros.core.speed_drive import pair_efforts
+from qrm_ros.core.steady_running import speed_fluctuation
 from qrm_ros.core.names import DRIVE_STATUS, STROKE_PAIR_STATUS
 from qrm_ros.core.stepping import ShaperStepper
 from rclpy.parameter import Parameter

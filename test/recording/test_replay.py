@@ -51,7 +51,7 @@ from qrm_ros.analysis import segments
 from qrm_ros.core import dynamics as dyn
 from qrm_ros.core import kinematics as kin
 from qrm_ros.recording.bag_reader import open_run
-from qrm_ros.core.motor_drive import MotorStepper
+from qrm_ros.core.motor_stepper import MotorStepper
 from qrm_ros.core.names import JOINT_NAMES
 from qrm_ros.node.shaper_parameters import MOTOR_PREFIX
 from qrm_ros.core.stepping import ShaperStepper, wrap_angle
@@ -483,7 +483,7 @@ def test_analysis_measures_a_motor_logs_efforts_within_sampling(motor_log, reque
     The settled spans are given here (qrm_analyze's own segments start at the ramp's end,
     settling included: the test below); each is
     measured by measurement.measure_segment with the drive in force there (the load change
-    included), against motor_drive.speed_fluctuation's steady state.
+    included), against steady_running.speed_fluctuation's steady state.
     """
     path = request.node.callspec.params['motor_log']
     recording = recorded_run.read_recording(path)

@@ -1,0 +1,113 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+The lean chain (the motor stepper's equation of motion) gives the chain's numbers bit for bit.
+
+In its Python form and compiled (qrm_ros.core.motor_kernel), on random states with exact
+zeros among them.
+"""
+
+import numpy as np
+import pytest
+
+from qrm_ros.core import dynamics as dyn
+from qrm_ros.core.geometry import Geometry
+from qrm_ros.core.lean_chain import (lean_acceleration_of, lean_constants, lean_efforts_of,
+                                     lean_ram_motion)
+from qrm_ros.core.motor_equation import EquationOfMotion
+
+GEOMETRY = Geometry.paper()
+MASS = dyn.MassProperties.small_shaper()
+# The masses the lean forms are checked with: the small shaper's, and one without a flywheel.
+LEAN_MASSES = [MASS, dyn.MassProperties(
+    input_inertia=0.05, flywheel_inertia=0.0, lever_mass=3.0, lever_inertia=0.4,
+    lever_com_distance=0.2, ram_mass=12.0, gravity=9.81)]
+LOADS = dyn.Loads.small_shaper()
+
+
+def _bits(values):
+    return [float(value).hex() for value in values]
+
+
+def _chain_fixed(mass):
+    """The chain's fixed arguments on floats, as the stepper holds them (motor_equation)."""
+    return (dyn.SCALAR_OPS, *dyn.geometry_fields(GEOMETRY), mass.scalars())
+
+
+def _random_states(seed, count, offset_fraction, angle_span):
+    """Yield (offset, offset rate, angle, speed, torque, load), exact zeros among them."""
+    rng = np.random.default_rng(seed)
+    radius = GEOMETRY.coupling_radius
+    for index in range(count):
+        offset = (0.0 if index % 5 == 0 else
+                  float(rng.uniform(-offset_fraction, offset_fraction)) * radius)
+        rate = 0.0 if index % 3 == 0 else float(rng.normal(0.0, 0.02))
+        angle, speed = float(rng.uniform(-angle_span, angle_span)), float(rng.normal(0.0, 20.0))
+        torque, load = float(rng.normal(0.0, 300.0)), float(rng.normal(0.0, 1500.0))
+        yield offset, rate, angle, speed, torque, load
+
+
+@pytest.mark.parametrize('mass', LEAN_MASSES)
+def test_the_lean_chain_gives_the_chains_numbers_bit_for_bit(mass):
+    # The stepper's right-hand side and switch checks: the chain's formula, not a second one.
+    fixed = _chain_fixed(mass)
+    constants = lean_constants(GEOMETRY, mass)
+    ram_motion = lean_ram_motion(constants)
+    for offset, rate, angle, speed, torque, load in _random_states(9, 20000, 0.9, 4.0):
+        chain = dyn.evaluate_chain(*fixed, offset, angle, speed, 0.0, rate, 0.0, 0.0)
+        assert _bits([lean_acceleration_of(constants, offset, angle, speed, rate, torque,
+                                           load)]) == _bits(
+            [EquationOfMotion.acceleration(chain, torque, load)])
+        assert _bits(ram_motion(offset, angle, speed, rate)) == _bits(
+            [chain.ram_position, chain.ram_velocity])
+
+
+def _kernel():
+    pytest.importorskip('numba')
+    from qrm_ros.core import motor_kernel
+    return motor_kernel
+
+
+@pytest.mark.parametrize('mass', LEAN_MASSES)
+def test_the_lean_efforts_are_the_chains_bit_for_bit_in_python_and_compiled(mass):
+    kernel = _kernel()
+    rng = np.random.default_rng(12)
+    constants = lean_constants(GEOMETRY, mass)
+    array = np.array(constants)
+    fixed = _chain_fixed(mass)
+    radius = GEOMETRY.coupling_radius
+    for index in range(30000):
+        # Exact zeros too (a shaft at rest, no ramp, no load): the signs of zeros agree.
+        offset = 0.0 if index % 5 == 0 else float(rng.uniform(-0.99, 0.99)) * radius
+        rate = 0.0 if index % 3 == 0 else float(rng.normal(0.0, 0.02))
+        speed = 0.0 if index % 7 == 0 else float(rng.normal(0.0, 20.0))
+        acceleration = 0.0 if index % 7 == 0 else float(rng.normal(0.0, 50.0))
+        load = 0.0 if index % 4 == 0 else float(rng.normal(0.0, 1500.0))
+        angle = float(rng.uniform(-40.0, 40.0))
+        arguments = (offset, angle, speed, acceleration, rate, load)
+        expected = _bits(dyn.evaluate_chain(*fixed, offset, angle, speed, acceleration, rate,
+                                            0.0, load).efforts)
+        assert _bits(lean_efforts_of(constants, *arguments)) == expected
+        assert _bits(kernel.lean_efforts(array, *arguments)) == expected
+
+
+@pytest.mark.parametrize('mass', LEAN_MASSES)
+def test_the_compiled_acceleration_gives_the_python_forms_numbers_bit_for_bit(mass):
+    compiled = _kernel().lean_acceleration
+    constants = lean_constants(GEOMETRY, mass)
+    array = np.array(constants)
+    for offset, rate, angle, speed, torque, load in _random_states(11, 50000, 0.99, 40.0):
+        arguments = (offset, angle, speed, rate, torque, load)
+        assert _bits([compiled(array, *arguments)]) == _bits(
+            [lean_acceleration_of(constants, *arguments)])
