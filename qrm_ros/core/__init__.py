@@ -11,4 +11,76 @@
 # WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
 # See the License for the specific language governing permissions and
 # limitations under the License.
-"""The mechanism's physics, pure numpy/scipy: no ROS, no files, no argparse."""
+"""
+The mechanism's physics, pure numpy/scipy: no ROS, no files, no argparse.
+
+A script needs no map of the modules: ``from qrm_ros.core import Geometry, time_ratio``.
+The names load on first use (PEP 562), so a command that needs one light module (the
+recorder takes ``core.units`` and ``core.geometry``) does not load scipy with the rest. The
+imports under ``TYPE_CHECKING`` below are the one list of what is exported and from where:
+type checkers read them, and ``__getattr__`` reads the same lines from this file's source.
+"""
+
+import ast
+import importlib
+import os
+from typing import Any, Dict, List, TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from qrm_ros.core.cutting_speed_hold import (cutting_speed, hold_offset, HoldAnswer,
+                                                 reachable_cutting_speeds)
+    from qrm_ros.core.cutting_speeds import mean_cutting_speed, offset_for_mean_cutting_speed
+    from qrm_ros.core.dynamics import (DynamicsError, Efforts, efforts, generalized_inertia,
+                                       Loads, MassProperties, MotorDrive, ram_load_force)
+    from qrm_ros.core.flywheel_design import FlywheelSizing, size_flywheel
+    from qrm_ros.core.gearbox import (conventional_gearbox, GearboxPlan, GearStep,
+                                      plan_gearbox)
+    from qrm_ros.core.geometry import (check_offset, Geometry, KinematicsError, MechanismState,
+                                       SAFE_OFFSET_FRACTION)
+    from qrm_ros.core.linkage import linkage_points, linkage_sizes, LinkagePoints, LinkageSizes
+    from qrm_ros.core.mechanism_state import (input_angle_for_flywheel_angle,
+                                              reversal_flywheel_angles, state)
+    from qrm_ros.core.motor_stepper import MotorStepper, simulate, Simulation
+    from qrm_ros.core.offset_inverses import (offset_for_cutting_speed, offset_for_speed_ratio,
+                                              offset_for_time_ratio)
+    from qrm_ros.core.peak_speeds import peak_ram_speeds, peak_speed_ratio
+    from qrm_ros.core.speed_drive import pair_efforts, PairEfforts, peak_input_torque
+    from qrm_ros.core.steady_running import (energy_method_inertia,
+                                             input_inertia_for_speed_fluctuation,
+                                             speed_fluctuation, SpeedFluctuation)
+    from qrm_ros.core.steady_theory import steady_theory, SteadyTheory
+    from qrm_ros.core.stepper import Stepper
+    from qrm_ros.core.stepping import ShaperStepper
+    from qrm_ros.core.stroke_monitor import PairReport, StrokeMonitor
+    from qrm_ros.core.stroke_timing import (speed_ratio, speed_ratio_eq25, stroke_times,
+                                            time_ratio, time_ratio_rk4)
+    from qrm_ros.core.strokes import (find_reversals, find_stroke_pairs, measure_pair_efforts,
+                                      PairEffortsMeasured, StrokePairs)
+
+
+def _exported() -> Dict[str, str]:
+    """Map each exported name to its module, from the TYPE_CHECKING imports above."""
+    with open(os.path.join(os.path.dirname(os.path.abspath(__file__)), '__init__.py')) as f:
+        tree = ast.parse(f.read())
+    block = next(node for node in tree.body if isinstance(node, ast.If)
+                 and isinstance(node.test, ast.Name) and node.test.id == 'TYPE_CHECKING')
+    return {alias.name: statement.module for statement in block.body
+            if isinstance(statement, ast.ImportFrom) and statement.module
+            for alias in statement.names}
+
+
+_EXPORTED = _exported()
+__all__ = sorted(_EXPORTED, key=str.lower)
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTED.get(name)
+    if module is None:
+        raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value  # the next lookup is a plain attribute
+    return value
+
+
+def __dir__() -> List[str]:
+    return sorted(set(globals()) | set(__all__))

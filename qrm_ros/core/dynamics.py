@@ -201,7 +201,7 @@ class Loads(_Validated):
         """No cutting and no friction: free running."""
         return cls(cutting_force=0.0, ram_friction=0.0, cutting_length=0.0)
 
-    def check_against(self, stroke: float) -> 'Loads':
+    def check_against(self, stroke: FloatOrArray) -> 'Loads':
         """Refuse a workpiece longer than the ram stroke (m); return self."""
         length = self.cutting_length  # a float but in vectorised use; this runs every tick
         if (length > stroke if type(length) is float
@@ -507,7 +507,7 @@ def generalized_inertia(geometry: Geometry, mass: MassProperties, offset: FloatO
 
 
 def ram_load_force(loads: 'Loads', ram_position: FloatOrArray, ram_velocity: FloatOrArray,
-                   stroke: float) -> FloatOrArray:
+                   stroke: FloatOrArray) -> FloatOrArray:
     """
     F_ext on the ram (N, along +x): cutting force while cutting, and Coulomb friction.
 

@@ -311,8 +311,10 @@ def peak_input_torque(geometry: Geometry, mass: dyn.MassProperties, loads: dyn.L
             .peak_input_torque for values in zip(*(v.tolist() for v in flat))])
     else:
         with _KERNEL_LOCK:
-            peaks = torque_kernel.peak_torques(  # type: ignore[call-arg]  # flat: seven arrays
-                *flat, masses['flywheel_inertia'], masses['lever_inertia'], masses['ram_mass'],
+            r1, r, h, height, phase, offset_values, speeds = flat
+            peaks = torque_kernel.peak_torques(
+                r1, r, h, height, phase, offset_values, speeds,
+                masses['flywheel_inertia'], masses['lever_inertia'], masses['ram_mass'],
                 masses['lever_mass'] * masses['gravity'] * masses['lever_com_distance'],
                 load['cutting_force'], load['ram_friction'], load['cutting_length'],
                 *_TORQUE_SAMPLES, _TORQUE_ANGLE_TOLERANCE, _TORQUE_MAX_STEPS)
