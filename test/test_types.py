@@ -35,7 +35,7 @@ PACKAGE = 'qrm_ros'
 # The rooms mypy checks, module by module.
 TYPED_ROOMS = ['core', 'recording', 'analysis']
 # The rooms whose public functions and methods must be fully annotated.
-ANNOTATED_ROOMS = ['recording', 'analysis']
+ANNOTATED_ROOMS = ['core', 'recording', 'analysis']
 TYPED_MARKER = 'py.typed'
 
 

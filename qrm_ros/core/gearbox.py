@@ -47,6 +47,11 @@ from qrm_ros.core.offset_inverses import offset_for_time_ratio
 from qrm_ros.core.peak_speeds import peak_ram_speeds
 from qrm_ros.core.stroke_timing import time_ratio
 
+__all__ = ['ConventionalGearbox', 'DEFAULT_MIN_TIME_RATIO', 'DEFINITIONS', 'GearStep',
+           'GearboxPlan', 'MAX_STEPS', 'OffsetRange', 'STANDARD_PROGRESSION_RATIOS',
+           'conventional_gearbox', 'fewest_steps', 'offset_range', 'offsets_for_unit_speeds',
+           'plan_as_dict', 'plan_gearbox', 'unit_cutting_speed', 'usable_offsets']
+
 # Progression ratios of machine-tool gearboxes (Renard series R20/2 ... R10/3 and 2).
 STANDARD_PROGRESSION_RATIOS = (1.12, 1.26, 1.41, 1.58, 2.0)
 DEFINITIONS = ('mean', 'peak')

@@ -19,7 +19,7 @@ load only for sweeps big enough to repay numba's start-up.
 """
 
 import math
-from typing import Any, Callable, Optional
+from typing import Any, Callable, Optional, Tuple
 
 import numba
 
@@ -48,7 +48,7 @@ _SHORT_SERIES_LIMIT = 1e-3
 
 
 @compiler()
-def rotate(sin_c, cos_c, delta):
+def rotate(sin_c: float, cos_c: float, delta: float) -> Tuple[float, float]:
     """(sin, cos) of angle + delta from those of angle, by series for small delta."""
     square = delta * delta
     if abs(delta) <= _SHORT_SERIES_LIMIT:

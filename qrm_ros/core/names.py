@@ -61,7 +61,7 @@ GEOMETRY_METADATA = 'qrm_ros.geometry'
 PARAMETERS_METADATA = 'qrm_ros.parameters'
 
 
-def absolute_topic(topic):
+def absolute_topic(topic: str) -> str:
     """Return the topic as recorded from the root namespace ('joint_states' -> '/joint_states')."""
     return topic if topic.startswith('/') else '/' + topic
 

@@ -27,6 +27,7 @@ compiled for its one signature on import, so no call can start another compilati
 """
 
 import math
+from typing import Tuple
 
 import numpy as np
 
@@ -51,7 +52,8 @@ def _flywheel_terms(sin_c, cos_c, r1, cos0, sin0, offset):
 
 
 @_jit
-def velocity(sin_c, cos_c, r1, r, h, height, cos0, sin0, offset, clearance):
+def velocity(sin_c: float, cos_c: float, r1: float, r: float, h: float, height: float,
+             cos0: float, sin0: float, offset: float, clearance: float) -> float:
     """Ram velocity per unit input speed at a crank angle given by its sine and cosine."""
     sin_f, cos_f, root = _flywheel_terms(sin_c, cos_c, r1, cos0, sin0, offset)
     lift = offset * sin_f
@@ -87,8 +89,10 @@ def _velocity_growth_slope(sin_c, cos_c, r1, r, h, height, cos0, sin0, offset, c
 
 
 @_jit
-def newton_peak(stroke_sign, low, sin_c, cos_c, start, high, tolerance, resolution,
-                max_steps, r1, r, h, height, cos0, sin0, offset, clearance):
+def newton_peak(stroke_sign: float, low: float, sin_c: float, cos_c: float, start: float,
+                high: float, tolerance: float, resolution: float, max_steps: int, r1: float,
+                r: float, h: float, height: float, cos0: float, sin0: float, offset: float,
+                clearance: float) -> Tuple[float, float]:
     """
     Root of dv/dphi_c in [low, high] and |v| there: peak_speeds.newton_peaks, one root.
 
@@ -193,8 +197,10 @@ def _stroke_peak(stroke_sign, arc_start, arc_end, sin_end, cos_start, cos_end, s
 
 @compiler('UniTuple(float64[::1], 2)(float64[::1], float64[::1], float64[::1], float64[::1], '
           'float64[::1], float64[::1], int64, int64, float64, float64, int64)')
-def peak_speeds(r1, r, h, height, phase, offset, cut_samples, return_samples, tolerance,
-                resolution, max_steps):
+def peak_speeds(r1: np.ndarray, r: np.ndarray, h: np.ndarray, height: np.ndarray,
+                phase: np.ndarray, offset: np.ndarray, cut_samples: int, return_samples: int,
+                tolerance: float, resolution: float,
+                max_steps: int) -> Tuple[np.ndarray, np.ndarray]:
     """
     Forward (cutting, return) peak |v| per unit input speed of flat configuration arrays.
 
