@@ -45,10 +45,10 @@ if TYPE_CHECKING:
                                               offset_for_time_ratio)
     from qrm_ros.core.peak_speeds import peak_ram_speeds, peak_speed_ratio
     from qrm_ros.core.speed_drive import pair_efforts, PairEfforts, peak_input_torque
+    from qrm_ros.core.steady_figures import steady_theory, SteadyTheory
     from qrm_ros.core.steady_running import (energy_method_inertia,
                                              input_inertia_for_speed_fluctuation,
                                              speed_fluctuation, SpeedFluctuation)
-    from qrm_ros.core.steady_theory import steady_theory, SteadyTheory
     from qrm_ros.core.stepper import Stepper
     from qrm_ros.core.stepping import ShaperStepper
     from qrm_ros.core.stroke_monitor import PairReport, StrokeMonitor

@@ -24,7 +24,7 @@ so ``from qrm_ros.core import kinematics as kin`` reaches every answer:
 * stroke times, time ratio and mid-stroke speed ratio: qrm_ros.core.stroke_timing;
 * the largest ram speeds of each stroke: qrm_ros.core.peak_speeds (compiled for large
   sweeps in qrm_ros.core.peak_kernel);
-* every figure of steady running at once: qrm_ros.core.steady_theory;
+* every figure of steady running at once: qrm_ros.core.steady_figures;
 * the offset for a wanted ratio or peak cutting speed: qrm_ros.core.offset_inverses;
 * the mean cutting speed and its inverse: qrm_ros.core.cutting_speeds.
 
@@ -40,7 +40,7 @@ from qrm_ros.core.mechanism_state import (input_angle_for_flywheel_angle,
 from qrm_ros.core.offset_inverses import (offset_for_cutting_speed, offset_for_speed_ratio,
                                           offset_for_time_ratio)
 from qrm_ros.core.peak_speeds import peak_ram_speeds, peak_speed_ratio
-from qrm_ros.core.steady_theory import steady_theory, SteadyTheory
+from qrm_ros.core.steady_figures import steady_theory, SteadyTheory
 from qrm_ros.core.stroke_timing import (speed_ratio, speed_ratio_eq25, stroke_times,
                                         time_ratio, time_ratio_rk4)
 

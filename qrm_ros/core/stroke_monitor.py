@@ -32,7 +32,7 @@ from typing import Dict, List, NamedTuple, Optional
 import numpy as np
 
 from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.steady_theory import steady_theory, SteadyTheory
+from qrm_ros.core.steady_figures import steady_theory, SteadyTheory
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
 from qrm_ros.core.strokes import (pair_effort_steps, PairEffortsMeasured, run_steps, Steps,
                                   stroke_pair_steps)

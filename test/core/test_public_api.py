@@ -14,6 +14,7 @@
 """qrm_ros.core's front door: every exported name is the defining module's, loaded on demand."""
 
 import importlib
+import pkgutil
 import subprocess
 import sys
 
@@ -28,6 +29,12 @@ def test_every_exported_name_is_the_object_its_module_defines():
         module = importlib.import_module(core._EXPORTED[name])
         assert name in getattr(module, '__all__', ()), f'{name} is not public in {module}'
         assert getattr(core, name) is getattr(module, name)
+
+
+def test_no_exported_name_is_also_a_module_of_core():
+    # Importing a submodule binds its name on the package, hiding an export of that name.
+    modules = {module.name for module in pkgutil.iter_modules(core.__path__)}
+    assert not modules & set(core.__all__)
 
 
 def test_star_import_gives_the_same_names():

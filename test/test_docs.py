@@ -1,0 +1,179 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+The documentation: the site builds without a warning, every relative link resolves, the
+repository names no folder outside itself, the examples run, and the node's parameter table
+in doc/node.md is the one the code generates.
+
+QRM_DOCS_HTML=DIR keeps the built site in DIR (e.g. to read it in a browser).
+"""
+
+import glob
+import importlib.util
+import os
+import re
+import shutil
+import subprocess
+import sys
+
+import pytest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+DOC = os.path.join(ROOT, 'doc')
+PAGES = sorted(['README.md', 'CONTRIBUTING.md', os.path.join('bench', 'README.md')]
+               + [os.path.relpath(p, ROOT) for p in glob.glob(os.path.join(DOC, '*.md'))])
+# Pages whose ```python blocks are run: they use only the package and make no files.
+RUN_EXAMPLES = ['README.md', os.path.join('doc', 'api.md'), os.path.join('doc', 'design.md')]
+# A folder beside the repository that a clone does not have. Written in pieces, so that this
+# file does not name it itself.
+FOREIGN = ['..' + '/shared', 'shared' + '/design', 'shared' + '/reference']
+# Not copied into the site's scratch source: environments, build outputs, caches.
+NOT_SOURCES = {'.git', '.venv', 'build', 'install', 'log', 'runs', '.pytest_cache',
+               '.mypy_cache', '__pycache__'}
+
+_FENCE = re.compile(r'^(```|~~~).*?^\1', re.S | re.M)
+_CODE_SPAN = re.compile(r'`[^`\n]*`')
+_LINK = re.compile(r'!?\[(?:[^\]\n]|\n(?!\n))*\]\(\s*<?([^)\s>]+)>?(?:\s+"[^"]*")?\s*\)')
+_SCHEME = re.compile(r'^[a-zA-Z][a-zA-Z0-9+.-]*:')
+
+
+def _read(path):
+    with open(os.path.join(ROOT, path), encoding='utf-8') as handle:
+        return handle.read()
+
+
+def _source_copy(folder):
+    """Copy the repository's sources into folder, for Sphinx to read.
+
+    Sphinx's autosummary writes the API pages it generates into doc/generated/: there, not
+    into the work tree. (MyST resolves symbolic links, so links would not do.)
+    """
+    ignored = shutil.ignore_patterns(*NOT_SOURCES, '*.egg-info', 'generated', '_build')
+    shutil.copytree(ROOT, folder, ignore=ignored)
+    return folder
+
+
+def test_site_builds_without_warnings(tmp_path):
+    """A broken link or anchor, a missing page or a stale API reference fails the build."""
+    source = _source_copy(str(tmp_path / 'source'))
+    html = os.environ.get('QRM_DOCS_HTML') or str(tmp_path / 'html')
+    result = subprocess.run(
+        [sys.executable, '-m', 'sphinx', '-b', 'html', '-W', '--keep-going', '-q',
+         '-c', os.path.join(source, 'doc'), '-d', str(tmp_path / 'doctrees'), source, html],
+        capture_output=True, text=True, cwd=str(tmp_path),
+        env=dict(os.environ, QRM_DOCS_PACKAGE_ROOT=ROOT))
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert os.path.isfile(os.path.join(html, 'doc', 'index.html'))
+    assert os.path.isfile(os.path.join(html, 'doc', 'generated', 'qrm_ros.core.html'))
+
+
+def _links(text):
+    """Return the targets of the Markdown links and images in text, outside code."""
+    text = _CODE_SPAN.sub('', _FENCE.sub('', text))
+    return _LINK.findall(text)
+
+
+def test_link_finder():
+    text = ('[a](doc/node.md) ![b](images/x.png "title") [c](https://x.org/y) `[d](e.md)`\n'
+            '```\n[f](g.md)\n```\n[h](node.md#parameters) [i](#local)\n')
+    assert _links(text) == ['doc/node.md', 'images/x.png', 'https://x.org/y',
+                            'node.md#parameters', '#local']
+
+
+@pytest.mark.parametrize('page', PAGES)
+def test_relative_links_resolve(page):
+    missing = []
+    for target in _links(_read(page)):
+        if _SCHEME.match(target) or target.startswith('#'):
+            continue
+        path = os.path.normpath(os.path.join(ROOT, os.path.dirname(page),
+                                             target.split('#')[0]))
+        if not os.path.exists(path) or not path.startswith(ROOT + os.sep):
+            missing.append(target)
+    assert not missing, f'{page}: links to files not in the repository: {missing}'
+
+
+def _repository_files():
+    """Tracked files and new ones not ignored (what a commit of the work tree would hold)."""
+    try:
+        listed = subprocess.run(['git', 'ls-files', '--cached', '--others', '--exclude-standard',
+                                 '-z'], cwd=ROOT, capture_output=True, check=True).stdout
+    except (OSError, subprocess.CalledProcessError):
+        pytest.skip('not a git work tree')
+    return [name for name in listed.decode().split('\0')
+            if name and os.path.isfile(os.path.join(ROOT, name))]
+
+
+def test_nothing_names_a_folder_outside_the_repository():
+    found = []
+    for name in _repository_files():
+        with open(os.path.join(ROOT, name), 'rb') as handle:
+            content = handle.read()
+        if b'\0' in content:
+            continue  # binary
+        text = content.decode('utf-8', 'replace')
+        for number, line in enumerate(text.splitlines(), 1):
+            if any(foreign in line for foreign in FOREIGN):
+                found.append(f'{name}:{number}: {line.strip()}')
+    assert not found, 'the repository must stand alone:\n' + '\n'.join(found)
+
+
+def _python_blocks(text):
+    """Return each ```python block, preceded by blank lines to keep the page's line numbers."""
+    return ['\n' * text.count('\n', 0, match.start(1)) + match.group(1)
+            for match in re.finditer(r'^```python\n(.*?)^```', text, re.S | re.M)]
+
+
+@pytest.mark.parametrize('page', RUN_EXAMPLES)
+def test_python_examples_run(page, tmp_path, monkeypatch):
+    blocks = _python_blocks(_read(page))
+    assert blocks, f'{page} has no Python example'
+    monkeypatch.chdir(tmp_path)
+    for block in blocks:
+        exec(compile(block, page, 'exec'), {'__name__': '__doc_example__'})
+
+
+def _generator():
+    path = os.path.join(DOC, 'generate_parameter_table.py')
+    spec = importlib.util.spec_from_file_location('generate_parameter_table', path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_parameter_table_matches_the_code():
+    generator = _generator()
+    documented = generator.marked_table(_read(os.path.join('doc', 'node.md')))
+    assert documented == generator.parameter_table(), (
+        'doc/node.md\'s parameter table differs from the node\'s PARAMETERS: run '
+        '"python3 dev.py run python doc/generate_parameter_table.py --write"')
+
+
+def test_parameter_table_has_every_parameter():
+    from qrm_ros.node.shaper_parameters import PARAMETERS
+    table = _generator().parameter_table()
+    assert [row.split('`')[1] for row in table.splitlines()[2:]] == list(PARAMETERS)
+
+
+def test_doc_scripts_keep_the_style():
+    scripts = sorted(glob.glob(os.path.join(DOC, '*.py')))
+    for script in scripts:
+        with open(script) as handle:
+            head = handle.read(2000)
+        assert '# Licensed under the Apache License, Version 2.0' in head, script
+    config = os.path.join(ROOT, 'setup.cfg')
+    for tool in ('flake8', 'pydocstyle'):
+        result = subprocess.run([sys.executable, '-m', tool, '--config', config] + scripts,
+                                capture_output=True, text=True)
+        assert result.returncode == 0, result.stdout + result.stderr
