@@ -28,12 +28,14 @@ from array import array
 import math
 import sys
 import time
+from typing import Optional
 
 from diagnostic_msgs.msg import DiagnosticArray
 from qrm_ros.core.cutting_speed_hold import hold_offset
 from qrm_ros.core.dynamics import (efforts, Loads, MassProperties, MotorDrive, parameter_names,
                                    ram_load_force)
 from qrm_ros.core.motor_stepper import MotorStepper
+from qrm_ros.core.stepper import Stepper
 from qrm_ros.core.names import (DIAGNOSTICS_TOPIC, LINKAGE_MARKERS_TOPIC, SIM_NODE_NAME,
                                 SPEED_COMMAND_TOPIC)
 from qrm_ros.core.stepping import ShaperStepper, wrap_angle
@@ -75,7 +77,7 @@ class ShaperSimNode(ShaperParameterNode):
     def _set_up(self):
         self.declare_shaper_parameters()  # self._values, self._geometry
         values = self._values
-        self._stepper = None  # made below, from the dynamics in force
+        self._stepper: Optional[Stepper] = None  # made below, from the dynamics in force
         self.update_dynamics()
         self._stepper = self._new_stepper(values['drive'])
         self._hold = None
@@ -121,7 +123,7 @@ class ShaperSimNode(ShaperParameterNode):
         if isinstance(self._stepper, MotorStepper):
             self._stepper.set_dynamics(self._mass, self._loads, self._motor)
 
-    def _new_stepper(self, drive):
+    def _new_stepper(self, drive: str) -> Stepper:
         values = self._values
         arguments = (values['input_speed'], values['coupling_offset'],
                      values['input_acceleration_limit'], values['offset_rate_limit'])
@@ -214,7 +216,7 @@ class ShaperSimNode(ShaperParameterNode):
         return self._paused
 
     @property
-    def stepper(self):
+    def stepper(self) -> Optional[Stepper]:
         return self._stepper
 
     @property
