@@ -24,6 +24,7 @@ own clean-stop handling (qrm_ros.node.ros_process) once they are up.
 import importlib
 import signal
 import sys
+from typing import List
 
 from qrm_ros.cli.exit_codes import EXIT_INTERRUPTED
 
@@ -31,7 +32,7 @@ __all__ = ['mcap_recorder', 'qrm_analyze', 'qrm_animate', 'qrm_design', 'qrm_mai
            'shaper_sim']
 
 
-_STOP_REQUESTS = []  # the stop signals received while starting
+_STOP_REQUESTS: List[int] = []  # the stop signals received while starting
 
 
 def _stopped_while_starting(signal_number, frame):

@@ -21,10 +21,11 @@ discovery on localhost, so concurrent runs never see each other's nodes.
 
 import fcntl
 import os
+from typing import List, TextIO
 
 __all__ = ['claim_ros_domain', 'isolate_ros_traffic']
 
-_held = []
+_held: List[TextIO] = []  # the lock files of the claimed domains, kept open
 
 
 def claim_ros_domain(domains=range(11, 200)):

@@ -261,7 +261,7 @@ PARAMETERS = {
         'The offset in force moves toward it at offset_rate_limit. |offset| <= '
         '0.9 * coupling_radius (the coupling locks at coupling_radius).', False,
         SymmetricRange(
-            lambda view: view.geometry.max_safe_offset,
+            lambda view: float(view.geometry.max_safe_offset),
             lambda view: ('|offset| <= max_safe_offset = 0.9 x coupling_radius '
                           f'{shown(view.geometry.coupling_radius)} m'), True),
         (_offset_by_hand,), apply=lambda node, value: node.command_offset()),
