@@ -47,7 +47,7 @@ _PAPER = Geometry.paper()  # the defaults of the geometry parameters
 
 
 def coerce_integers_to_doubles(parameters: List[Parameter]) -> List[Parameter]:
-    """Take an integer for a double parameter as that double (`ros2 param set ... 0`)."""
+    """Take an integer for a double parameter as that double (`ros2 param set /shaper_sim X 0`)."""
     return [Parameter(p.name, Parameter.Type.DOUBLE, float(p.value))
             if (p.type_ == Parameter.Type.INTEGER and p.name in PARAMETERS
                 and isinstance(PARAMETERS[p.name].default, float)) else p
