@@ -49,7 +49,8 @@ MASS = dyn.MassProperties.small_shaper()
 LOADS = dyn.Loads.small_shaper()
 MOTOR = dyn.MotorDrive.small_shaper()
 SPEED = 2 * math.pi
-README = Path(REPO_ROOT) / 'README.md'
+# Where the worked examples of qrm_design are documented.
+DESIGN_PAGE = Path(REPO_ROOT) / 'doc' / 'design.md'
 
 
 def run_design(argv, capsys):
@@ -232,7 +233,7 @@ FLYWHEEL_ARGS = ['flywheel', '--fluctuation', '0.05', '--offset', '0.01']
 
 @pytest.fixture(scope='module')
 def sized():
-    """The README's worked example, as JSON (the default motor: fast to simulate)."""
+    """The design page's worked example, as JSON (the default motor: fast to simulate)."""
     buffer = io.StringIO()
     with redirect_stdout(buffer):
         assert qrm_design.main(FLYWHEEL_ARGS + ['--json']) == 0
@@ -333,10 +334,10 @@ def test_flywheel_text_prints_the_json_numbers(sized):
 NUMBER = r'([-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?)'
 
 
-def test_readme_worked_example_is_the_sizing(sized):
-    """The README's output of `qrm_design flywheel --fluctuation 0.05 --offset 0.01`."""
+def test_documented_worked_example_is_the_sizing(sized):
+    """The design page's output of `qrm_design flywheel --fluctuation 0.05 --offset 0.01`."""
     example = re.search(r'\$ python3 dev\.py run qrm_design flywheel --fluctuation 0\.05 '
-                        r'--offset 0\.01\n(.*?)```', README.read_text(), re.S).group(1)
+                        r'--offset 0\.01\n(.*?)```', DESIGN_PAGE.read_text(), re.S).group(1)
     documented = re.split(NUMBER, example.strip())
     printed = re.split(NUMBER, design_table.format_flywheel(sized).strip())
     # The words exactly; the numbers within 0.1 % (the simulations' settling and root
@@ -346,22 +347,22 @@ def test_readme_worked_example_is_the_sizing(sized):
         [float(n) for n in printed[1::2]], rel=1e-3)
 
 
-def test_readme_figures_of_the_drive_columns(table):
+def test_documented_figures_of_the_drive_columns(table):
     data, _ = table
     rows = {round(row['offset'] * 1e3, 2): row for row in data['rows']}
-    readme = README.read_text()
+    documented = ' '.join(DESIGN_PAGE.read_text().split())
     for offset_mm, text in ((0.0, '26.225 N·m at δ = 0'), (10.0, '104.72 N·m at +10 mm'),
                             (20.0, '2923.9 N·m at +20 mm'), (-20.0, '480.25 N·m at −20 mm')):
-        assert text in readme
+        assert text in documented
         shown = float(text.split()[0])
         assert rows[offset_mm]['peak_input_torque'] == pytest.approx(shown, rel=1e-4)
-    assert '20 × 2 × 0.19983 = 67.993 J' in readme
+    assert '20 × 2 × 0.19983 = 67.993 J' in documented
     assert rows[0.0]['energy_per_pair'] == pytest.approx(67.993, abs=5e-4)
     # The crank's speed range at 10 mm: r1 / (r1 + offset) to r1 / (r1 - offset).
     angles = np.linspace(0.0, 2 * math.pi, 100001)
     ratio = state(GEOMETRY, 0.01, angles, 1.0).flywheel_speed
     assert (np.min(ratio), np.max(ratio)) == pytest.approx((25 / 35, 25 / 15), rel=1e-9)
-    assert 'r1 / (r1 + δ) = 0.714 and r1 / (r1 − δ) = 1.667' in readme
+    assert 'r1 / (r1 + δ) = 0.714 and r1 / (r1 − δ) = 1.667' in documented
 
 
 def test_flywheel_at_offset_zero_is_the_same_machine(capsys):
@@ -410,12 +411,12 @@ def test_flywheel_usage_errors_exit_2(capsys):
     assert 'qrm_design flywheel --help' in capsys.readouterr().out
 
 
-def test_readme_speed_fluctuation_at_the_largest_default_offset(capsys):
+def test_documented_speed_fluctuation_at_the_largest_default_offset(capsys):
     # The motor saturates at +20 mm (once the slowest row of the Cs column).
     code, out, _ = run_design(['--speed-fluctuation', '--offsets-mm', '20', '--json'], capsys)
     assert code == 0
     fluctuation = json.loads(out)['rows'][0]['speed_fluctuation']
-    assert 'where the motor\nsaturates: Cs = 1.08' in README.read_text()
+    assert '+20 mm the motor saturates: Cs = 1.08' in ' '.join(DESIGN_PAGE.read_text().split())
     assert fluctuation == pytest.approx(1.08, abs=5e-3)
     assert fluctuation == pytest.approx(simulated_fluctuation(MASS, 0.02, 4.0), rel=1e-2)
 
@@ -427,12 +428,12 @@ def test_drive_options_are_the_node_parameter_names():
     assert names <= set(shaper_parameters.PARAMETERS)
 
 
-def test_readme_speed_fluctuation_figures(sized, capsys):
+def test_documented_speed_fluctuation_figures(sized, capsys):
     code, out, _ = run_design(['--speed-fluctuation', '--offsets-mm', '0', '15', '--json'],
                               capsys)
     assert code == 0
     at_zero, at_fifteen = (row['speed_fluctuation'] for row in json.loads(out)['rows'])
     assert ('goes from 0.020 at δ = 0 to 0.086 at +10 mm and 0.30 at +15 mm'
-            in ' '.join(README.read_text().split()))
+            in ' '.join(DESIGN_PAGE.read_text().split()))
     assert round(at_zero, 3) == 0.020 and round(at_fifteen, 2) == 0.30
     assert round(sized['given_speed_fluctuation'], 3) == 0.086

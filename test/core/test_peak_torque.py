@@ -228,15 +228,15 @@ def test_thread_count_does_not_change_results():
     np.testing.assert_array_equal(alone, shared)
 
 
-def test_the_readme_sweep():
-    """README's example: the offsets' peaks, each the same as pair_efforts' alone."""
+def test_the_documented_sweep():
+    """The design page's example: the offsets' peaks, each the same as pair_efforts' alone."""
     geometry = kin.Geometry.paper()
     mass, loads = dyn.MassProperties.small_shaper(), dyn.Loads.small_shaper()
     offsets = np.array([-0.02, -0.01, 0.0, 0.01, 0.02])
     peaks = sd.peak_input_torque(geometry, mass, loads, offsets, 2 * math.pi)
-    readme = ' '.join((Path(REPO_ROOT) / 'README.md').read_text().split())
+    documented = ' '.join((Path(REPO_ROOT) / 'doc' / 'design.md').read_text().split())
     assert ('offsets −20, −10, 0, +10, +20 mm give 480.25, 48.128, 26.225, 104.72 and 2923.9 N·m'
-            in readme)
+            in documented)
     for offset, peak, shown in zip(offsets, peaks, (480.25, 48.128, 26.225, 104.72, 2923.9)):
         assert peak == pytest.approx(sd.pair_efforts(geometry, mass, loads, offset,
                                                      2 * math.pi).peak_input_torque,
