@@ -101,6 +101,10 @@ class EquationOfMotion:
         demand = self.motor.speed_stiffness * (reference - speed)
         return sign(demand) if abs(demand) >= self.motor.max_torque else 0
 
+    def applied_motor_torque(self, reference: float, speed: float) -> float:
+        """Return the torque the motor applies at this reference and speed (N m)."""
+        return self.motor_torque(reference, speed, self.saturation_of(reference, speed))
+
     def ram_load(self, direction: int, in_work: bool) -> float:
         """Return the ram load (N along +x) met moving in direction (+-1), in the work or not."""
         loads = self.loads

@@ -19,6 +19,18 @@ protocol, qrm_ros.core.stepper), with the input speed a state of the equation of
 Its parts: the equation of motion's ingredients (motor_equation), the present segment's
 plan and functions (motor_segment), the solver within a segment (motor_integration) and the
 compiled kernel loaded on a thread (motor_kernel_loading). ``simulate`` samples a run.
+
+Integration: scipy's DOP853, restarted at every switch of the right-hand side (a new
+segment, motor_segment): stroke reversal, tool entering or leaving the workpiece, motor
+reaching or leaving its torque limit, input speed through zero, a ramp ending, any
+command. A switch inside a step is found on the step's dense output with brentq, and the
+step is cut there (motor_integration). Outputs at stamps come from dense output, so the
+trajectory does not depend on the stamps asked for.
+
+At zero input speed the stall rule (``EquationOfMotion.at_rest``) moves the shaft or holds
+it (angle and offset still); held with a non-zero speed reference is a stall: ``stalled``
+is True and ``stall_reason`` says why. The rule is re-checked at every step (loads, motor
+and commands may change), and the shaft resumes as soon as it allows.
 """
 
 import math
@@ -46,26 +58,11 @@ class MotorStepper:
     """
     The mechanism under a motor drive: the input speed is a state of the equation of motion.
 
-    Same interface and stamp rules as ``stepping.ShaperStepper`` (integer-ns stamps, commands
-    from the present stamp, time resets, wrapped angle). The speed command ramps at
-    input_acceleration_limit into the motor's speed reference; the offset moves toward its
-    command at offset_rate_limit as ShaperStepper moves it. A jump in the offset rate (a ramp
-    starting or ending) is an impulse on the offset only, so the input's generalised momentum
-    is kept across it and the input speed jumps.
-
-    Integration: scipy's DOP853, restarted at every switch of the right-hand side (a new
-    segment, motor_segment): stroke reversal, tool entering or leaving the workpiece, motor
-    reaching or leaving its torque limit, input speed through zero, a ramp ending, any
-    command. A switch inside a step is found on the step's dense output with brentq, and the
-    step is cut there (motor_integration). Outputs at stamps come from dense output, so the
-    trajectory does not depend on the stamps asked for.
-
-    At zero input speed the stall rule (``EquationOfMotion.at_rest``) moves the shaft or holds
-    it (angle and offset still); held with a non-zero speed reference is a stall: ``stalled``
-    is True and ``stall_reason`` says why. The rule is re-checked at every step (loads, motor
-    and commands may change), and the shaft resumes as soon as it allows.
-
-    motor=None runs the shaft free (no motor torque).
+    Interface and stamp rules as ``stepping.ShaperStepper``'s (integer-ns stamps, commands
+    from the present stamp, time resets, wrapped angle); the speed command ramps into the
+    motor's speed reference. An offset-rate jump is an impulse on the offset only: the
+    input's generalised momentum is kept, its speed jumps. Integration and the stall rule:
+    the module's docstring. motor=None runs the shaft free (no motor torque).
     """
 
     def __init__(self, geometry: Geometry, mass: dyn.MassProperties, loads: dyn.Loads,
@@ -309,10 +306,8 @@ class MotorStepper:
     @property
     def motor_torque(self) -> float:
         """Torque the motor applies to the input shaft now, N m."""
-        reference = self._plan.reference_at(self._time)
-        equation = self._equation
-        return equation.motor_torque(reference, self._speed,
-                                     equation.saturation_of(reference, self._speed))
+        return self._equation.applied_motor_torque(self._plan.reference_at(self._time),
+                                                   self._speed)
 
     @property
     def ram_load(self) -> float:
