@@ -29,15 +29,13 @@ import sys
 
 import pytest
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+from repo_paths import REPO_ROOT as ROOT
+
 DOC = os.path.join(ROOT, 'doc')
 PAGES = sorted(['README.md', 'CONTRIBUTING.md', os.path.join('bench', 'README.md')]
                + [os.path.relpath(p, ROOT) for p in glob.glob(os.path.join(DOC, '*.md'))])
 # Pages whose ```python blocks are run: they use only the package and make no files.
 RUN_EXAMPLES = ['README.md', os.path.join('doc', 'api.md'), os.path.join('doc', 'design.md')]
-# A folder beside the repository that a clone does not have. Written in pieces, so that this
-# file does not name it itself.
-FOREIGN = ['..' + '/shared', 'shared' + '/design', 'shared' + '/reference']
 # Not copied into the site's scratch source: environments, build outputs, caches.
 NOT_SOURCES = {'.git', '.venv', 'build', 'install', 'log', 'runs', '.pytest_cache',
                '.mypy_cache', '__pycache__'}
@@ -104,31 +102,6 @@ def test_relative_links_resolve(page):
     assert not missing, f'{page}: links to files not in the repository: {missing}'
 
 
-def _repository_files():
-    """Tracked files and new ones not ignored (what a commit of the work tree would hold)."""
-    try:
-        listed = subprocess.run(['git', 'ls-files', '--cached', '--others', '--exclude-standard',
-                                 '-z'], cwd=ROOT, capture_output=True, check=True).stdout
-    except (OSError, subprocess.CalledProcessError):
-        pytest.skip('not a git work tree')
-    return [name for name in listed.decode().split('\0')
-            if name and os.path.isfile(os.path.join(ROOT, name))]
-
-
-def test_nothing_names_a_folder_outside_the_repository():
-    found = []
-    for name in _repository_files():
-        with open(os.path.join(ROOT, name), 'rb') as handle:
-            content = handle.read()
-        if b'\0' in content:
-            continue  # binary
-        text = content.decode('utf-8', 'replace')
-        for number, line in enumerate(text.splitlines(), 1):
-            if any(foreign in line for foreign in FOREIGN):
-                found.append(f'{name}:{number}: {line.strip()}')
-    assert not found, 'the repository must stand alone:\n' + '\n'.join(found)
-
-
 def _python_blocks(text):
     """Return each ```python block, preceded by blank lines to keep the page's line numbers."""
     return ['\n' * text.count('\n', 0, match.start(1)) + match.group(1)
@@ -164,16 +137,3 @@ def test_parameter_table_has_every_parameter():
     from qrm_ros.node.shaper_parameters import PARAMETERS
     table = _generator().parameter_table()
     assert [row.split('`')[1] for row in table.splitlines()[2:]] == list(PARAMETERS)
-
-
-def test_doc_scripts_keep_the_style():
-    scripts = sorted(glob.glob(os.path.join(DOC, '*.py')))
-    for script in scripts:
-        with open(script) as handle:
-            head = handle.read(2000)
-        assert '# Licensed under the Apache License, Version 2.0' in head, script
-    config = os.path.join(ROOT, 'setup.cfg')
-    for tool in ('flake8', 'pydocstyle'):
-        result = subprocess.run([sys.executable, '-m', tool, '--config', config] + scripts,
-                                capture_output=True, text=True)
-        assert result.returncode == 0, result.stdout + result.stderr

@@ -20,7 +20,7 @@ import sys
 import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-SOURCE_FOLDERS = ['qrm_ros', 'test', 'bench', 'launch']
+SOURCE_FOLDERS = ['qrm_ros', 'test', 'bench', 'launch', 'doc']
 LICENSE_LINES = [
     '# Copyright 20',
     '# Licensed under the Apache License, Version 2.0',
