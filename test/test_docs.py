@@ -108,13 +108,45 @@ def _python_blocks(text):
             for match in re.finditer(r'^```python\n(.*?)^```', text, re.S | re.M)]
 
 
+# An example line whose comment starts with the value it gives: `expression  # 3.2365…` or
+# `a, b  # (3.2365…, 6.104)`. A trailing … means the digits shown are the value's first ones;
+# without it the value rounds to the digits shown.
+_DOCUMENTED_VALUE = re.compile(r'^(?P<expression>[^#]+?)\s+#\s*\(?(?P<values>[−-]?\d[\d.]*…?'
+                               r'(?:,\s*[−-]?\d[\d.]*…?)*)\)?(?:\s|$)')
+
+
+def _documented_values(block):
+    for line in block.splitlines():
+        match = _DOCUMENTED_VALUE.match(line)
+        if match:
+            yield match['expression'], [value.strip().replace('−', '-')
+                                        for value in match['values'].split(',')]
+
+
+def _shows(value, documented):
+    if documented.endswith('…'):
+        return repr(float(value)).startswith(documented[:-1])
+    decimals = len(documented.partition('.')[2])
+    return round(float(value), decimals) == float(documented)
+
+
 @pytest.mark.parametrize('page', RUN_EXAMPLES)
-def test_python_examples_run(page, tmp_path, monkeypatch):
+def test_python_examples_run_and_give_the_values_they_show(page, tmp_path, monkeypatch):
     blocks = _python_blocks(_read(page))
     assert blocks, f'{page} has no Python example'
     monkeypatch.chdir(tmp_path)
+    checked = 0
     for block in blocks:
-        exec(compile(block, page, 'exec'), {'__name__': '__doc_example__'})
+        namespace = {'__name__': '__doc_example__'}
+        exec(compile(block, page, 'exec'), namespace)
+        for expression, documented in _documented_values(block):
+            values = eval(expression, namespace)
+            values = values if isinstance(values, tuple) else (values,)
+            assert len(values) == len(documented), (page, expression)
+            for value, shown in zip(values, documented):
+                assert _shows(value, shown), f'{page}: {expression} gives {value!r}, not {shown}'
+                checked += 1
+    assert checked, f'{page} shows no value its examples give'
 
 
 def _generator():
