@@ -21,6 +21,7 @@ QRM_DOCS_HTML=DIR keeps the built site in DIR (e.g. to read it in a browser).
 
 import glob
 import importlib.util
+import math
 import os
 import re
 import shutil
@@ -169,3 +170,34 @@ def test_parameter_table_has_every_parameter():
     from qrm_ros.node.shaper_parameters import PARAMETERS
     table = _generator().parameter_table()
     assert [row.split('`')[1] for row in table.splitlines()[2:]] == list(PARAMETERS)
+
+
+def _main_job_rows(text):
+    """Each row of the main job's table in the text: (offset, offset/h, speed, pairs), columns."""
+    for line in text.splitlines():
+        parts = line.split('|')
+        head = parts[0].split()
+        if len(parts) == 4 and len(head) == 4 and re.fullmatch(r'[-+]?\d+\.\d+', head[0]):
+            yield ([float(value) for value in head],
+                   [[float(value) for value in part.replace('±', ' ').split()]
+                    for part in parts[1:]])
+
+
+def test_the_readme_main_job_table_shows_the_closed_form():
+    """The README's example run: its theory columns are the core's, its errors the rows' own."""
+    from qrm_ros.cli.qrm_main import DEFAULT_OFFSETS_MM
+    from qrm_ros.core import Geometry, peak_speed_ratio, speed_ratio, time_ratio
+    geometry = Geometry.paper()
+    rows = list(_main_job_rows(_read('README.md')))
+    assert [row[0][0] for row in rows] == [round(mm, 2) for mm in DEFAULT_OFFSETS_MM], (
+        'the README shows the default schedule')
+    for ((_shown_mm, ratio_h, input_speed, _pairs), columns), offset_mm in zip(
+            rows, DEFAULT_OFFSETS_MM):
+        offset = offset_mm * 1e-3
+        assert ratio_h == pytest.approx(offset / geometry.pivot_distance, abs=5e-6)
+        assert input_speed == pytest.approx(2 * math.pi, abs=5e-5)
+        theories = (time_ratio(geometry, offset), speed_ratio(geometry, offset),
+                    peak_speed_ratio(geometry, offset))
+        for (measured, _spread, shown, error), theory in zip(columns, theories):
+            assert shown == pytest.approx(theory, abs=5e-6)
+            assert error == pytest.approx(measured / theory - 1.0, abs=6e-6 + 0.05 * abs(error))
