@@ -244,9 +244,10 @@ def test_no_circle_of_imports_even_inside_functions():
 
 # --- (c) no private name imported across modules ------------------------------------------
 
-def test_no_private_name_imported_from_another_module():
+def _private_uses(modules: List[Module]) -> List[str]:
+    """Where these modules take a private name of another qrm_ros module."""
     problems = []
-    for module in MODULES:
+    for module in modules:
         module_aliases = {}  # local name -> qrm_ros module it is bound to
         for node in _nodes(module):
             if isinstance(node, ast.Import):
@@ -273,7 +274,30 @@ def test_no_private_name_imported_from_another_module():
             if private and imported.module.rsplit('.', 1)[0] != module.name.rsplit('.', 1)[0]:
                 problems.append(f'{module.path}:{imported.line}: imports the private module '
                                 f'{imported.module}')
-    assert not problems, _report(problems, 'no private name across modules')
+    return problems
+
+
+def test_no_private_name_imported_from_another_module():
+    assert not (problems := _private_uses(MODULES)), _report(
+        problems, 'no private name across modules')
+
+
+def _read_tests() -> List[Module]:
+    tests = []
+    for base, folders, names in os.walk(os.path.join(REPO_ROOT, 'test')):
+        folders[:] = sorted(f for f in folders if f not in ('__pycache__', 'data'))
+        for name in sorted(n for n in names if n.endswith('.py')):
+            path = os.path.relpath(os.path.join(base, name), REPO_ROOT)
+            with open(os.path.join(REPO_ROOT, path), encoding='utf-8') as handle:
+                text = handle.read()
+            tests.append(Module(_module_name(path), path, None, len(text.splitlines()),
+                                ast.parse(text, path)))
+    return tests
+
+
+def test_tests_use_public_names_only():
+    assert not (problems := _private_uses(_read_tests())), _report(
+        problems, 'tests use public names')
 
 
 # --- (d) modules and classes small enough to read ------------------------------------------

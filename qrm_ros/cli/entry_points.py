@@ -41,7 +41,8 @@ def _stopped_while_starting(signal_number, frame):
     raise SystemExit(0)  # nothing was started: a clean, quiet stop
 
 
-def _run(module_name):
+def run_command(module_name: str) -> int:
+    """Import the command's module with stop signals made quiet, then run its main."""
     previous = {number: signal.signal(number, _stopped_while_starting)
                 for number in (signal.SIGINT, signal.SIGTERM)}
     try:
@@ -62,28 +63,28 @@ def _run(module_name):
 
 
 def shaper_sim():
-    return _run('qrm_ros.cli.shaper_sim')
+    return run_command('qrm_ros.cli.shaper_sim')
 
 
 def mcap_recorder():
-    return _run('qrm_ros.cli.mcap_recorder')
+    return run_command('qrm_ros.cli.mcap_recorder')
 
 
 def qrm_analyze():
-    return _run('qrm_ros.cli.qrm_analyze')
+    return run_command('qrm_ros.cli.qrm_analyze')
 
 
 def qrm_animate():
-    return _run('qrm_ros.cli.qrm_animate')
+    return run_command('qrm_ros.cli.qrm_animate')
 
 
 def qrm_design():
-    return _run('qrm_ros.cli.qrm_design')
+    return run_command('qrm_ros.cli.qrm_design')
 
 
 def qrm_main():
-    return _run('qrm_ros.cli.qrm_main')
+    return run_command('qrm_ros.cli.qrm_main')
 
 
 def qrm_urdf():
-    return _run('qrm_ros.cli.qrm_urdf')
+    return run_command('qrm_ros.cli.qrm_urdf')

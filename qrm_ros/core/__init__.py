@@ -69,12 +69,12 @@ def _exported() -> Dict[str, str]:
             for alias in statement.names}
 
 
-_EXPORTED = _exported()
-__all__ = sorted(_EXPORTED, key=str.lower)
+EXPORTED_FROM = _exported()  # name -> the module that defines it
+__all__ = sorted(EXPORTED_FROM, key=str.lower)
 
 
 def __getattr__(name: str) -> Any:
-    module = _EXPORTED.get(name)
+    module = EXPORTED_FROM.get(name)
     if module is None:
         raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
     value = getattr(importlib.import_module(module), name)

@@ -211,6 +211,12 @@ class BackgroundTheory:
             except queue.Empty:
                 return
 
+    @property
+    def worker_pid(self) -> Optional[int]:
+        """The worker process's id while it runs (its priority is the caller's to check)."""
+        worker = self._worker
+        return worker.pid if worker is not None and worker.poll() is None else None
+
     def close(self) -> None:
         """Stop the worker at once, work under way included (a stop must not wait)."""
         if self._worker is not None:

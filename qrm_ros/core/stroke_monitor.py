@@ -37,7 +37,7 @@ from qrm_ros.core.units import NANOSECONDS_PER_SECOND
 from qrm_ros.core.strokes import (pair_effort_steps, PairEffortsMeasured, run_steps, Steps,
                                   stroke_pair_steps)
 
-__all__ = ['BUFFER_LIMIT', 'CompletedSamples', 'MEASURED_FIGURES', 'PairReport',
+__all__ = ['BUFFER_LIMIT', 'CompletedSamples', 'MEASURED_FIGURES', 'PairReport', 'SAMPLE_FIELDS',
            'StrokeMonitor']
 
 # At most this many samples wait for a stroke pair to end (at 100 Hz, 43 minutes; a shaft
@@ -48,8 +48,8 @@ MEASURED_FIGURES = ('cutting_time', 'return_time', 'time_ratio', 'peak_cutting_s
                     'peak_return_speed', 'mid_cutting_speed', 'mid_return_speed',
                     'speed_ratio', 'peak_speed_ratio', 'mean_cutting_speed'
                     ) + PairEffortsMeasured._fields
-_SAMPLE_FIELDS = ('ram_position', 'ram_velocity', 'offset', 'offset_rate', 'input_speed',
-                  'input_torque', 'offset_force')
+SAMPLE_FIELDS = ('ram_position', 'ram_velocity', 'offset', 'offset_rate', 'input_speed',
+                 'input_torque', 'offset_force')
 _THEORY_CACHE_LIMIT = 64
 
 
@@ -58,7 +58,7 @@ class CompletedSamples(NamedTuple):
 
     stamp_ns: int                 # the sample that completed the pair
     sample_stamps_ns: array       # 'q': node-clock ns, one per sample
-    columns: Dict[str, array]     # _SAMPLE_FIELDS -> values, one per stamp
+    columns: Dict[str, array]     # SAMPLE_FIELDS -> values, one per stamp
 
 
 class PairReport(NamedTuple):
@@ -113,7 +113,7 @@ class StrokeMonitor:
     def clear(self) -> None:
         """Forget the samples (after a reset, a pause or a clock jump: no pair spans it)."""
         self._stamp_ns = array('q')
-        self._columns = {name: array('d') for name in _SAMPLE_FIELDS}
+        self._columns = {name: array('d') for name in SAMPLE_FIELDS}
         self._last_velocity_positive: Optional[bool] = None
 
     def __len__(self):
@@ -132,9 +132,9 @@ class StrokeMonitor:
                 offset_force: float) -> Optional[CompletedSamples]:
         """Take one sample; return the samples of the pairs it completed, to ``measure``."""
         self._stamp_ns.append(stamp_ns)
-        for name, value in zip(_SAMPLE_FIELDS, (ram_position, ram_velocity, offset,
-                                                offset_rate, input_speed, input_torque,
-                                                offset_force)):
+        for name, value in zip(SAMPLE_FIELDS, (ram_position, ram_velocity, offset,
+                                               offset_rate, input_speed, input_torque,
+                                               offset_force)):
             self._columns[name].append(value)
         if len(self._stamp_ns) > BUFFER_LIMIT:
             self._keep_from(len(self._stamp_ns) - BUFFER_LIMIT // 2)

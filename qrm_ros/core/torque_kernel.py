@@ -59,7 +59,7 @@ _EPSILON = float(np.finfo(np.float64).eps)
 _GAIN_RESOLUTION = _EPSILON / 64.0
 
 _jit = compiler()
-_torque = _jit(speed_drive_torque_of)
+torque_of = _jit(speed_drive_torque_of)
 # The same formula, inlined by numba itself (LLVM inlines only after its loop vectoriser
 # ran), so that _evaluate's loop runs on SIMD lanes.
 _torque_inline = numba.njit(cache=True, nogil=True, error_model='numpy',
@@ -117,7 +117,7 @@ def _refine(low, high, low_torque, high_torque, low_slope, high_slope, low_sin, 
     sin_b *= norm
     cos_b *= norm
     b = low + step
-    torque, fb = _torque(sin_b, cos_b, *geometry, force, *inertia)
+    torque, fb = torque_of(sin_b, cos_b, *geometry, force, *inertia)
     best = max(best, abs(torque))
     # Brent's state: b that point, c the end across the root, a the other end.
     if (fb > 0.0) == (low_slope > 0.0):
@@ -166,7 +166,7 @@ def _refine(low, high, low_torque, high_torque, low_slope, high_slope, low_sin, 
         norm = 1.5 - 0.5 * (sin_b * sin_b + cos_b * cos_b)  # back onto the circle
         sin_b *= norm
         cos_b *= norm
-        torque, fb = _torque(sin_b, cos_b, *geometry, force, *inertia)
+        torque, fb = torque_of(sin_b, cos_b, *geometry, force, *inertia)
         best = max(best, abs(torque))
         # Near the root torque(root) - torque(b) is about slope * step / 2, step the secant's
         # to the root: once that is far below the torque's round-off, no point can add more.
@@ -432,8 +432,8 @@ def _peak_block(result, first, last, r1, r, h, height, phase, offset, speed,
                 for _ in range(_SPLIT_DEPTH):
                     half = 0.5 * (low_angle + high_angle)
                     half_sin, half_cos = math.sin(half), math.cos(half)
-                    half_torque, half_slope = _torque(half_sin, half_cos, *geometry, force,
-                                                      *inertia)
+                    half_torque, half_slope = torque_of(half_sin, half_cos, *geometry, force,
+                                                        *inertia)
                     best = max(best, abs(half_torque))
                     if half_slope == 0.0:
                         break

@@ -38,7 +38,7 @@ class Finder:
         pass
 sys.meta_path.insert(0, Finder())
 from qrm_ros.cli import entry_points
-entry_points._run('fake_extension')
+entry_points.run_command('fake_extension')
 print('not stopped')
 """
 

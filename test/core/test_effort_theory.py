@@ -84,7 +84,7 @@ theory = BackgroundTheory()
 setting = Setting(kin.Geometry.paper(), dyn.MassProperties.small_shaper(), dyn.Loads.none(),
                   None, 0.0, 2 * math.pi)
 figures, problem = theory.wait(setting)
-print('worker', theory._worker.pid, os.getpriority(os.PRIO_PROCESS, theory._worker.pid),
+print('worker', theory.worker_pid, os.getpriority(os.PRIO_PROCESS, theory.worker_pid),
       figures['peak_input_torque'] > 0.0, problem, flush=True)
 if sys.argv[1:] == ['hang']:
     sys.stdin.read()

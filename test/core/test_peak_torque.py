@@ -87,8 +87,8 @@ def test_formula_and_slope_match_the_chain():
         assert np.max(np.abs(slope - difference)) <= 1e-8 * np.max(np.abs(slope))
         # The compiled formula is the same one.
         for k in range(0, crank.size, 400):
-            compiled = torque_kernel._torque(math.sin(crank[k]), math.cos(crank[k]),
-                                             *arguments)
+            compiled = torque_kernel.torque_of(math.sin(crank[k]), math.cos(crank[k]),
+                                               *arguments)
             assert compiled[0] == pytest.approx(torque[k], rel=1e-14, abs=1e-14 * np.max(
                 np.abs(chain)))
             assert compiled[1] == pytest.approx(slope[k], rel=1e-13, abs=1e-13 * np.max(

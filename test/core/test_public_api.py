@@ -26,7 +26,7 @@ import qrm_ros.core as core
 def test_every_exported_name_is_the_object_its_module_defines():
     assert core.__all__, 'qrm_ros.core exports nothing'
     for name in core.__all__:
-        module = importlib.import_module(core._EXPORTED[name])
+        module = importlib.import_module(core.EXPORTED_FROM[name])
         assert name in getattr(module, '__all__', ()), f'{name} is not public in {module}'
         assert getattr(core, name) is getattr(module, name)
 

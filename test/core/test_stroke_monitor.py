@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 from qrm_ros.core.geometry import Geometry
 from qrm_ros.core.kinematics import state, stroke_times, time_ratio
-from qrm_ros.core.stroke_monitor import _SAMPLE_FIELDS, MEASURED_FIGURES, StrokeMonitor
+from qrm_ros.core.stroke_monitor import MEASURED_FIGURES, SAMPLE_FIELDS, StrokeMonitor
 from qrm_ros.core.strokes import find_stroke_pairs, measure_pair_efforts
 
 NS = 1_000_000_000
@@ -120,7 +120,7 @@ def test_numpy_views_measure_as_python_floats_do_bit_for_bit():
     origin = stamps[first_sample]
     time = [(ns - origin) / 1e9 for ns in stamps[kept]]  # Python ints and floats
     column = {name: [values[index] for values in samples[kept]]
-              for index, name in enumerate(_SAMPLE_FIELDS)}  # collect's argument order
+              for index, name in enumerate(SAMPLE_FIELDS)}  # collect's argument order
     pairs = find_stroke_pairs(time, column['ram_position'], column['ram_velocity'])
     efforts = measure_pair_efforts(time, column['input_speed'], column['input_torque'],
                                    column['offset_force'], pairs)
