@@ -59,3 +59,12 @@ def harness(context):
     yield make
     for item in made:
         item.close()
+
+
+@pytest.fixture(scope='module')
+def run_with_efforts(tmp_path_factory):
+    """Write a synthetic run whose joint states carry made-up efforts (animation tests)."""
+    from synthetic_run import EFFORTS_SCHEDULE, made_up_efforts, write_run
+    path = tmp_path_factory.mktemp('runs') / 'efforts.mcap'
+    write_run(path, effort=made_up_efforts, **EFFORTS_SCHEDULE)
+    return path

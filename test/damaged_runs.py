@@ -100,13 +100,15 @@ def put_together(recorded: Recorded, chunk_size: int = 32 * 1024) -> bytes:
     return stream.getvalue()
 
 
-def _decode(data):
+def decode_joint_state(data):
+    """Return a recorded JointState's CDR bytes as a message whose arrays may be changed."""
     decoded = _store().deserialize_cdr(bytes(data), JOINT_STATE_TYPE)
     decoded.position, decoded.velocity = decoded.position.copy(), decoded.velocity.copy()
     return decoded
 
 
-def _encode(message):
+def encode_joint_state(message):
+    """Return a JointState message as CDR bytes, as the recorder writes it."""
     return bytes(_store().serialize_cdr(message, JOINT_STATE_TYPE))
 
 
@@ -234,9 +236,9 @@ def bad_metadata(rng, recorded):
 
 def _rewrite_joint_states(recorded, change, targets=None):
     for message in recorded.joint_states() if targets is None else targets:
-        decoded = _decode(message[4])
+        decoded = decode_joint_state(message[4])
         if change(decoded, message) is not False:
-            message[4] = _encode(decoded)
+            message[4] = encode_joint_state(decoded)
 
 
 def odd_timestamps(rng, recorded):
@@ -273,9 +275,9 @@ def odd_timestamps(rng, recorded):
     index = recorded.messages.index(joints[start])
     copy = list(recorded.messages[index])
     if how == 5:  # same stamp, other values: conflicting
-        decoded = _decode(copy[4])
+        decoded = decode_joint_state(copy[4])
         decoded.position[3] += 1e-3
-        copy[4] = _encode(decoded)
+        copy[4] = encode_joint_state(decoded)
     recorded.messages.insert(index + 1, copy)
     return frozenset({0}) if how == 4 else INCOMPLETE
 

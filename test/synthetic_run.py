@@ -24,11 +24,20 @@ import math
 
 import numpy as np
 
+from qrm_ros.analysis import recorded_run
 from qrm_ros.core import dynamics as dyn
 from qrm_ros.core import kinematics as kin
 from qrm_ros.core import names
 
 JOINT_NAMES = list(names.JOINT_NAMES)
+PAPER = kin.Geometry.paper()
+# Both signs of the offset and SR = 1 (-r r1 / h): the analysis tests' schedule.
+SCHEDULE = [-0.015, -0.0111725663716814, 0.0, 0.008, 0.015]
+# A crank phase off zero, so a drawing or a frame that forgot it would be seen.
+PHASED = kin.Geometry(PAPER.coupling_radius, PAPER.crank_radius, PAPER.pivot_distance,
+                      PAPER.ram_height, 0.3)
+# A run with efforts on its joint states, for the animation's tests.
+EFFORTS_SCHEDULE = dict(geometry=PHASED, offsets=[0.0, 0.012], hold=1.5)
 
 
 def schedule_states(geometry, offsets, hold=4.0, offset_rate=0.01, input_speed=2 * math.pi,
@@ -135,3 +144,27 @@ def dense_revolution(geometry, mass, loads, offset, input_speed, samples=400001)
     result = dyn.efforts(geometry, mass, offset, input_speed * times, input_speed,
                          external_ram_force=load)
     return times, result.input_torque, result.offset_force
+
+
+def samples_for(offsets, input_speed=2 * math.pi, **kwargs):
+    """Return the analysis's Samples of the paper's machine along a schedule of offsets."""
+    time, angle, offset, offset_velocity, state = schedule_states(
+        PAPER, offsets, input_speed=input_speed, **kwargs)
+    return recorded_run.Samples(time, angle, np.full_like(time, input_speed),
+                                state.flywheel_angle, state.flywheel_speed, state.ram_position,
+                                state.ram_velocity, offset, offset_velocity)
+
+
+def made_up_efforts(time):
+    """Return efforts (N m, N) of the five joints at time (s): made up, distinct at each."""
+    return [40.0 * math.sin(3.0 * time) + 5.0, 0.0, 0.0, -12.0 * time, 0.0]
+
+
+def write_truncated_run(folder, kept_fraction=0.8):
+    """Write a two-offset run in small chunks and a copy cut short; return the copy's path."""
+    whole = folder / 'run.mcap'
+    write_run(whole, PAPER, [0.0, 0.01], hold=3.0, chunk_size=16 * 1024)
+    data = whole.read_bytes()
+    cut = folder / 'cut.mcap'
+    cut.write_bytes(data[:int(len(data) * kept_fraction)])
+    return cut

@@ -35,35 +35,15 @@ from qrm_ros.analysis import recorded_run
 from qrm_ros.core import kinematics as kin
 from qrm_ros.core.linkage import COLOURS, linkage_sizes
 from qrm_ros.core.names import PARAMETERS_METADATA
-from damaged_runs import _decode, _encode, put_together, take_apart
-from synthetic_run import schedule_states, write_run
+from damaged_runs import decode_joint_state, encode_joint_state, put_together, take_apart
+from synthetic_run import EFFORTS_SCHEDULE, made_up_efforts, PHASED, schedule_states
 from repo_paths import TEST_DATA
 
 PAPER = kin.Geometry.paper()
 
 
-# A crank phase off zero, so a frame that forgot it would be seen.
-PHASED = kin.Geometry(PAPER.coupling_radius, PAPER.crank_radius, PAPER.pivot_distance,
-                      PAPER.ram_height, 0.3)
-
-
 GOLDEN = TEST_DATA
 PIN_TOLERANCE = 1e-9  # m
-
-
-def _input_torque(time):
-    """Efforts (N m, N) of the five joints at time (s): made up, distinct at every sample."""
-    return [40.0 * math.sin(3.0 * time) + 5.0, 0.0, 0.0, -12.0 * time, 0.0]
-
-
-EFFORTS_SCHEDULE = dict(geometry=PHASED, offsets=[0.0, 0.012], hold=1.5)
-
-
-@pytest.fixture(scope='module')
-def run_with_efforts(tmp_path_factory):
-    path = tmp_path_factory.mktemp('runs') / 'efforts.mcap'
-    write_run(path, effort=_input_torque, **EFFORTS_SCHEDULE)
-    return path
 
 
 def _closed_form_points(geometry, input_angle, offset):
@@ -218,23 +198,23 @@ def test_efforts_are_the_recorded_input_torque_of_each_sample(run_with_efforts):
     samples = recorded_run.read_recording(str(run_with_efforts)).samples
     efforts = animation.read_efforts(str(run_with_efforts), samples)
     schedule_time = schedule_states(**EFFORTS_SCHEDULE)[0]
-    assert efforts.tolist() == [_input_torque(t)[0] for t in schedule_time]
+    assert efforts.tolist() == [made_up_efforts(t)[0] for t in schedule_time]
 
 
 def test_efforts_stay_with_their_sample_when_the_first_message_is_excluded(
         tmp_path, run_with_efforts):
     recorded = take_apart(run_with_efforts.read_bytes())
     first = recorded.joint_states()[0]
-    decoded = _decode(first[4])
+    decoded = decode_joint_state(first[4])
     decoded.position[0] = float('nan')  # the analysis excludes it: its time zero moves on
-    first[4] = _encode(decoded)
+    first[4] = encode_joint_state(decoded)
     path = tmp_path / 'first_excluded.mcap'
     path.write_bytes(put_together(recorded))
     samples = recorded_run.read_recording(str(path)).samples
     assert samples.time.size == len(recorded.joint_states()) - 1
     efforts = animation.read_efforts(str(path), samples)
     schedule_time = schedule_states(**EFFORTS_SCHEDULE)[0]
-    assert efforts.tolist() == [_input_torque(t)[0] for t in schedule_time[1:]]
+    assert efforts.tolist() == [made_up_efforts(t)[0] for t in schedule_time[1:]]
 
 
 def test_no_efforts_recorded_means_no_torque_trace():

@@ -17,30 +17,14 @@ import math
 import os
 
 import numpy as np
-import pytest
 
 from qrm_ros.analysis import measurement
 from qrm_ros.analysis import recorded_run
 from qrm_ros.analysis import figures
 from qrm_ros.core import kinematics as kin
-from synthetic_run import schedule_states
+from synthetic_run import samples_for
 
 PAPER = kin.Geometry.paper()
-SCHEDULE = [-0.015, -0.0111725663716814, 0.0, 0.008, 0.015]
-
-
-def samples_for(offsets, input_speed=2 * math.pi, **kwargs):
-    time, angle, offset, offset_velocity, state = schedule_states(
-        PAPER, offsets, input_speed=input_speed, **kwargs)
-    return recorded_run.Samples(time, angle, np.full_like(time, input_speed),
-                                state.flywheel_angle, state.flywheel_speed, state.ram_position,
-                                state.ram_velocity, offset, offset_velocity)
-
-
-@pytest.fixture(scope='module')
-def schedule_analysis():
-    recording = recorded_run.Recording('synthetic', PAPER, samples_for(SCHEDULE), None)
-    return measurement.analyse(recording)
 
 
 def test_figures_are_written_and_theory_curves_are_the_core(schedule_analysis, tmp_path):

@@ -22,32 +22,16 @@ ratios may differ from theory only by the stroke finder's interpolation error, b
 import json
 import math
 
-import numpy as np
 import pytest
 
 from qrm_ros.analysis import measurement
 from qrm_ros.analysis import recorded_run
 from qrm_ros.analysis import report
 from qrm_ros.core import kinematics as kin
-from synthetic_run import schedule_states
+from synthetic_run import samples_for, SCHEDULE
 
 PAPER = kin.Geometry.paper()
-SCHEDULE = [-0.015, -0.0111725663716814, 0.0, 0.008, 0.015]
 TOLERANCE = (2 * math.pi * 0.01) ** 3
-
-
-def samples_for(offsets, input_speed=2 * math.pi, **kwargs):
-    time, angle, offset, offset_velocity, state = schedule_states(
-        PAPER, offsets, input_speed=input_speed, **kwargs)
-    return recorded_run.Samples(time, angle, np.full_like(time, input_speed),
-                                state.flywheel_angle, state.flywheel_speed, state.ram_position,
-                                state.ram_velocity, offset, offset_velocity)
-
-
-@pytest.fixture(scope='module')
-def schedule_analysis():
-    recording = recorded_run.Recording('synthetic', PAPER, samples_for(SCHEDULE), None)
-    return measurement.analyse(recording)
 
 
 def test_segments_are_exactly_the_commanded_offsets(schedule_analysis):

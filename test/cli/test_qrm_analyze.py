@@ -24,7 +24,7 @@ from qrm_ros.cli import exit_codes
 from qrm_ros.cli import qrm_analyze
 from qrm_ros.analysis import figures
 from qrm_ros.core import kinematics as kin
-from synthetic_run import write_run
+from synthetic_run import write_run, write_truncated_run
 
 PAPER = kin.Geometry.paper()
 TOLERANCE = (2 * math.pi * 0.01) ** 3
@@ -76,11 +76,7 @@ def test_not_an_mcap_file(tmp_path, capsys):
 
 
 def test_truncated_file_is_analysed_up_to_what_is_whole(tmp_path, capsys):
-    path = tmp_path / 'run.mcap'
-    write_run(path, PAPER, [0.0, 0.01], hold=3.0, chunk_size=16 * 1024)
-    data = path.read_bytes()
-    cut = tmp_path / 'cut.mcap'
-    cut.write_bytes(data[:int(len(data) * 0.8)])
+    cut = write_truncated_run(tmp_path)
     code, out, err = run_main([cut], capsys)
     assert code == exit_codes.EXIT_INCOMPLETE
     assert 'truncated' in err

@@ -31,33 +31,13 @@ from qrm_ros.cli import qrm_analyze
 from qrm_ros.cli import qrm_animate
 from qrm_ros.core import kinematics as kin
 from damaged_runs import cases, put_together, take_apart
-from synthetic_run import write_run
+from synthetic_run import write_run, write_truncated_run
 from repo_paths import TEST_DATA
 
 PAPER = kin.Geometry.paper()
 
 
-# A crank phase off zero, so a frame that forgot it would be seen.
-PHASED = kin.Geometry(PAPER.coupling_radius, PAPER.crank_radius, PAPER.pivot_distance,
-                      PAPER.ram_height, 0.3)
-
-
 GOLDEN = TEST_DATA
-
-
-def _input_torque(time):
-    """Efforts (N m, N) of the five joints at time (s): made up, distinct at every sample."""
-    return [40.0 * math.sin(3.0 * time) + 5.0, 0.0, 0.0, -12.0 * time, 0.0]
-
-
-EFFORTS_SCHEDULE = dict(geometry=PHASED, offsets=[0.0, 0.012], hold=1.5)
-
-
-@pytest.fixture(scope='module')
-def run_with_efforts(tmp_path_factory):
-    path = tmp_path_factory.mktemp('runs') / 'efforts.mcap'
-    write_run(path, effort=_input_torque, **EFFORTS_SCHEDULE)
-    return path
 
 
 def _gif_frames(path):
@@ -235,11 +215,7 @@ def test_an_output_that_cannot_be_written_exits_1_and_leaves_nothing(tmp_path, c
 
 
 def test_truncated_recording_is_animated_and_exits_3(tmp_path, capsys):
-    path = tmp_path / 'run.mcap'
-    write_run(path, PAPER, [0.0, 0.01], hold=3.0, chunk_size=16 * 1024)
-    data = path.read_bytes()
-    cut = tmp_path / 'cut.mcap'
-    cut.write_bytes(data[:int(len(data) * 0.8)])
+    cut = write_truncated_run(tmp_path)
     code, out, err = _run([cut, '-o', tmp_path / 'cut.gif', '--fps', '5'], capsys)
     assert code == exit_codes.EXIT_INCOMPLETE
     assert 'truncated' in err and 'the animation covers only what was readable' in err
