@@ -37,7 +37,7 @@ from PIL import Image
 from qrm_ros import analysis
 from qrm_ros.analysis import animation
 from qrm_ros.analysis import linkage_figure
-from qrm_ros.cli import qrm_main as main_job
+from qrm_ros.cli import qrm_main
 from qrm_ros.core import kinematics as kin
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', 'test'))
@@ -61,7 +61,7 @@ def main():
     geometry = kin.Geometry.paper()
     with tempfile.TemporaryDirectory() as folder:
         run = os.path.join(folder, 'run.mcap')
-        write_run(run, geometry, [o / 1e3 for o in main_job.DEFAULT_OFFSETS_MM], hold=4.0,
+        write_run(run, geometry, [o / 1e3 for o in qrm_main.DEFAULT_OFFSETS_MM], hold=4.0,
                   offset_rate=0.02)
         recording = analysis.read_recording(run)
         samples = recording.samples

@@ -293,22 +293,21 @@ REAL_RATE = 250.0
 
 @pytest.fixture(scope='module')
 def real_run(tmp_path_factory):
-    from qrm_ros.cli.qrm_main import (RECORDER_SETTLE_TIME, start_child as _start,
-                                      stop_child as _stop)
+    from qrm_ros.cli.qrm_main import RECORDER_SETTLE_TIME, start_child, stop_child
     from qrm_ros.node.main_job_conductor import Conductor
     folder = tmp_path_factory.mktemp('real_efforts')
     path = str(folder / 'run.mcap')
     env = dict(os.environ)
     loads = [f'{name}:={value!r}' for name, value in LOADS.as_dict().items()]
-    sim = _start('shaper_sim', [item for setting in [
+    sim = start_child('shaper_sim', [item for setting in [
         f'coupling_offset:={REAL_OFFSETS[0]!r}', f'input_speed:={REAL_SPEED!r}',
         f'publish_rate:={REAL_RATE!r}', 'offset_rate_limit:=0.02', *loads]
         for item in ('-p', setting)], str(folder / 'shaper_sim.log'), env)
     recorder, conductor = None, Conductor()
     try:
         conductor.wait_for(conductor.sim_ready, 60.0, 'shaper_sim to start')
-        recorder = _start('mcap_recorder', ['-p', f'output:={path}'],
-                          str(folder / 'mcap_recorder.log'), env)
+        recorder = start_child('mcap_recorder', ['-p', f'output:={path}'],
+                               str(folder / 'mcap_recorder.log'), env)
         conductor.wait_for(conductor.recorder_subscribed, 60.0, 'mcap_recorder to subscribe')
         since = time.time() + RECORDER_SETTLE_TIME
         for offset in REAL_OFFSETS:
@@ -318,8 +317,8 @@ def real_run(tmp_path_factory):
     finally:
         conductor.close()
         if recorder is not None:
-            _stop(recorder)
-        _stop(sim)
+            stop_child(recorder)
+        stop_child(sim)
     return measurement.analyse(recorded_run.read_recording(path))
 
 

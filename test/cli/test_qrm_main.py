@@ -25,7 +25,7 @@ from PIL import Image
 import pytest
 
 from qrm_ros.analysis import linkage_figure
-from qrm_ros.cli import qrm_main as main_job
+from qrm_ros.cli import qrm_main
 from qrm_ros.core import kinematics as kin
 from qrm_ros.core.dynamics import Loads
 from qrm_ros.recording.bag_reader import open_run
@@ -35,7 +35,7 @@ from ros_probe import installed_executable, stop_process, wait_for
 
 def test_main_job_runs_a_short_schedule_end_to_end(tmp_path, capsys):
     speed = 4 * math.pi  # two stroke pairs a second keeps the test short
-    code = main_job.main(['--offsets-mm', '-6', '8', '--pairs', '2', '--input-speed',
+    code = qrm_main.main(['--offsets-mm', '-6', '8', '--pairs', '2', '--input-speed',
                           repr(speed), '--output-dir', str(tmp_path)])
     out, err = capsys.readouterr()
     assert code == 0, out + err
@@ -45,11 +45,11 @@ def test_main_job_runs_a_short_schedule_end_to_end(tmp_path, capsys):
         assert (folder / name).is_file(), name
     assert sorted(os.listdir(folder / 'figures')) == sorted(
         ['fig10_time_ratio.png', 'fig11_speed_ratio.png', 'fig12_flywheel_speed.png',
-         'ram_motion.png', 'fig_input_torque.png', 'fig_offset_cost.png', main_job.TOUR_FILE])
+         'ram_motion.png', 'fig_input_torque.png', 'fig_offset_cost.png', qrm_main.TOUR_FILE])
     # the last input revolution (0.5 s) of each offset at 20 frames per second, both ends
-    with Image.open(folder / 'figures' / main_job.TOUR_FILE) as tour:
+    with Image.open(folder / 'figures' / qrm_main.TOUR_FILE) as tour:
         assert (tour.n_frames, tour.size) == (2 * 11, linkage_figure.FRAME_SIZE)
-    assert f'qrm_main: animation  {folder / "figures" / main_job.TOUR_FILE}' in out
+    assert f'qrm_main: animation  {folder / "figures" / qrm_main.TOUR_FILE}' in out
     assert str(folder / 'run.mcap') in out
     document = json.loads((folder / 'results.json').read_text())
     segments = document['segments']
@@ -87,7 +87,7 @@ def test_main_job_runs_a_short_schedule_end_to_end(tmp_path, capsys):
 ])
 def test_main_job_refuses_bad_options_with_exit_code_2(tmp_path, capsys, arguments, words):
     with pytest.raises(SystemExit) as stop:
-        main_job.main(arguments + ['--output-dir', str(tmp_path)])
+        qrm_main.main(arguments + ['--output-dir', str(tmp_path)])
     assert stop.value.code == 2
     errors = [line for line in capsys.readouterr().err.splitlines()
               if line.startswith('qrm_main: error:')]
@@ -145,7 +145,7 @@ def test_a_stop_signal_stops_the_children_cleanly(tmp_path, signal_number, momen
 
 def test_a_failure_while_running_exits_1_with_one_line(tmp_path, capsys):
     # The main job passes the publish rate on; shaper_sim itself refuses it at start-up.
-    code = main_job.main(['--publish-rate', '-5', '--output-dir', str(tmp_path)])
+    code = qrm_main.main(['--publish-rate', '-5', '--output-dir', str(tmp_path)])
     err = capsys.readouterr().err
     assert code == 1, err
     errors = [line for line in err.splitlines() if line.startswith('qrm_main: error:')]

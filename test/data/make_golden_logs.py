@@ -35,8 +35,7 @@ import sys
 import tempfile
 import time
 
-from qrm_ros.cli.qrm_main import (RECORDER_SETTLE_TIME, start_child as _start,
-                                  stop_child as _stop)
+from qrm_ros.cli.qrm_main import RECORDER_SETTLE_TIME, start_child, stop_child
 from qrm_ros.node.main_job_conductor import Conductor, MainJobError
 from qrm_ros.core.names import RECORDER_NODE_NAME
 
@@ -105,7 +104,7 @@ def _run(name, start_up, steps, reset):
     logs = tempfile.mkdtemp(prefix='golden_')
     arguments = [item for key, value in start_up.items()
                  for item in ('-p', f'{key}:={value if isinstance(value, str) else repr(value)}')]
-    sim = _start('shaper_sim', arguments, os.path.join(logs, 'shaper_sim.log'), env)
+    sim = start_child('shaper_sim', arguments, os.path.join(logs, 'shaper_sim.log'), env)
     recorder = None
     conductor = Conductor()
     try:
@@ -113,8 +112,8 @@ def _run(name, start_up, steps, reset):
         _call(conductor, SetBool, 'pause', SetBool.Request(data=True))
         if reset:
             _call(conductor, Trigger, 'reset', Trigger.Request())
-        recorder = _start('mcap_recorder', ['-p', f'output:={path}'],
-                          os.path.join(logs, 'mcap_recorder.log'), env)
+        recorder = start_child('mcap_recorder', ['-p', f'output:={path}'],
+                               os.path.join(logs, 'mcap_recorder.log'), env)
         conductor.wait_for(lambda: _recorder_listens(conductor), 30.0, 'mcap_recorder')
         settled = time.monotonic() + RECORDER_SETTLE_TIME
         conductor.wait_for(lambda: time.monotonic() > settled, 10.0, 'the recorder to settle')
@@ -127,8 +126,8 @@ def _run(name, start_up, steps, reset):
     finally:
         conductor.close()
         if recorder is not None:
-            _stop(recorder)
-        _stop(sim)
+            stop_child(recorder)
+        stop_child(sim)
     print(f'{path}: {os.path.getsize(path)} bytes (logs in {logs})')
 
 
