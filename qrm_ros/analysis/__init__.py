@@ -28,31 +28,15 @@ The names below are loaded on first use, from the module that defines them: impo
 module of the package (qrm_design's design_table, say) does not load the run reader.
 """
 
-import importlib
-from typing import Any, TYPE_CHECKING
+from typing import TYPE_CHECKING
 
-# Re-exported name -> the module of qrm_ros.analysis that defines it.
-_HOMES = {
-    'AnalysisError': 'recorded_run', 'Recording': 'recorded_run',
-    'read_recording': 'recorded_run',
-    'Analysis': 'measurement', 'analyse': 'measurement',
-    'format_table': 'report', 'incompleteness': 'report', 'to_document': 'report',
-    'write_outputs': 'report',
-}
+from qrm_ros.core.exports import declared_exports, lazy_attributes
 
-__all__ = sorted(_HOMES)
+if TYPE_CHECKING:  # the one list of what this package exports (qrm_ros.core.exports)
+    from qrm_ros.analysis.measurement import analyse, Analysis
+    from qrm_ros.analysis.recorded_run import AnalysisError, read_recording, Recording
+    from qrm_ros.analysis.report import format_table, incompleteness, to_document, write_outputs
 
-if TYPE_CHECKING:  # the same names, for type checkers and readers
-    from qrm_ros.analysis.measurement import analyse, Analysis  # noqa: F401
-    from qrm_ros.analysis.recorded_run import (AnalysisError, read_recording,  # noqa: F401
-                                               Recording)
-    from qrm_ros.analysis.report import (format_table, incompleteness,  # noqa: F401
-                                         to_document, write_outputs)
-
-
-def __getattr__(name: str) -> Any:
-    """Return a re-exported name, importing its module on first use (PEP 562)."""
-    home = _HOMES.get(name)
-    if home is None:
-        raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
-    return getattr(importlib.import_module(f'{__name__}.{home}'), name)
+EXPORTED_FROM = declared_exports(__file__)  # name -> the module that defines it
+__all__ = sorted(EXPORTED_FROM, key=str.lower)
+__getattr__, __dir__ = lazy_attributes(globals(), EXPORTED_FROM)

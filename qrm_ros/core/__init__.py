@@ -18,13 +18,12 @@ A script needs no map of the modules: ``from qrm_ros.core import Geometry, time_
 The names load on first use (PEP 562), so a command that needs one light module (the
 recorder takes ``core.units`` and ``core.geometry``) does not load scipy with the rest. The
 imports under ``TYPE_CHECKING`` below are the one list of what is exported and from where:
-type checkers read them, and ``__getattr__`` reads the same lines from this file's source.
+type checkers read them, and ``core.exports`` reads the same lines from this file's source.
 """
 
-import ast
-import importlib
-import os
-from typing import Any, Dict, List, TYPE_CHECKING
+from typing import TYPE_CHECKING
+
+from qrm_ros.core.exports import declared_exports, lazy_attributes
 
 if TYPE_CHECKING:
     from qrm_ros.core.cutting_speed_hold import (cutting_speed, hold_offset, HoldAnswer,
@@ -58,29 +57,6 @@ if TYPE_CHECKING:
                                       PairEffortsMeasured, StrokePairs)
 
 
-def _exported() -> Dict[str, str]:
-    """Map each exported name to its module, from the TYPE_CHECKING imports above."""
-    with open(os.path.join(os.path.dirname(os.path.abspath(__file__)), '__init__.py')) as f:
-        tree = ast.parse(f.read())
-    block = next(node for node in tree.body if isinstance(node, ast.If)
-                 and isinstance(node.test, ast.Name) and node.test.id == 'TYPE_CHECKING')
-    return {alias.name: statement.module for statement in block.body
-            if isinstance(statement, ast.ImportFrom) and statement.module
-            for alias in statement.names}
-
-
-EXPORTED_FROM = _exported()  # name -> the module that defines it
+EXPORTED_FROM = declared_exports(__file__)  # name -> the module that defines it
 __all__ = sorted(EXPORTED_FROM, key=str.lower)
-
-
-def __getattr__(name: str) -> Any:
-    module = EXPORTED_FROM.get(name)
-    if module is None:
-        raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value  # the next lookup is a plain attribute
-    return value
-
-
-def __dir__() -> List[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_attributes(globals(), EXPORTED_FROM)
