@@ -30,16 +30,12 @@ import statistics
 import subprocess
 import sys
 
-# What each console script imports before its main runs (qrm_ros.cli.entry_points).
-COMMANDS = {
-    'rclpy (baseline)': 'rclpy, rclpy.node',
-    'mcap_recorder': 'qrm_ros.cli.mcap_recorder',
-    'shaper_sim': 'qrm_ros.cli.shaper_sim',
-    'qrm_analyze': 'qrm_ros.cli.qrm_analyze',
-    'qrm_design': 'qrm_ros.cli.qrm_design',
-    'qrm_animate': 'qrm_ros.cli.qrm_animate',
-    'qrm_main': 'qrm_ros.cli.qrm_main',
-}
+from qrm_ros.cli import entry_points
+
+# What each console script imports before its main runs: qrm_ros.cli.<command>
+# (qrm_ros.cli.entry_points), after the baseline.
+COMMANDS = {'rclpy (baseline)': 'rclpy, rclpy.node',
+            **{command: f'qrm_ros.cli.{command}' for command in entry_points.__all__}}
 HEAVY = ('scipy', 'numba', 'matplotlib')
 _PROBE = ('import sys, time\n'
           'start = time.perf_counter()\n'
