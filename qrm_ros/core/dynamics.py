@@ -34,6 +34,7 @@ import numpy as np
 from qrm_ros.core.checks import as_float
 from qrm_ros.core.geometry import check_offset, Geometry, KinematicsError
 from qrm_ros.core.names import MOTOR_PREFIX
+from qrm_ros.core.physical_ranges import magnitude_problem
 
 __all__ = [
     'DynamicsError', 'Efforts', 'Loads', 'MassProperties', 'MotorDrive', 'checked_quantity',
@@ -81,8 +82,11 @@ class _Validated:
 
     def __post_init__(self) -> None:
         for name, (unit, minimum, strict) in self._LIMITS.items():
-            object.__setattr__(self, name, checked_quantity(name, getattr(self, name), unit,
-                                                            minimum, strict))
+            checked = checked_quantity(name, getattr(self, name), unit, minimum, strict)
+            problem = magnitude_problem(name, float(np.max(np.abs(checked))), unit)
+            if problem:
+                raise DynamicsError(problem)
+            object.__setattr__(self, name, checked)
 
     @classmethod
     def field_names(cls) -> Tuple[str, ...]:

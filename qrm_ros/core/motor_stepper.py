@@ -51,10 +51,74 @@ from qrm_ros.core.motor_segment import (Segment, segment_functions, SegmentFunct
 from qrm_ros.core.stepping import checked_limits, wrap_angle
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
 
-__all__ = ['MotorStepper', 'Simulation', 'simulate']
+__all__ = ['MAX_PIECES_PER_STAMP', 'MotorStepper', 'PlanViews', 'Simulation', 'simulate']
+
+# Pieces of trajectory (solver steps) one integrate_to may make, about 0.5 s of computing: a
+# clock that jumps far ahead, or a segment that keeps switching, cannot hold a tick (and the
+# node's signal handling) for ever. Past it the state reached is held and a new time base
+# starts at the stamp, as after a pause (integration_cutoffs counts them).
+MAX_PIECES_PER_STAMP = 20_000
 
 
-class MotorStepper:
+class PlanViews:
+    """
+    The motor stepper's commands, limits and stall as read from its segment plan.
+
+    Read-only views that MotorStepper inherits (they need only the plan, the present time
+    on it and the stall reason).
+    """
+
+    _plan: SegmentPlan
+    _time: float
+    _stall_reason: Optional[str]
+
+    @property
+    def ram_load(self) -> float:
+        """F_ext on the ram in the present segment, N along +x."""
+        return self._plan.load
+
+    @property
+    def stalled(self) -> bool:
+        return self._stall_reason is not None
+
+    @property
+    def stall_reason(self) -> Optional[str]:
+        """Why the shaft is held (str) while stalled, else None."""
+        return self._stall_reason
+
+    @property
+    def offset(self) -> float:
+        """Coupling offset in force, m."""
+        return self._plan.offset_at(self._time)
+
+    @property
+    def offset_rate(self) -> float:
+        """Rate of the coupling offset from the present stamp on, m/s."""
+        return self._plan.offset_rate if self._plan.spin else 0.0
+
+    @property
+    def speed_reference(self) -> float:
+        """The motor's speed reference now (the speed command after its ramp), rad/s."""
+        return self._plan.reference_at(self._time)
+
+    @property
+    def speed_command(self) -> float:
+        return self._plan.speed_command
+
+    @property
+    def offset_command(self) -> float:
+        return self._plan.offset_command
+
+    @property
+    def input_acceleration_limit(self) -> float:
+        return self._plan.acceleration_limit
+
+    @property
+    def offset_rate_limit(self) -> float:
+        return self._plan.offset_rate_limit
+
+
+class MotorStepper(PlanViews):
     """
     The mechanism under a motor drive: the input speed is a state of the equation of motion.
 
@@ -75,6 +139,7 @@ class MotorStepper:
         self._equation = EquationOfMotion(geometry, mass, loads, motor)
         COMPILED_MOTOR_KERNEL.start_loading()
         self.time_resets = 0
+        self.integration_cutoffs = 0
         self._observer: Optional[Observer] = None
         self._functions: Optional[SegmentFunctions] = None
         self._acceleration_now: Optional[float] = None
@@ -238,8 +303,13 @@ class MotorStepper:
             # At rest: the reference may have ramped; re-check the stall rule now.
             self._start(time, self._angle, 0.0, plan.reference_at(time), plan.offset, None)
             return
+        pieces = 0
         while self._piece[1] < time:
+            if pieces == MAX_PIECES_PER_STAMP:
+                self._cut_off(stamp_ns)
+                return
             self._extend()
+            pieces += 1
             if plan.spin == 0 and self._piece[1] == math.inf:
                 break
         at = self._piece[2]
@@ -247,6 +317,15 @@ class MotorStepper:
             return  # resting, or the segment starts exactly here
         angle, speed = at(time)
         self._angle, self._speed = wrap_angle(angle), speed
+
+    def _cut_off(self, stamp_ns: int) -> None:
+        """Hold the state at the end of the last piece made; a new time base at stamp_ns."""
+        end, at = self._piece[1], self._piece[2]
+        if at is not None:
+            angle, speed = at(end)
+            self._angle, self._speed = wrap_angle(angle), speed
+        self.integration_cutoffs += 1
+        self._new_base(stamp_ns)
 
     def mechanism_state(self) -> MechanismState:
         """Return the kinematics core's exact state (MechanismState) at the present stamp."""
@@ -264,8 +343,20 @@ class MotorStepper:
                      self.offset_rate, self._plan.load)
         compiled = COMPILED_MOTOR_KERNEL.module
         if compiled is None:
-            return dyn.Efforts(*lean_efforts_of(self._equation.lean_constants, *arguments))
-        return dyn.Efforts(*compiled.lean_efforts(self._equation.lean_array, *arguments))
+            found = dyn.Efforts(*lean_efforts_of(self._equation.lean_constants, *arguments))
+        else:
+            found = dyn.Efforts(*compiled.lean_efforts(self._equation.lean_array, *arguments))
+        if self._plan.spin == 0:
+            # Held at rest: the motor gives what its law gives there (within +-max_torque);
+            # the rest of the holding torque is the ram's static friction, not the input's.
+            return found._replace(input_torque=self.motor_torque)
+        motor = self._equation.motor
+        if motor is None:
+            return found
+        # Moving, the input's effort is the motor's torque; the clip keeps round-off of the
+        # inverse dynamics (1e-15 N m) from showing past the limit.
+        limit = motor.max_torque
+        return found._replace(input_torque=min(max(found.input_torque, -limit), limit))
 
     @property
     def segment(self) -> Segment:
@@ -308,51 +399,6 @@ class MotorStepper:
         """Torque the motor applies to the input shaft now, N m."""
         return self._equation.applied_motor_torque(self._plan.reference_at(self._time),
                                                    self._speed)
-
-    @property
-    def ram_load(self) -> float:
-        """F_ext on the ram in the present segment, N along +x."""
-        return self._plan.load
-
-    @property
-    def stalled(self) -> bool:
-        return self._stall_reason is not None
-
-    @property
-    def stall_reason(self) -> Optional[str]:
-        """Why the shaft is held (str) while stalled, else None."""
-        return self._stall_reason
-
-    @property
-    def offset(self) -> float:
-        """Coupling offset in force, m."""
-        return self._plan.offset_at(self._time)
-
-    @property
-    def offset_rate(self) -> float:
-        """Rate of the coupling offset from the present stamp on, m/s."""
-        return self._plan.offset_rate if self._plan.spin else 0.0
-
-    @property
-    def speed_reference(self) -> float:
-        """The motor's speed reference now (the speed command after its ramp), rad/s."""
-        return self._plan.reference_at(self._time)
-
-    @property
-    def speed_command(self) -> float:
-        return self._plan.speed_command
-
-    @property
-    def offset_command(self) -> float:
-        return self._plan.offset_command
-
-    @property
-    def input_acceleration_limit(self) -> float:
-        return self._plan.acceleration_limit
-
-    @property
-    def offset_rate_limit(self) -> float:
-        return self._plan.offset_rate_limit
 
 
 class Simulation(NamedTuple):

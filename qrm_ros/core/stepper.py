@@ -39,6 +39,9 @@ class Stepper(Protocol):
     """
 
     time_resets: int
+    # Steps that could not be integrated to their stamp within a bounded effort: the state
+    # reached was held and a new time base started there (always 0 for an exact stepper).
+    integration_cutoffs: int
 
     def set_speed_command(self, input_speed: float) -> None:
         """Command the input speed (rad/s)."""

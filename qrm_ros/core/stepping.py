@@ -123,6 +123,7 @@ class ShaperStepper:
                                             input_acceleration_limit, 'rad/s^2')
         self._offset_rate_limit = positive('offset_rate_limit', offset_rate_limit, 'm/s')
         self.time_resets = 0
+        self.integration_cutoffs = 0  # exact in closed form: every stamp is reached
         self.reset(input_speed, offset)
 
     # Commands -----------------------------------------------------------------------------

@@ -89,15 +89,32 @@ def _declare_checked(node: Node, name: str, declared: Mapping[str, object],
     except (InvalidParameterTypeException, InvalidParameterValueException) as error:
         given = start_up_overrides(node).get(name)
         value = given.value if given is not None else None
-        if isinstance(error, InvalidParameterTypeException) and isinstance(spec.default,
-                                                                           float):
-            reason: Optional[str] = (
+        number = _number_in_text(value)
+        if number is not None and isinstance(spec.default, float):
+            # The YAML reader keeps a number it cannot hold as a double (1.0e-310 underflows)
+            # as text: judge the number it says.
+            reason: Optional[str] = refusal_reason(name, number, view, starting=True) or (
+                f'{name} = {value} refused: ROS reads it as text, not as a double (too small '
+                f'or too large for one); allowed: {allowed_text(name, view)}')
+        elif isinstance(error, InvalidParameterTypeException) and isinstance(spec.default,
+                                                                             float):
+            reason = (
                 f'{name} = {value!r} refused: must be a double, written with a decimal point '
                 f'(e.g. {spec.default!r}); allowed: {allowed_text(name, view)}')
         else:
             reason = refusal_reason(name, value, view, starting=True)
         raise ValueError(reason or f'{name}: {error}; allowed: '
                          f'{allowed_text(name, view)}') from None
+
+
+def _number_in_text(value: object) -> Optional[float]:
+    """Return the number a text value writes (e.g. '1.0e-310'), or None."""
+    if not isinstance(value, str):
+        return None
+    try:
+        return float(value)
+    except ValueError:
+        return None
 
 
 def _report_unknown_overrides(node: Node) -> None:

@@ -43,6 +43,11 @@ def _array(status: DiagnosticStatus, stamp: Time) -> DiagnosticArray:
     return message
 
 
+def _shown_figure(value: float) -> str:
+    """Show a ratio as the status text does: 4 decimals, or 'n/a' (never nan or inf)."""
+    return f'{value:.4f}' if math.isfinite(value) else 'n/a'
+
+
 def stroke_pair_status(report: PairReport, effort_theory: List[KeyValue],
                        effort_theory_state: str, target: float,
                        definition: str) -> DiagnosticArray:
@@ -63,15 +68,18 @@ def stroke_pair_status(report: PairReport, effort_theory: List[KeyValue],
         measured_speed = report.measured[CUTTING_SPEED_FIGURES[definition]]
         key_values += [
             KeyValue(key='cutting_speed_target', value=repr(target)),
-            KeyValue(key='cutting_speed_definition', value=definition),
-            KeyValue(key='cutting_speed_measured', value=repr(measured_speed)),
-            KeyValue(key='cutting_speed_error', value=repr(measured_speed / target - 1.0))]
+            KeyValue(key='cutting_speed_definition', value=definition)]
+        if math.isfinite(measured_speed):  # no figure rather than nan
+            key_values += [
+                KeyValue(key='cutting_speed_measured', value=repr(measured_speed)),
+                KeyValue(key='cutting_speed_error', value=repr(measured_speed / target - 1.0))]
     measured = report.measured
     steady = 'steady' if report.steady else 'NOT steady (ratios mixed)'
     status = DiagnosticStatus(
         level=DiagnosticStatus.OK, name=STROKE_PAIR_STATUS, hardware_id=SIM_NODE_NAME,
-        message=(f'TR {measured["time_ratio"]:.4f}, SR {measured["speed_ratio"]:.4f} '
-                 f'(peak {measured["peak_speed_ratio"]:.4f}) at offset '
+        message=(f'TR {_shown_figure(measured["time_ratio"])}, SR '
+                 f'{_shown_figure(measured["speed_ratio"])} (peak '
+                 f'{_shown_figure(measured["peak_speed_ratio"])}) at offset '
                  f'{report.coupling_offset:.6g} m, {report.input_speed:.6g} rad/s, '
                  f'{steady}'),
         values=key_values)

@@ -27,9 +27,11 @@ from qrm_ros.core.cutting_speed_hold import CUTTING_SPEED_DEFINITIONS, unreachab
 from qrm_ros.core.dynamics import Loads, MassProperties, MotorDrive, parameter_names
 from qrm_ros.core.geometry import Geometry, KinematicsError
 from qrm_ros.core.names import DRIVES, MOTOR_PREFIX
+from qrm_ros.core.physical_ranges import (MAX_INPUT_SPEED, MAX_MAGNITUDES,
+                                          motor_time_constant_problem)
 
 __all__ = ['AtLeast', 'DoubleRange', 'DRIVES', 'GEOMETRY_NAMES', 'MARKER_SLICING_RATE',
-           'MOTOR_PREFIX', 'NonEmptyText', 'OneOf', 'ParameterSpec', 'PARAMETERS',
+           'MOTOR_PREFIX', 'NonEmptyText', 'OffOrRange', 'OneOf', 'ParameterSpec', 'PARAMETERS',
            'PositiveLength', 'SymmetricRange', 'View', 'allowed_text', 'change_refusal',
            'default_values', 'refusal_reason', 'shown', 'start_up_refusal']
 
@@ -40,6 +42,11 @@ GEOMETRY_NAMES = Geometry.field_names()
 # does not, and the next tick came a period late at every frame.
 MARKER_SLICING_RATE = 1000.0
 _PAPER = Geometry.paper()
+# Hz: the slowest marker rate but off (a frame every 100 s); a smaller rate has a period that
+# no clock holds (5e-324 Hz overflows integer nanoseconds).
+MIN_MARKER_RATE = 0.01
+# m/s: the largest cutting speed a target may ask (shapers cut at 0.1-1 m/s).
+MAX_CUTTING_SPEED_TARGET = 100.0
 
 
 def shown(value):
@@ -128,40 +135,73 @@ class PositiveLength(NamedTuple):
 
 
 class AtLeast(NamedTuple):
-    """A finite double >= minimum (> minimum if strict); minimum None: any finite double."""
+    """
+    A finite double >= minimum (> minimum if strict); minimum None: any finite double.
+
+    magnitude, if given, also bounds |value| (a bound no shaper leaves: physical_ranges).
+    """
 
     minimum: Optional[float]
     strict: bool = False
+    magnitude: Optional[float] = None
 
     def descriptor_bounds(self, geometry):
         return None
 
     def allowed(self, unit, view):
         if self.minimum is None:
-            return f'a finite value{_with_unit(unit)}'
+            if self.magnitude is None:
+                return f'a finite value{_with_unit(unit)}'
+            return (f'a finite value in [{shown(-float(self.magnitude))}, '
+                    f'{shown(float(self.magnitude))}]{_with_unit(unit)}')
         relation = '>' if self.strict else '>='
-        return f'a finite value {relation} {shown(float(self.minimum))}{_with_unit(unit)}'
+        most = '' if self.magnitude is None else f' and <= {shown(float(self.magnitude))}'
+        return (f'a finite value {relation} {shown(float(self.minimum))}{most}'
+                f'{_with_unit(unit)}')
 
     def problem(self, value, unit, view):
         allowed = self.allowed(unit, view)
         problem = _double_problem(value, None, None, allowed)
-        if problem or self.minimum is None:
+        if problem:
             return problem
-        below = value <= self.minimum if self.strict else value < self.minimum
-        return f'outside the allowed range {allowed}' if below else None
+        outside = self.magnitude is not None and abs(value) > self.magnitude
+        if self.minimum is not None:
+            outside |= value <= self.minimum if self.strict else value < self.minimum
+        return f'outside the allowed range {allowed}' if outside else None
+
+
+class OffOrRange(NamedTuple):
+    """0 (off), or a fixed inclusive range of positive values (rates: a period must exist)."""
+
+    low: float
+    high: float
+
+    def descriptor_bounds(self, geometry):
+        return 0.0, self.high
+
+    def allowed(self, unit, view):
+        return f'0 (off) or [{shown(self.low)}, {shown(self.high)}]{_with_unit(unit)}'
+
+    def problem(self, value, unit, view):
+        allowed = self.allowed(unit, view)
+        if value == 0.0 and isinstance(value, float):
+            return None
+        return _double_problem(value, self.low, self.high, allowed)
 
 
 class NonEmptyText(NamedTuple):
-    """A non-blank string (frame ids)."""
+    """A non-blank string that a message can carry whole (frame ids): no NUL or control."""
 
     def descriptor_bounds(self, geometry):
         return None
 
     def allowed(self, unit, view):
-        return 'a non-empty string'
+        return 'a non-empty string without control characters'
 
     def problem(self, value, unit, view):
-        if isinstance(value, str) and value.strip():
+        if (isinstance(value, str) and value.strip()
+                and not any(ord(character) < 32 or ord(character) == 127
+                            for character in value)):
             return None
         return f'must be {self.allowed(unit, view)}'
 
@@ -271,7 +311,8 @@ PARAMETERS = {
         'cutting speed at the input speed command in force, recomputed when the command '
         'changes; a target out of reach within the offset safety limit is refused, and if a '
         'later speed change puts it out of reach the nearest reachable offset is held (WARN '
-        'on /diagnostics).', False, AtLeast(0.0), (_target_reachable,),
+        'on /diagnostics).', False, AtLeast(0.0, False, MAX_CUTTING_SPEED_TARGET),
+        (_target_reachable,),
         apply=lambda node, value: node.command_offset()),
     'cutting_speed_definition': ParameterSpec(
         CUTTING_SPEED_DEFINITIONS[0], '', "What cutting_speed_target means: 'mean', the cutting "
@@ -283,7 +324,8 @@ PARAMETERS = {
         'Speed at which the offset actuator moves the offset', DoubleRange(1e-6, 1.0)),
     'max_input_speed': ParameterSpec(
         60.0, 'rad/s', 'Largest |input speed| accepted from input_speed and '
-        'input_speed_cmd.', False, DoubleRange(1e-3, 1e4), _max_input_speed_checks()),
+        'input_speed_cmd.', False, DoubleRange(1e-3, MAX_INPUT_SPEED),
+        _max_input_speed_checks()),
     'input_speed': ParameterSpec(
         2.0 * math.pi, 'rad/s', 'Commanded input shaft speed (at start, on reset and when '
         'set; input_speed_cmd also commands it). Negative runs the shaper in reverse. '
@@ -301,7 +343,7 @@ PARAMETERS = {
         30.0, 'Hz', 'Rate of the linkage_markers MarkerArray (the mechanism drawn for RViz and '
         'Foxglove, at the latest published sample); 0 turns it off. Sent right after a tick, '
         f'so at most publish_rate; above a publish_rate of {MARKER_SLICING_RATE:.0f} Hz one '
-        'marker a tick.', False, DoubleRange(0.0, 1000.0),
+        'marker a tick.', False, OffOrRange(MIN_MARKER_RATE, 1000.0),
         apply=lambda node, value: node.set_marker_rate(value)),
     'frame_id': ParameterSpec(
         'shaper_base', '', 'frame_id of the published joint_states and ram/twist headers. '
@@ -350,8 +392,16 @@ def _some_inertia(value, view):
     return None
 
 
+def _motor_not_too_stiff(value, view):
+    values = view.values
+    return motor_time_constant_problem(values['input_inertia'], values['flywheel_inertia'],
+                                       values[MOTOR_PREFIX + 'speed_stiffness'])
+
+
 _EXTRA_CHECKS = {'cutting_length': (_cutting_length_within_stroke,),
-                 'input_inertia': (_some_inertia,), 'flywheel_inertia': (_some_inertia,)}
+                 'input_inertia': (_some_inertia, _motor_not_too_stiff),
+                 'flywheel_inertia': (_some_inertia, _motor_not_too_stiff),
+                 'speed_stiffness': (_motor_not_too_stiff,)}
 
 
 def _dynamics_parameters():
@@ -366,7 +416,7 @@ def _dynamics_parameters():
             specs[parameter] = ParameterSpec(
                 float(getattr(defaults, name)), units[name],
                 f'{meanings[name]}. Live: the efforts follow at once.', False,
-                AtLeast(*limits[name]), _EXTRA_CHECKS.get(name, ()),
+                AtLeast(*limits[name], MAX_MAGNITUDES.get(name)), _EXTRA_CHECKS.get(name, ()),
                 lambda node, value: node.update_dynamics())
     return specs
 

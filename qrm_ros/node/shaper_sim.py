@@ -268,8 +268,14 @@ class ShaperSimNode(ShaperParameterNode):
         stepper = self._stepper
         if stamp_ns <= 0 or stamp_ns == stepper.stamp_ns:
             return False
-        resets = stepper.time_resets
+        resets, cutoffs = stepper.time_resets, stepper.integration_cutoffs
         sample = stepper.advance_to(stamp_ns)
+        if stepper.integration_cutoffs != cutoffs:
+            self.get_logger().warning(
+                'the drive could not be integrated to this stamp within a bounded effort (a '
+                'clock jump far ahead?): holding the state reached and continuing from the new '
+                'time', throttle_duration_sec=WARNING_PERIOD)
+            self._pair_reports.clear()
         if stepper.time_resets != resets:
             self.get_logger().warning(
                 'node clock went back (simulated time restarted?): holding the state and '
@@ -297,6 +303,7 @@ class ShaperSimNode(ShaperParameterNode):
                 f'non-finite state at {stamp_ns} ns not published: positions {positions}, '
                 f'velocities {velocities}, efforts {joint_efforts}',
                 throttle_duration_sec=WARNING_PERIOD)
+            self._pair_reports.clear()  # a pair across a gap in publication is not steady
             return False
         self._state_publishers.publish(stamp_ns, self._values['frame_id'], positions,
                                        velocities, joint_efforts, sample.ram_velocity)

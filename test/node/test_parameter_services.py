@@ -78,6 +78,23 @@ REFUSALS = [
     ('coupling_radius', 0.03, ['read-only']),
     ('frame_id', '', ['non-empty string']),
     ('frame_id', 3.0, ['non-empty string']),
+    # Finite but absurd: every value has a bound no shaper leaves (core.physical_ranges).
+    ('frame_id', 'ab\x00cd', ['without control characters']),
+    ('lever_mass', 1e308, ['<= 10000 kg']),
+    ('gravity', 1e308, ['<= 100 m/s^2']),
+    ('lever_com_distance', 1e308, ['[-10, 10] m']),
+    ('lever_inertia', 1e308, ['<= 10000 kg*m^2']),
+    ('input_inertia', 1e308, ['<= 10000 kg*m^2']),
+    ('ram_mass', 1e308, ['<= 10000 kg']),
+    ('ram_friction', 1e308, ['<= 1e+06 N']),
+    ('cutting_force', 1e308, ['<= 1e+06 N']),
+    ('motor_max_torque', 1e308, ['<= 1e+06 N*m']),
+    ('motor_speed_stiffness', 1e12, ['<= 1e+06 N*m*s/rad']),
+    ('motor_speed_stiffness', 1e5, ["the motor drive's time constant", 'below 0.0001 s']),
+    ('input_inertia', 0.0, ["the motor drive's time constant"]),
+    ('cutting_speed_target', 1e308, ['<= 100 m/s']),
+    ('marker_rate', 5e-324, ['0 (off) or [0.01, 1000] Hz']),
+    ('marker_rate', 1e-310, ['0 (off) or [0.01, 1000] Hz']),
 ]
 
 

@@ -324,9 +324,12 @@ def test_malformed_and_bursty_requests_never_stop_the_node(probe):
     (['-p', 'publish_rate:=0.5'], ['publish_rate = 0.5 refused', '[1, 10000] Hz']),
     (['-p', 'crank_phase:=4.0'], ['crank_phase = 4.0 refused', '[-3.14159, 3.14159] rad']),
     (['-p', 'ram_height:=-0.1'], ['ram_height', '-0.1', '> 0']),
+    (['-p', 'marker_rate:=1.0e-310'],
+     ['marker_rate = 1e-310 refused', '0 (off) or [0.01, 1000] Hz']),
     (['-p', 'coupling_offset'], ['cannot start', "parameter override rule: '-p"]),
     (['--params-file', '/nonexistent/shaper.yaml'], ['cannot start', 'params file']),
-], ids=['publish_rate', 'crank_phase', 'geometry', 'malformed -p', 'missing params file'])
+], ids=['publish_rate', 'crank_phase', 'geometry', 'tiny marker_rate', 'malformed -p',
+        'missing params file'])
 def test_start_up_problems_get_one_line_and_exit_2(arguments, words):
     code, output = Process(*arguments).stop(None, timeout=30.0)
     assert code == 2, output

@@ -23,6 +23,8 @@ import math
 
 import pytest
 from qrm_ros.core.kinematics import peak_speed_ratio, speed_ratio, time_ratio
+from qrm_ros.core.stroke_monitor import PairReport
+from qrm_ros.node.shaper_diagnostics import stroke_pair_status
 from rclpy.parameter import Parameter
 from std_srvs.srv import SetBool
 
@@ -164,3 +166,18 @@ def test_a_moving_offset_is_flagged_and_nothing_is_ever_non_finite(harness):
     assert steady[:3] == ['false'] * 3 and steady[-1] == 'true'
     assert all(all_finite(m) for m in h.joint_states)
     assert h.joint_states[-1].position[4] == 0.0225
+
+
+def test_a_figure_that_is_not_finite_is_never_shown_in_the_status_text():
+    # While reversing, SR has no value (nan): the key-values leave it out, and the text
+    # says n/a rather than nan.
+    measured = {'time_ratio': 0.3732, 'speed_ratio': math.nan, 'peak_speed_ratio': math.inf,
+                'mean_cutting_speed': math.nan, 'peak_cutting_speed': math.nan}
+    report = PairReport(stamp_ns=5 * NS, pair_start=1.0, pair_end=2.0, coupling_offset=0.01,
+                        input_speed=-2 * math.pi, offset_steady=True, input_speed_steady=True,
+                        measured=measured, theory={})
+    status, = stroke_pair_status(report, [], 'none', 0.3, 'mean').status
+    assert status.message.startswith('TR 0.3732, SR n/a (peak n/a)')
+    assert 'nan' not in status.message and 'inf' not in status.message
+    assert all(v.value not in ('nan', 'inf') for v in status.values)
+    assert 'speed_ratio' not in {v.key for v in status.values}
