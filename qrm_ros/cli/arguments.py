@@ -24,6 +24,8 @@ from typing import Any, Dict, Optional, Tuple
 
 from qrm_ros.core import dynamics as dyn
 from qrm_ros.core.geometry import Geometry
+from qrm_ros.core.physical_ranges import (MAX_INPUT_SPEED, MIN_INPUT_SPEED,
+                                          motor_speed_band_problem, motor_time_constant_problem)
 
 
 def add_geometry_arguments(parser: Any, defaults: bool = True) -> None:
@@ -71,6 +73,21 @@ def drive_from_arguments(args: argparse.Namespace) -> Tuple[Any, ...]:
     """Return (MassProperties, Loads, MotorDrive) from add_drive_arguments' options."""
     return tuple(kind(**{name: getattr(args, prefix + name) for name in kind.field_names()})
                  for kind, prefix, _ in DRIVE_PARAMETER_SETS)
+
+
+def input_speed_problem(option: str, input_speed: float) -> Optional[str]:
+    """Say why an input speed option (rad/s, either sign) is out of range, or None."""
+    if MIN_INPUT_SPEED <= abs(input_speed) <= MAX_INPUT_SPEED:
+        return None
+    return (f'{option} (input_speed) = {input_speed!r} rad/s is out of range: allowed '
+            f'{MIN_INPUT_SPEED:g} <= |input speed| <= {MAX_INPUT_SPEED:g} rad/s')
+
+
+def motor_problem(mass: dyn.MassProperties, motor: dyn.MotorDrive) -> Optional[str]:
+    """Say why the motor cannot be simulated with these masses (physical_ranges), or None."""
+    return (motor_time_constant_problem(mass.input_inertia, mass.flywheel_inertia,
+                                        motor.speed_stiffness)
+            or motor_speed_band_problem(motor.speed_stiffness, motor.max_torque))
 
 
 def add_geometry_override_arguments(parser: argparse.ArgumentParser) -> None:

@@ -33,8 +33,9 @@ from qrm_ros.analysis.design_table import (DEFAULT_OFFSETS_MM, design_table_data
                                            format_design_table, format_flywheel,
                                            format_gearbox_plan)
 from qrm_ros.cli.arguments import (add_drive_arguments, add_geometry_arguments,
-                                   drive_from_arguments, geometry_from_arguments)
-from qrm_ros.cli.exit_codes import EXIT_BAD_INPUT, EXIT_OK
+                                   drive_from_arguments, geometry_from_arguments,
+                                   input_speed_problem, motor_problem)
+from qrm_ros.cli.exit_codes import EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_OK
 from qrm_ros.core import gearbox
 from qrm_ros.core import kinematics as kin
 
@@ -78,13 +79,21 @@ def gearbox_main(argv: Sequence[str]) -> int:
         geometry = geometry_from_arguments(args)
         plan = gearbox.plan_gearbox(geometry, args.min_cutting_speed, args.max_cutting_speed,
                                     args.definition, args.max_offset, args.min_time_ratio)
-        if args.figure:
-            # matplotlib only when a figure is asked for
-            from qrm_ros.analysis import gearbox_figure
-            gearbox_figure.write_speed_ladder(plan, args.figure, args.progression_ratio)
-    except (kin.KinematicsError, OSError, ValueError) as error:
+    except (kin.KinematicsError, ValueError) as error:
         print(f'qrm_design gearbox: {error}', file=sys.stderr)
         return EXIT_BAD_INPUT
+    if args.figure:
+        # matplotlib only when a figure is asked for
+        from qrm_ros.analysis import gearbox_figure
+        try:
+            gearbox_figure.write_speed_ladder(plan, args.figure, args.progression_ratio)
+        except ValueError as error:  # a format matplotlib does not write
+            print(f'qrm_design gearbox: {error}', file=sys.stderr)
+            return EXIT_BAD_INPUT
+        except OSError as error:
+            print(f'qrm_design gearbox: cannot write {args.figure}: '
+                  f'{error.strerror or error}', file=sys.stderr)
+            return EXIT_FAILURE
     if args.json:
         print(json.dumps(gearbox.plan_as_dict(plan, geometry), indent=2))
     else:
@@ -157,6 +166,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     try:
         geometry = geometry_from_arguments(args)
         mass, loads, motor = drive_from_arguments(args)
+        problem = input_speed_problem('--input-speed', args.input_speed) or (
+            motor_problem(mass, motor) if args.speed_fluctuation else None)
+        if problem:
+            raise kin.KinematicsError(problem)
         offsets = (np.asarray(args.offsets_mm) if args.offsets_mm else DEFAULT_OFFSETS_MM) / 1e3
         data = design_table_data(geometry, offsets, args.input_speed, mass, loads,
                                  motor if args.speed_fluctuation else None)

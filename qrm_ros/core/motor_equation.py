@@ -30,7 +30,7 @@ import numpy as np
 from qrm_ros.core import dynamics as dyn
 from qrm_ros.core.geometry import Geometry, TWO_PI
 from qrm_ros.core.lean_chain import lean_constants, lean_ram_motion
-from qrm_ros.core.physical_ranges import motor_time_constant_problem
+from qrm_ros.core.physical_ranges import motor_speed_band_problem, motor_time_constant_problem
 from qrm_ros.core.speed_drive import load_switch_angles
 
 __all__ = ['ChainFixed', 'EquationOfMotion', 'sign']
@@ -69,8 +69,9 @@ class EquationOfMotion:
         self.motor = motor
         if motor is not None:
             motor.scalars()
-            too_stiff = motor_time_constant_problem(mass.input_inertia, mass.flywheel_inertia,
-                                                    motor.speed_stiffness)
+            too_stiff = (motor_time_constant_problem(mass.input_inertia, mass.flywheel_inertia,
+                                                     motor.speed_stiffness)
+                         or motor_speed_band_problem(motor.speed_stiffness, motor.max_torque))
             if too_stiff:
                 raise dyn.DynamicsError(too_stiff)
 

@@ -170,7 +170,13 @@ class SegmentPlan:
         if trigger == SATURATION:
             assert equation.motor is not None  # only a motor saturates
             demand = equation.motor.speed_stiffness * (reference - speed)
-            self.saturation = 0 if self.saturation else sign(demand)
+            self.load = equation.ram_load(self.direction, self.in_work)
+            # At the switch the demand may still read 0 (the band is within the speed's
+            # round-off): it leaves the band the way it is moving, k (reference rate - a).
+            ramping = math.copysign(self.acceleration_limit, self.speed_command - reference)
+            leaving = sign((ramping if self.reference_end > self.start else 0.0)
+                           - equation.acceleration(chain, demand, self.load))
+            self.saturation = 0 if self.saturation else (sign(demand) or leaving)
         else:
             self.saturation = equation.saturation_of(reference, speed)
         self.load = equation.ram_load(self.direction, self.in_work)

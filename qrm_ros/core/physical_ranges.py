@@ -28,8 +28,9 @@ from typing import Dict, Optional
 from qrm_ros.core.geometry import SAFE_OFFSET_FRACTION
 
 __all__ = ['MAX_FLUCTUATION', 'MAX_INPUT_SPEED', 'MAX_MAGNITUDES', 'MIN_FLUCTUATION',
-           'MIN_MOTOR_TIME_CONSTANT', 'magnitude_problem', 'motor_time_constant',
-           'motor_time_constant_problem']
+           'MIN_INPUT_SPEED', 'MIN_MOTOR_SPEED_BAND', 'MIN_MOTOR_TIME_CONSTANT',
+           'least_input_inertia', 'magnitude_problem', 'motor_speed_band_problem',
+           'motor_time_constant', 'motor_time_constant_problem', 'range_problem']
 
 # Largest |value| of each field of the dynamics' parameter sets, in the field's unit.
 MAX_MAGNITUDES: Dict[str, float] = {
@@ -47,8 +48,10 @@ MAX_MAGNITUDES: Dict[str, float] = {
     'max_torque': 1e6,           # N*m at the input shaft
 }
 
-# rad/s: the fastest input shaft (about 95 000 rpm; shapers run at 10-200 rpm).
+# rad/s: the fastest input shaft (about 95 000 rpm; shapers run at 10-200 rpm), and the
+# slowest one a steady figure is worked out for (a turn in 1.7 hours).
 MAX_INPUT_SPEED = 1e4
+MIN_INPUT_SPEED = 1e-3
 
 # The coefficient of speed fluctuation Cs a flywheel may be sized for (-): below 1e-4 the
 # needed inertia is beyond any flywheel (and the simulation's own resolution); above 0.5 the
@@ -58,10 +61,17 @@ MAX_FLUCTUATION = 0.5
 
 # s: the shortest mechanical time constant of the motor drive (the input side's inertia over
 # the motor's speed stiffness). Its equation of motion is integrated with explicit steps,
-# which must be a fraction of this: at 1e-4 s a second of motion costs about half a second
-# of computing, at 1e-6 s a minute. Real drives have tens of milliseconds to seconds (the
-# small shaper's: 3.4 ms).
-MIN_MOTOR_TIME_CONSTANT = 1e-4
+# which must be a fraction of this: at 3e-5 s a second of motion costs about half a second
+# of computing, at 3e-6 s several seconds, at 1e-12 s (a stiffness of 1e12) years. Real
+# drives have milliseconds to seconds (the small shaper's: 3.4 ms; without its input
+# inertia, 62 us).
+MIN_MOTOR_TIME_CONSTANT = 1e-5
+
+# rad/s: the narrowest speed band in which the motor's torque follows its law before it
+# saturates (max_torque / speed_stiffness). A real motor's is its pull-out slip, a few
+# percent of its speed; a band narrower than the input speed's round-off would make the
+# motor enter and leave saturation at the same instant, for ever.
+MIN_MOTOR_SPEED_BAND = 1e-6
 
 
 def magnitude_problem(name: str, value: float, unit: str) -> Optional[str]:
@@ -85,6 +95,31 @@ def motor_time_constant(input_inertia: float, flywheel_inertia: float,
     """
     least_ratio = 1.0 / (1.0 + SAFE_OFFSET_FRACTION)
     return (input_inertia + flywheel_inertia * least_ratio ** 2) / speed_stiffness
+
+
+def range_problem(name: str, value: float, low: float, high: float, unit: str) -> Optional[str]:
+    """Say why value is outside [low, high] (unit), naming both, or None."""
+    if low <= value <= high:
+        return None
+    return f'{name} = {value!r} {unit} is out of range: allowed [{low:g}, {high:g}] {unit}'
+
+
+def least_input_inertia(flywheel_inertia: float, speed_stiffness: float) -> float:
+    """Return the smallest input_inertia (kg m^2) the time constant's floor allows."""
+    least_ratio = 1.0 / (1.0 + SAFE_OFFSET_FRACTION)
+    return max(0.0, MIN_MOTOR_TIME_CONSTANT * speed_stiffness
+               - flywheel_inertia * least_ratio ** 2)
+
+
+def motor_speed_band_problem(speed_stiffness: float, max_torque: float) -> Optional[str]:
+    """Say why the motor saturates within too narrow a speed band, or None."""
+    band = max_torque / speed_stiffness
+    if band >= MIN_MOTOR_SPEED_BAND or math.isnan(band):
+        return None
+    return (f'the motor saturates within max_torque / speed_stiffness = {band:.3g} rad/s of '
+            f'its reference, below {MIN_MOTOR_SPEED_BAND:g} rad/s: raise motor_max_torque '
+            f'(at least {MIN_MOTOR_SPEED_BAND * speed_stiffness:.6g} N*m here) or lower '
+            'motor_speed_stiffness')
 
 
 def motor_time_constant_problem(input_inertia: float, flywheel_inertia: float,

@@ -32,6 +32,9 @@ from qrm_ros.core.checks import positive
 from qrm_ros.core.geometry import Geometry
 from qrm_ros.core.kinematics import state
 from qrm_ros.core.motor_stepper import MotorStepper
+from qrm_ros.core.physical_ranges import (least_input_inertia, MAX_FLUCTUATION, MAX_INPUT_SPEED,
+                                          MAX_MAGNITUDES, MIN_FLUCTUATION, MIN_INPUT_SPEED,
+                                          range_problem)
 from qrm_ros.core.speed_drive import PairEfforts, PEAK_CANDIDATE_MARGIN
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
 
@@ -171,6 +174,15 @@ def _revolution(geometry, mass, loads, motor, offset, input_speed, start_speed):
         stepper.integrate_to(stamp)
         if stepper.stalled:
             raise dyn.DynamicsError(f'the machine stalls: {stepper.stall_reason}')
+        if stepper.integration_cutoffs:
+            raise dyn.DynamicsError('the motor drive could not be integrated within a bounded '
+                                    'effort (a drive too stiff for its inertia)')
+        if tracker.lowest <= 0.0 or stepper.input_speed <= 0.0:
+            # Stopped or rolling back (the lever swings under gravity and friction): no
+            # forward revolution comes, and the swings would take ever more segments.
+            raise dyn.DynamicsError(
+                'the machine stalls: the input stops within a revolution (the motor gives at '
+                f'most {motor.max_torque:.6g} N*m at the input shaft)')
         if stamp > _SLOWEST_REVOLUTION * _DRIVE_STAMPS * step_ns:
             raise dyn.DynamicsError(
                 f'no whole revolution in {_SLOWEST_REVOLUTION} times the time of one at '
@@ -234,6 +246,10 @@ def speed_fluctuation(geometry: Geometry, mass: dyn.MassProperties, loads: dyn.L
     that revolution, integrated exactly on the dense output.
     """
     input_speed = positive('input_speed', input_speed, 'rad/s')
+    problem = range_problem('input_speed', input_speed, MIN_INPUT_SPEED, MAX_INPUT_SPEED,
+                            'rad/s')
+    if problem:
+        raise dyn.DynamicsError(problem)
     return _steady_revolution(geometry, mass, loads, motor, offset, input_speed,
                               input_speed)[0]
 
@@ -268,6 +284,11 @@ def input_inertia_for_speed_fluctuation(geometry: Geometry, mass: dyn.MassProper
     """
     fluctuation = positive('fluctuation', fluctuation, '(1)')
     input_speed = positive('input_speed', input_speed, 'rad/s')
+    problem = (range_problem('fluctuation', fluctuation, MIN_FLUCTUATION, MAX_FLUCTUATION, '(1)')
+               or range_problem('input_speed', input_speed, MIN_INPUT_SPEED,
+                                MAX_INPUT_SPEED, 'rad/s'))
+    if problem:
+        raise dyn.DynamicsError(problem)
     runs: Dict[float, Tuple[float, float]] = {}  # input_inertia -> (Cs, start speed)
 
     def fluctuation_at(input_inertia):
@@ -281,6 +302,10 @@ def input_inertia_for_speed_fluctuation(geometry: Geometry, mass: dyn.MassProper
         return runs[input_inertia][0]
 
     smallest = 0.0 if mass.flywheel_inertia > 0.0 else 1e-6
+    # No stiffer drive than its explicit steps allow (physical_ranges); rounding up by 1e-12
+    # keeps the floor's own value from failing its check.
+    smallest = max(smallest, least_input_inertia(mass.flywheel_inertia, motor.speed_stiffness)
+                   * (1.0 + 1e-12))
     largest_reachable = fluctuation_at(smallest)
     if fluctuation >= largest_reachable:
         raise dyn.DynamicsError(
@@ -289,8 +314,14 @@ def input_inertia_for_speed_fluctuation(geometry: Geometry, mass: dyn.MassProper
     low = smallest
     high = max(energy_method_inertia(geometry, mass, loads, offset, input_speed,
                                      fluctuation), 1e-3)
+    largest = MAX_MAGNITUDES['input_inertia']
     while fluctuation_at(high) > fluctuation:
-        low, high = high, high * 2.0
+        if high >= largest:
+            raise dyn.DynamicsError(
+                f'fluctuation = {fluctuation:.6g} is out of reach: even input_inertia = '
+                f'{largest:g} kg*m^2 (the largest a shaper has) gives Cs = '
+                f'{fluctuation_at(high):.6g}')
+        low, high = high, min(high * 2.0, largest)
     result = optimize.root_scalar(lambda inertia: fluctuation / fluctuation_at(inertia) - 1.0,
                                   bracket=(low, high), method='brentq', rtol=1e-6, xtol=1e-9)
     return float(result.root)

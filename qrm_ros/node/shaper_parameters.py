@@ -27,8 +27,8 @@ from qrm_ros.core.cutting_speed_hold import CUTTING_SPEED_DEFINITIONS, unreachab
 from qrm_ros.core.dynamics import Loads, MassProperties, MotorDrive, parameter_names
 from qrm_ros.core.geometry import Geometry, KinematicsError
 from qrm_ros.core.names import DRIVES, MOTOR_PREFIX
-from qrm_ros.core.physical_ranges import (MAX_INPUT_SPEED, MAX_MAGNITUDES,
-                                          motor_time_constant_problem)
+from qrm_ros.core.physical_ranges import (MAX_INPUT_SPEED, MAX_MAGNITUDES, MIN_INPUT_SPEED,
+                                          motor_speed_band_problem, motor_time_constant_problem)
 
 __all__ = ['AtLeast', 'DoubleRange', 'DRIVES', 'GEOMETRY_NAMES', 'MARKER_SLICING_RATE',
            'MOTOR_PREFIX', 'NonEmptyText', 'OffOrRange', 'OneOf', 'ParameterSpec', 'PARAMETERS',
@@ -324,7 +324,7 @@ PARAMETERS = {
         'Speed at which the offset actuator moves the offset', DoubleRange(1e-6, 1.0)),
     'max_input_speed': ParameterSpec(
         60.0, 'rad/s', 'Largest |input speed| accepted from input_speed and '
-        'input_speed_cmd.', False, DoubleRange(1e-3, MAX_INPUT_SPEED),
+        'input_speed_cmd.', False, DoubleRange(MIN_INPUT_SPEED, MAX_INPUT_SPEED),
         _max_input_speed_checks()),
     'input_speed': ParameterSpec(
         2.0 * math.pi, 'rad/s', 'Commanded input shaft speed (at start, on reset and when '
@@ -398,10 +398,17 @@ def _motor_not_too_stiff(value, view):
                                        values[MOTOR_PREFIX + 'speed_stiffness'])
 
 
+def _motor_band_wide_enough(value, view):
+    values = view.values
+    return motor_speed_band_problem(values[MOTOR_PREFIX + 'speed_stiffness'],
+                                    values[MOTOR_PREFIX + 'max_torque'])
+
+
 _EXTRA_CHECKS = {'cutting_length': (_cutting_length_within_stroke,),
                  'input_inertia': (_some_inertia, _motor_not_too_stiff),
                  'flywheel_inertia': (_some_inertia, _motor_not_too_stiff),
-                 'speed_stiffness': (_motor_not_too_stiff,)}
+                 'speed_stiffness': (_motor_not_too_stiff, _motor_band_wide_enough),
+                 'max_torque': (_motor_band_wide_enough,)}
 
 
 def _dynamics_parameters():

@@ -184,12 +184,20 @@ def test_gearbox_takes_geometry_and_limits(capsys):
     (['--max-offset', '0'], 'leave one mean cutting speed per step'),
     (['--min-time-ratio', '30'], 'min_time_ratio 30 is out of reach'),
     (['--crank-radius', '0.2'], 'crank_radius'),
-    (['--figure', '/nonexistent-folder/ladder.png'], '/nonexistent-folder/ladder.png'),
 ])
 def test_gearbox_bad_requests_exit_2_with_reasons(capsys, extra, words):
     code, out, err = run_design(GEARBOX_ARGS + extra, capsys)
     assert code == 2 and out == ''
     assert err.startswith('qrm_design gearbox: ') and words in err
+
+
+def test_gearbox_figure_that_cannot_be_written_exits_1_naming_it(capsys):
+    # A write error is a failure while running (1), not bad input (2).
+    code, out, err = run_design(GEARBOX_ARGS + ['--figure', '/nonexistent-folder/ladder.png'],
+                                capsys)
+    assert code == 1 and out == ''
+    assert err == ('qrm_design gearbox: cannot write /nonexistent-folder/ladder.png: No such '
+                   'file or directory\n')
 
 
 def test_gearbox_usage_errors_exit_2(capsys):

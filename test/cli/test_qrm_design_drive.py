@@ -218,6 +218,16 @@ def test_a_stalling_row_says_why(capsys):
      'speed_stiffness = 0.0 N*m*s/rad is out of range: allowed > 0'),
     (['--input-speed', '-1', '--speed-fluctuation'], 'input_speed must be > 0 rad/s'),
     (['--input-speed', 'nan'], 'input_speed'),
+    # Finite but absurd: each refused with the range a shaper never leaves.
+    (['--input-speed', '1e300'], '--input-speed (input_speed) = 1e+300 rad/s is out of range: '
+                                 'allowed '
+                                 '0.001 <= |input speed| <= 10000 rad/s'),
+    (['--lever-mass', '1e308', '--gravity', '1e308'], 'lever_mass = 1e+308 kg is out of range'),
+    (['--motor-speed-stiffness', '1e12', '--speed-fluctuation'],
+     '|speed_stiffness| <= 1e+06 N*m*s/rad'),
+    (['--motor-speed-stiffness', '1e6', '--speed-fluctuation'],
+     "the motor drive's time constant"),
+    (['--motor-max-torque', '1e-12', '--speed-fluctuation'], 'the motor saturates within'),
 ])
 def test_table_bad_drive_numbers_exit_2(capsys, extra, words):
     code, out, err = run_design(['--offsets-mm', '0'] + extra, capsys)
@@ -393,6 +403,11 @@ def test_flywheel_at_offset_zero_is_the_same_machine(capsys):
     (['--fluctuation', '0.01', '--cutting-length', '0.5'], 'cutting_length = 0.5 m'),
     (['--fluctuation', '0.01', '--motor-max-torque', '1'],
      'the machine stalls: stalled at input angle'),
+    (['--fluctuation', '1e-300'], 'fluctuation = 1e-300 (1) is out of range: allowed '
+                                  '[0.0001, 0.5] (1)'),
+    (['--fluctuation', '0.01', '--input-speed', '1e300'], 'input_speed = 1e+300 rad/s is out'),
+    (['--fluctuation', '0.01', '--motor-max-torque', '1e-12'], 'the motor saturates within'),
+    (['--fluctuation', '0.01', '--motor-max-torque', '1e-3'], 'the machine stalls'),
 ])
 def test_flywheel_refusals_are_one_line_exit_2(capsys, extra, words):
     code, out, err = run_design(['flywheel'] + extra, capsys)

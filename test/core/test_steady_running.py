@@ -50,7 +50,12 @@ def test_flywheel_sizing_gives_the_asked_fluctuation_when_simulated():
 
 
 def test_unreachable_fluctuation_names_the_reachable_range():
-    with pytest.raises(dyn.DynamicsError, match='fluctuation = 10 is out of range: .* reaches'):
+    with pytest.raises(dyn.DynamicsError, match='fluctuation = 0.5 is out of range: .* reaches'):
+        input_inertia_for_speed_fluctuation(GEOMETRY, MASS, LOADS, dyn.MotorDrive.small_shaper(),
+                                            0.01, 2 * math.pi, 0.5)
+    # Beyond any flywheel's range, refused before any simulation.
+    with pytest.raises(dyn.DynamicsError, match=r'fluctuation = 10.0 \(1\) is out of range: '
+                                                r'allowed \[0.0001, 0.5\]'):
         input_inertia_for_speed_fluctuation(GEOMETRY, MASS, LOADS, SOFT_MOTOR, 0.01,
                                             2 * math.pi, 10.0)
     with pytest.raises(KinematicsError, match='fluctuation'):

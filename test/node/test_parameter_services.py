@@ -90,8 +90,8 @@ REFUSALS = [
     ('cutting_force', 1e308, ['<= 1e+06 N']),
     ('motor_max_torque', 1e308, ['<= 1e+06 N*m']),
     ('motor_speed_stiffness', 1e12, ['<= 1e+06 N*m*s/rad']),
-    ('motor_speed_stiffness', 1e5, ["the motor drive's time constant", 'below 0.0001 s']),
-    ('input_inertia', 0.0, ["the motor drive's time constant"]),
+    ('motor_speed_stiffness', 1e6, ["the motor drive's time constant", 'below 1e-05 s']),
+    ('motor_max_torque', 1e-12, ['the motor saturates within', 'below 1e-06 rad/s']),
     ('cutting_speed_target', 1e308, ['<= 100 m/s']),
     ('marker_rate', 5e-324, ['0 (off) or [0.01, 1000] Hz']),
     ('marker_rate', 1e-310, ['0 (off) or [0.01, 1000] Hz']),
@@ -111,6 +111,16 @@ def test_bad_values_are_refused_with_a_reason_and_change_nothing(harness, name, 
         assert word in result.reason
     assert {n: h.shaper.get_parameter(n).value for n in PARAMETERS} == before
     assert (h.shaper.stepper.speed_command, h.shaper.stepper.offset_command) == commands
+
+
+def test_inertia_too_small_for_the_motor_is_refused_as_a_whole(harness):
+    # Each value alone is fine; together the motor's time constant is 3.5e-7 s.
+    h = harness(spin_shaper=False)
+    result = h.shaper.set_parameters_atomically([Parameter('input_inertia', value=1e-4),
+                                                 Parameter('flywheel_inertia', value=1e-4)])
+    assert not result.successful
+    assert "the motor drive's time constant" in result.reason and '1e-05 s' in result.reason
+    assert h.shaper.get_parameter('input_inertia').value == 1.2
 
 
 def test_an_undeclared_name_is_refused_naming_it(harness):
