@@ -81,10 +81,19 @@ class FramePlan(NamedTuple):
     time: np.ndarray
 
 
+# frames/s: the frame rates a video player shows as motion (a frame every 10 s to a fast
+# monitor's rate); ffmpeg itself fails, at length, on a rate such as 1e-300.
+MIN_FPS = 0.1
+MAX_FPS = 240.0
+
+
 def check_rates(fps: float, speed: float, extension: str = '.mp4') -> None:
     """Refuse a frame rate or playback speed outside what the format can play."""
     if not (math.isfinite(fps) and fps > 0):
         raise AnimationError(f'--fps must be a positive number of frames per second, got {fps:g}')
+    if not MIN_FPS <= fps <= MAX_FPS:
+        raise AnimationError(f'--fps {fps:g} is out of range: allowed [{MIN_FPS:g}, '
+                             f'{MAX_FPS:g}] frames per second')
     if extension == '.gif' and not gif_delay(fps):
         raise AnimationError(
             f'--fps {fps:g} cannot be played by a GIF, whose frame delays are whole hundredths '

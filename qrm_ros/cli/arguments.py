@@ -20,10 +20,11 @@ words the node uses.
 """
 
 import argparse
+import math
 from typing import Any, Dict, Optional, Tuple
 
 from qrm_ros.core import dynamics as dyn
-from qrm_ros.core.geometry import Geometry
+from qrm_ros.core.geometry import Geometry, KinematicsError
 from qrm_ros.core.physical_ranges import (MAX_INPUT_SPEED, MIN_INPUT_SPEED,
                                           motor_speed_band_problem, motor_time_constant_problem)
 
@@ -45,6 +46,10 @@ def add_geometry_arguments(parser: Any, defaults: bool = True) -> None:
 
 def geometry_from_arguments(args: argparse.Namespace) -> Geometry:
     """Return the Geometry of add_geometry_arguments' options (KinematicsError if unusable)."""
+    phase = args.crank_phase
+    if phase is not None and not -math.pi <= phase <= math.pi:  # as the node's crank_phase
+        raise KinematicsError(f'--crank-phase = {phase!r} rad is out of range: allowed '
+                              f'[{-math.pi:.6g}, {math.pi:.6g}] rad')
     return Geometry(args.coupling_radius, args.crank_radius, args.pivot_distance,
                     args.ram_height, args.crank_phase)
 

@@ -47,7 +47,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         print(f'qrm_urdf: error: {error}', file=sys.stderr)
         return EXIT_BAD_INPUT
     except OSError as error:
-        print(f'qrm_urdf: error: {error.filename or args.output}: {error.strerror}',
+        # The target, not the temporary file it is written through.
+        print(f'qrm_urdf: error: cannot write {args.output}: {error.strerror or error}',
               file=sys.stderr)
         return EXIT_FAILURE
     return EXIT_OK

@@ -93,6 +93,9 @@ def test_frame_plan_takes_a_clock_that_jumps_back_in_stamp_order():
     (float('nan'), None, 25.0, 1.0, '--start and --end must be finite'),
     (None, None, 0.0, 1.0, '--fps must be a positive number of frames per second, got 0'),
     (None, None, float('inf'), 1.0, '--fps must be a positive number'),
+    (None, None, 1e-300, 1.0, '--fps 1e-300 is out of range: allowed [0.1, 240] frames per '
+                              'second'),
+    (None, None, 1e6, 1.0, '--fps 1e+06 is out of range'),
     (None, None, 25.0, -2.0, '--speed must be a positive playback factor, got -2'),
     (None, None, 25.0, float('nan'), '--speed must be a positive playback factor, got nan'),
     (None, None, 50.0, 1e-3, '500001 frames (10 s of run at --fps 50 and --speed 0.001) are '

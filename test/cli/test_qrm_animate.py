@@ -169,6 +169,7 @@ def test_unknown_geometry_exits_2_and_names_the_options(tmp_path, capsys):
      'hundredths of a second (at least 2): use 100/k, e.g. 50, 25, 20, 12.5 or 10, or write '
      'an .mp4'),
     (['--fps', '30'], '--fps 30 cannot be played by a GIF'),
+    (['--fps', '1e-300'], '--fps 1e-300 is out of range: allowed [0.1, 240] frames per second'),
     (['--speed', 'nan'], '--speed must be a positive playback factor, got nan'),
     (['--fps', '50', '--speed', '0.1'], '996 frames (1.99 s of run at --fps 50 and --speed '
      '0.1) are too many for .gif (at most 600, all held in memory): shorten the span with '

@@ -215,7 +215,10 @@ def test_command_writes_the_model_for_a_geometry(tmp_path, capsys):
 @pytest.mark.parametrize('arguments, code, words', [
     (['--crank-radius', '0.2'], 2, 'crank_radius'),
     (['--ram-height', '-1'], 2, 'ram_height must be > 0'),
-    (['-o', '/nonexistent-folder/x.urdf'], 1, 'No such file or directory'),
+    (['-o', '/nonexistent-folder/x.urdf'], 1,
+     'cannot write /nonexistent-folder/x.urdf: No such file or directory'),
+    (['--crank-phase', '1e300'], 2, '--crank-phase = 1e+300 rad is out of range: allowed '
+                                    '[-3.14159, 3.14159] rad'),
 ])
 def test_command_refuses_bad_input_in_one_line(arguments, code, words, capsys):
     assert main(arguments) == code
