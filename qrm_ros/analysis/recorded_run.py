@@ -37,6 +37,7 @@ from qrm_ros.core import kinematics as kin
 from qrm_ros.core.names import GEOMETRY_METADATA, JOINT_STATE_TYPE, PARAMETERS_METADATA
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
 from qrm_ros.recording.bag_reader import open_run, Run, RunFileError
+from qrm_ros.recording.mcap_recover import recovered_losses
 
 GEOMETRY_FIELDS = kin.Geometry.field_names()
 # Shortest steady run worth measuring (a stroke pair needs several samples anyway).
@@ -155,9 +156,20 @@ def read_recording(path: str, geometry_overrides: Optional[Dict[str, Optional[fl
     else:
         parts = decode_in_parallel(path, file_parts, progress)
     recording = _combine(path, run, geometry, parts)
+    recording = _with_recovery_losses(recording, run.metadata)
     return recording._replace(drive=drive, drive_problem=drive_problem,
                               drive_changes=drive_changes(run, stored, geometry,
                                                           recording.time_origin_ns))
+
+
+def _with_recovery_losses(recording: Recording, metadata: Dict[str, Dict[str, str]]) -> Recording:
+    """Say again what a recovery (mcap_recorder --recover) lost before this file was made."""
+    losses = recovered_losses(metadata)
+    if not losses:
+        return recording
+    said = 'recovered with losses by mcap_recorder --recover: ' + '; '.join(losses)
+    problem = f'{recording.problem}; {said}' if recording.problem else said
+    return recording._replace(problem=problem)
 
 
 def usable_cores() -> int:

@@ -35,11 +35,15 @@ from mcap.stream_reader import breakup_chunk, StreamReader
 from qrm_ros.recording.mcap_run_file import (COMPRESSIONS, ConfigurationError, McapRunFile,
                                              RecorderError)
 
-__all__ = ['recover', 'recover_command', 'Recovery']
+__all__ = ['RECOVERY_METADATA', 'recover', 'recover_command', 'recovered_losses', 'Recovery']
 
 ROSBAG2_METADATA = 'rosbag2'  # rebuilt from what was recovered, never copied
+# The losses a recovery said, kept in the file it writes (loss_1, loss_2, ... -> the line),
+# so whoever reads the recovered file hears of them again; a second recovery adds its own.
+RECOVERY_METADATA = 'qrm_ros.recovery'
 # What a damaged or cut-off file makes the mcap library raise (zstd/lz4 raise their own).
-_DAMAGE = (McapError, struct.error, ValueError, EOFError, RuntimeError, MemoryError)
+_DAMAGE = (McapError, struct.error, ValueError, EOFError, RuntimeError, MemoryError,
+           OverflowError)  # a length too large to allocate
 _CHUNK_DURATION_NS = 1_000_000_000
 
 
@@ -76,6 +80,7 @@ class _Rewriter:
         self.recovery = recovery
         self.schemas: Dict[int, Schema] = {}
         self.channels: Dict[int, Tuple[int, str]] = {}  # old id -> (new id, topic)
+        self.earlier_losses: List[str] = []  # said by an earlier recovery of the same run
 
     def take(self, record: McapRecord) -> None:
         if isinstance(record, Schema):
@@ -92,6 +97,8 @@ class _Rewriter:
             self.recovery.messages += 1
             counts = self.recovery.topic_counts
             counts[channel[1]] = counts.get(channel[1], 0) + 1
+        elif isinstance(record, Metadata) and record.name == RECOVERY_METADATA:
+            self.earlier_losses += recovered_losses({record.name: dict(record.metadata)})
         elif isinstance(record, Metadata) and record.name != ROSBAG2_METADATA:
             self.run_file.add_metadata(record.name, dict(record.metadata))
         elif isinstance(record, Attachment):
@@ -120,20 +127,37 @@ def recover(broken: str, fixed: str, compression: str = 'zstd') -> Recovery:
         records = reader.records
         try:
             first = next(records)
-        except _DAMAGE as error:
-            raise RecorderError(f'{broken!r} is not an MCAP file ({error or "empty"}); '
-                                'nothing to recover') from None
+        except Exception:  # noqa: B902 - whatever the reader makes of non-MCAP bytes
+            handle.seek(0)
+            raise ConfigurationError(
+                f'{broken!r} is not an MCAP file (it starts with {handle.read(8)!r}, not the '
+                'MCAP magic bytes and header); nothing to recover') from None
         if not isinstance(first, Header):
-            raise RecorderError(f'{broken!r} does not start with an MCAP header; nothing to '
-                                'recover')
+            raise ConfigurationError(f'{broken!r} does not start with an MCAP header; nothing '
+                                     'to recover')
         run_file = McapRunFile(fixed, COMPRESSIONS[compression], _CHUNK_DURATION_NS)
         try:
-            _rewrite(records, handle, _Rewriter(run_file, recovery))
+            rewriter = _Rewriter(run_file, recovery)
+            _rewrite(records, handle, rewriter)
+            lines = rewriter.earlier_losses + recovery.warnings()
+            if lines:
+                run_file.add_metadata(RECOVERY_METADATA, {f'loss_{index}': line for index, line
+                                                          in enumerate(lines, start=1)})
             run_file.finish()
-        except RecorderError:
-            os.unlink(fixed)  # a half-written recovery would only mislead
+        except BaseException:
+            os.unlink(fixed)  # all or nothing: a half-written recovery would only mislead
             raise
     return recovery
+
+
+def recovered_losses(metadata: Dict[str, Dict[str, str]]) -> List[str]:
+    """Return the losses a recovery kept in a file's metadata (RECOVERY_METADATA), in order."""
+    kept = metadata.get(RECOVERY_METADATA, {})
+
+    def number(key: str) -> int:
+        digits = key.rpartition('_')[2]
+        return int(digits) if digits.isdigit() else 0
+    return [kept[key] for key in sorted(kept, key=number)]
 
 
 def _rewrite(records: Iterator[McapRecord], handle: BinaryIO, rewriter: _Rewriter) -> None:
@@ -156,8 +180,8 @@ def _rewrite(records: Iterator[McapRecord], handle: BinaryIO, rewriter: _Rewrite
 
 def _take_chunk(chunk: Chunk, rewriter: _Rewriter) -> None:
     try:
-        inner = breakup_chunk(chunk, validate_crc=True)
-    except _DAMAGE as error:
+        inner = list(breakup_chunk(chunk, validate_crc=True))
+    except Exception as error:  # noqa: B902 - the mcap library, zstandard and lz4's own errors
         rewriter.recovery.lost_chunks.append((chunk.message_start_time,
                                               chunk.message_end_time,
                                               str(error) or type(error).__name__))

@@ -40,6 +40,7 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 import pytest
 from qrm_ros.recording.bag_reader import open_run, RunFileError
+from qrm_ros.recording.mcap_recover import RECOVERY_METADATA, recovered_losses
 from qrm_ros.core.geometry import Geometry
 import yaml
 
@@ -564,8 +565,13 @@ def _check_recovered(broken, folder):
     assert sorted(got, key=_by_time) == sorted(expected, key=_by_time) and expected
     recovered = open_run(fixed)
     assert not recovered.truncated and recovered.problem is None
-    assert {k: v for k, v in recovered.metadata.items() if k != 'rosbag2'} == {
+    # The file's own metadata is kept; the recovery adds what it lost, said once more.
+    assert {k: v for k, v in recovered.metadata.items()
+            if k not in ('rosbag2', RECOVERY_METADATA)} == {
         k: v for k, v in readable.metadata.items() if k != 'rosbag2'}
+    warnings = [line.split('warning: ', 1)[1] for line in process.output().splitlines()
+                if line.startswith('mcap_recorder: warning: ')]
+    assert recovered_losses(recovered.metadata) == warnings
     with open(fixed, 'rb') as handle:
         summary = make_reader(handle).get_summary()
     assert summary.statistics.message_count == len(expected)
@@ -618,8 +624,9 @@ def test_recover_refuses_bad_requests_with_one_line(tmp_path, case):
         fixed.write_bytes(b'precious')
     process = _recover(broken, fixed, tmp_path)
     words = {'missing input': ['does not exist'], 'existing output': ['already exists'],
-             'not mcap': ['not an MCAP file', 'nothing to recover']}[case]
-    _check_one_line_error(process, 1 if case == 'not mcap' else 2, *words)
+             'not mcap': ["is not an MCAP file (it starts with b'not an m', not the MCAP "
+                          'magic bytes and header); nothing to recover']}[case]
+    _check_one_line_error(process, 2, *words)  # unusable input: 2, as every command
     if case == 'existing output':
         assert fixed.read_bytes() == b'precious'
     else:
