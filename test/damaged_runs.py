@@ -331,7 +331,44 @@ def odd_arrays(rng, recorded):
     return INCOMPLETE
 
 
-REWRITES = [cdr_payload, wrong_schema, bad_metadata, odd_timestamps, non_finite, odd_arrays]
+def flip_bit(value, bit):
+    """Return value (a float) with one bit of its IEEE 754 double flipped."""
+    (bits,) = struct.unpack('<Q', struct.pack('<d', value))
+    return struct.unpack('<d', struct.pack('<Q', bits ^ (1 << bit)))[0]
+
+
+# The joint values the closed form ties together (positions: input, flywheel, ram, offset;
+# velocities: input, flywheel, ram): a change in any is caught by the physics.
+TIED_POSITIONS, TIED_VELOCITIES = (0, 1, 3, 4), (0, 1, 3)
+
+
+def value_flips(rng, recorded):
+    """One bit flipped in one joint value of a few messages: no CRC sees it (re-encoded)."""
+    picked = _pick(rng, recorded.joint_states())
+    chosen = {id(m) for m in picked}
+
+    def flip(decoded, message):
+        if id(message) not in chosen:
+            return False
+        places = [(decoded.position, i) for i in TIED_POSITIONS if decoded.position[i]]
+        places += [(decoded.velocity, i) for i in TIED_VELOCITIES if decoded.velocity[i]]
+        array, index = rng.choice(places)
+        # A high mantissa or low exponent bit: at least 1/128 of the value, never round-off.
+        array[index] = flip_bit(float(array[index]), rng.randrange(45, 58))
+    _rewrite_joint_states(recorded, flip, picked)
+    return INCOMPLETE
+
+
+def foreign_geometry(rng, recorded):
+    """The metadata names another valid geometry than the one the run was made with."""
+    geometry = recorded.metadata.setdefault(GEOMETRY_METADATA, {})
+    key = rng.choice(['crank_radius', 'pivot_distance', 'ram_height', 'coupling_radius'])
+    geometry[key] = repr(float(geometry[key]) * rng.choice([0.9, 1.05, 1.2]))
+    return REFUSED
+
+
+REWRITES = [cdr_payload, wrong_schema, bad_metadata, odd_timestamps, non_finite, odd_arrays,
+            value_flips, foreign_geometry]
 
 
 def cases(logs: Dict[str, bytes], count: int, seed: int) -> List[Case]:

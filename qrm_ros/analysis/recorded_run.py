@@ -33,6 +33,7 @@ from qrm_ros.analysis.joint_state_decoding import (decode_in_parallel, decode_pa
                                                    jazzy_typestore, JOINT_STATES_TOPIC,
                                                    MessageCounter)
 from qrm_ros.analysis.recorded_drive import Drive, drive_changes, drive_from_metadata, DriveSpan
+from qrm_ros.analysis.sample_consistency import judge_samples
 from qrm_ros.core import kinematics as kin
 from qrm_ros.core.names import GEOMETRY_METADATA, JOINT_STATE_TYPE, PARAMETERS_METADATA
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
@@ -155,11 +156,29 @@ def read_recording(path: str, geometry_overrides: Optional[Dict[str, Optional[fl
         parts = [decode_part(path, file_parts[0], MessageCounter(), progress, run)]
     else:
         parts = decode_in_parallel(path, file_parts, progress)
-    recording = _combine(path, run, geometry, parts)
-    recording = _with_recovery_losses(recording, run.metadata)
+    recording = _with_recovery_losses(_consistent(_combine(path, run, geometry, parts)),
+                                      run.metadata)
     return recording._replace(drive=drive, drive_problem=drive_problem,
                               drive_changes=drive_changes(run, stored, geometry,
                                                           recording.time_origin_ns))
+
+
+def _consistent(recording: Recording) -> Recording:
+    """Drop the samples the closed form contradicts, saying so; refuse another geometry's."""
+    verdict = judge_samples(recording.geometry, recording.samples)
+    if not verdict.lines:
+        return recording
+    if verdict.foreign:
+        raise AnalysisError(
+            f'{recording.path}: {np.count_nonzero(~verdict.keep)} of {verdict.keep.size} joint '
+            'states contradict the closed form of the geometry in use '
+            f'({recording.geometry.as_dict()}): recorded with another geometry? Give it with '
+            f'the geometry options. First: {verdict.lines[0]}')
+    samples = Samples(*(None if values is None else values[verdict.keep]
+                        for values in recording.samples))
+    losses = tuple(Lost(IN_MESSAGE, line, count, None, None)
+                   for line, count in zip(verdict.lines, verdict.counts))
+    return recording._replace(samples=samples, losses=recording.losses + losses)
 
 
 def _with_recovery_losses(recording: Recording, metadata: Dict[str, Dict[str, str]]) -> Recording:

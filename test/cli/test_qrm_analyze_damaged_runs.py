@@ -33,7 +33,8 @@ import pytest
 from qrm_ros.analysis import recorded_run
 from qrm_ros.cli import exit_codes
 from qrm_ros.cli import qrm_analyze
-from damaged_runs import cases
+from damaged_runs import (cases, decode_joint_state, encode_joint_state, flip_bit, put_together,
+                          take_apart)
 from repo_paths import TEST_DATA
 
 DATA = TEST_DATA
@@ -110,3 +111,42 @@ def test_damaged_run_ends_cleanly_and_loses_nothing_silently(number, fuzz_cases,
     if case.same_results:
         baseline = baselines[case.name.rsplit('-', 1)[1]]
         assert document['segments'] == baseline['segments'], context
+
+
+def test_one_flipped_joint_value_is_dropped_and_said_with_its_time_and_check(
+        logs, tmp_path, capsys):
+    # Re-encoded, so the chunk CRCs cover the changed value (as a writer without CRCs): only
+    # the physics can see it.
+    recorded = take_apart(logs['steady_positive_offset'])
+    message = recorded.joint_states()[300]
+    decoded = decode_joint_state(message[4])
+    decoded.position[3] = flip_bit(float(decoded.position[3]), 50)  # the ram position
+    message[4] = encode_joint_state(decoded)
+    run = tmp_path / 'flipped.mcap'
+    run.write_bytes(put_together(recorded))
+    code = qrm_analyze.main([str(run), '--json', str(tmp_path / 'out.json')])
+    err = capsys.readouterr().err
+    assert code == exit_codes.EXIT_INCOMPLETE, err
+    stamp = decoded.header.stamp.sec + decoded.header.stamp.nanosec * 1e-9
+    document = json.loads((tmp_path / 'out.json').read_text())
+    loss, = document['losses']
+    assert loss['messages'] == 1 and loss['stage'] == recorded_run.IN_MESSAGE
+    assert ('the ram position does not follow from the input angle and the offset (closed '
+            'form, check ram_position) at t = ') in loss['reason'] and loss['reason'] in err
+    said = float(loss['reason'].rsplit('at t = ', 1)[1].split(' ')[0])
+    first = decode_joint_state(recorded.joint_states()[0][4]).header.stamp
+    assert said == pytest.approx(stamp - (first.sec + first.nanosec * 1e-9), abs=1e-5)
+    assert document['messages']['used'] == len(recorded.joint_states()) - 1
+
+
+def test_a_run_of_another_geometry_is_refused_in_one_line(logs, tmp_path, capsys):
+    recorded = take_apart(logs['steady_positive_offset'])
+    geometry = recorded.metadata['qrm_ros.geometry']
+    geometry['ram_height'] = repr(float(geometry['ram_height']) * 1.05)
+    run = tmp_path / 'foreign.mcap'
+    run.write_bytes(put_together(recorded))
+    assert qrm_analyze.main([str(run)]) == exit_codes.EXIT_BAD_INPUT
+    err = capsys.readouterr().err
+    assert err.startswith('qrm_analyze: error: ') and len(err.strip().splitlines()) == 1
+    assert 'contradict the closed form of the geometry in use' in err
+    assert 'recorded with another geometry? Give it with the geometry options' in err

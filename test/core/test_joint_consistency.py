@@ -1,0 +1,111 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+Joint states judged by the closed form (qrm_ros.core.joint_consistency), sample by sample.
+
+The check is judged on what it must tell apart: exact samples pass, round-off passes, one
+flipped bit in any tied value is caught in that sample (by that value's own check, for a
+value the others determine), and another geometry is caught nearly everywhere.
+"""
+
+import math
+import struct
+
+import numpy as np
+import pytest
+from qrm_ros.core.geometry import Geometry
+from qrm_ros.core.joint_consistency import (CONSISTENCY_CHECKS, CONSISTENCY_TOLERANCE,
+                                            inconsistent_samples)
+from qrm_ros.core.kinematics import state
+
+PAPER = Geometry.paper()
+
+
+def _samples(geometry=PAPER, count=400):
+    """Samples of a run whose offset moves (rate 5 mm/s) through two turns at 2 pi rad/s."""
+    time = np.linspace(0.0, 2.0, count)
+    angle = (2 * math.pi * time + math.pi) % (2 * math.pi) - math.pi
+    offset = -0.005 + 0.005 * time
+    rate = np.full(count, 0.005)
+    speed = np.full(count, 2 * math.pi)
+    moved = state(geometry, offset, angle, speed, 0.0, rate)
+    return dict(input_angle=angle, input_speed=speed, offset=offset, offset_rate=rate,
+                flywheel_angle=(moved.flywheel_angle + math.pi) % (2 * math.pi) - math.pi,
+                flywheel_speed=moved.flywheel_speed, ram_position=moved.ram_position,
+                ram_velocity=moved.ram_velocity)
+
+
+def _flip(value, bit):
+    (bits,) = struct.unpack('<Q', struct.pack('<d', value))
+    return struct.unpack('<d', struct.pack('<Q', bits ^ (1 << bit)))[0]
+
+
+def test_exact_samples_and_round_off_pass():
+    samples = _samples()
+    assert not any(v.any() for v in inconsistent_samples(PAPER, **samples).values())
+    # 1000 times round-off on every value still passes: far below the tolerance.
+    noisy = {k: v * (1 + 1e-13) + 1e-14 for k, v in samples.items()}
+    assert not any(v.any() for v in inconsistent_samples(PAPER, **noisy).values())
+    assert CONSISTENCY_TOLERANCE >= 1e6 * np.finfo(float).eps
+
+
+# Which check catches a flip of each value (a flip of an input value shows in what depends
+# on it: the input angle in the flywheel angle, the input speed in the flywheel speed).
+CAUGHT_BY = {'input_angle': 'flywheel_angle', 'offset': 'flywheel_angle',
+             'flywheel_angle': 'flywheel_angle', 'ram_position': 'ram_position',
+             'input_speed': 'flywheel_speed', 'flywheel_speed': 'flywheel_speed',
+             'ram_velocity': 'ram_velocity'}
+
+
+@pytest.mark.parametrize('name', sorted(CAUGHT_BY))
+@pytest.mark.parametrize('bit', [45, 51, 52, 57])
+def test_one_flipped_bit_in_any_tied_value_is_caught_in_that_sample_only(name, bit):
+    samples = _samples()
+    index = 123
+    samples[name] = samples[name].copy()
+    samples[name][index] = _flip(float(samples[name][index]), bit)
+    failed = inconsistent_samples(PAPER, **samples)
+    # A derived value is caught by its own check; an input value by what depends on it
+    # (a huge angle may wrap near the old flywheel angle, never near the old ram position).
+    assert failed[CAUGHT_BY[name]][index] or (
+        name in ('input_angle', 'input_speed', 'offset')
+        and any(caught[index] for caught in failed.values())), (name, bit)
+    bad = np.zeros(400, dtype=bool)
+    for caught in failed.values():
+        bad |= caught
+    assert np.flatnonzero(bad).tolist() == [index]
+
+
+def test_an_offset_beyond_the_coupling_radius_is_its_own_check():
+    samples = _samples()
+    samples['offset'] = samples['offset'].copy()
+    samples['offset'][7] = 0.03
+    samples['offset'][8] = math.nan
+    failed = inconsistent_samples(PAPER, **samples)
+    assert np.flatnonzero(failed['offset']).tolist() == [7, 8]
+    assert not any(failed[name].any() for name in CONSISTENCY_CHECKS if name != 'offset')
+
+
+@pytest.mark.parametrize('field, factor', [('crank_radius', 0.9), ('pivot_distance', 1.05),
+                                           ('ram_height', 1.2), ('coupling_radius', 1.1),
+                                           ('crank_phase', None)])
+def test_a_recording_of_another_geometry_fails_nearly_everywhere(field, factor):
+    values = PAPER.as_dict()
+    values[field] = 0.1 if factor is None else values[field] * factor
+    samples = _samples(Geometry(**values))
+    failed = inconsistent_samples(PAPER, **samples)
+    bad = np.zeros(400, dtype=bool)
+    for caught in failed.values():
+        bad |= caught
+    assert bad.mean() > 0.95
