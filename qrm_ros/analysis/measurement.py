@@ -33,8 +33,9 @@ from qrm_ros.analysis.recorded_run import Recording, Samples
 from qrm_ros.analysis.segments import Segment, split_segments
 from qrm_ros.analysis.theory import flywheel_speed_swing
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.effort_theory import (EFFORT_FIGURES, Setting, steady_effort_theory,
-                                        THEORY_FIGURES, ZERO_CAN_BE_EXACT)
+from qrm_ros.core.effort_theory import (EFFORT_FIGURES, Setting,
+                                        steady_effort_theory_and_problem, THEORY_FIGURES,
+                                        ZERO_CAN_BE_EXACT)
 from qrm_ros.core.strokes import find_stroke_pairs, measure_pair_efforts
 
 
@@ -148,9 +149,11 @@ def _measure_efforts(row: Dict[str, Any], samples: Samples, span: slice, pairs: 
                                     pairs)
     row['stroke_pairs_with_efforts'] = int(np.count_nonzero(
         np.isfinite(measured.energy_per_pair)))
-    theory = (dict.fromkeys(THEORY_FIGURES) if drive is None else steady_effort_theory(
-        Setting(geometry, drive.mass, drive.loads, drive.motor, row['offset'],
-                row['input_speed'])))
+    theory, row['effort_theory_problem'] = (
+        (dict.fromkeys(THEORY_FIGURES), None) if drive is None
+        else steady_effort_theory_and_problem(Setting(geometry, drive.mass, drive.loads,
+                                                      drive.motor, row['offset'],
+                                                      row['input_speed'])))
     for name in EFFORT_FIGURES:
         _measured_and_theory(row, name, getattr(measured, name), theory[name])
     _measured_and_theory(row, 'speed_fluctuation', measured.speed_fluctuation,

@@ -130,7 +130,16 @@ def _effort_lines(analysis: Analysis) -> List[str]:
                 error = _fmt(row[f'{name}_relative_error'], '+9.1e')
             lines.append(f'    {title:<32} {measured:>20} {_fmt(row[name + "_theory"], spec)} '
                          f'{error}')
+        if row.get('effort_theory_problem'):
+            lines.append(f'    theory missing: {row["effort_theory_problem"]}')
     return lines
+
+
+def theory_shortfalls(analysis: Analysis) -> List[str]:
+    """Lines saying where the theory could not be worked out within its bound (exit 3)."""
+    return [f'segment at offset {row["offset"]:.10g} m, {row["input_speed"]:.6g} rad/s: no '
+            f'effort theory: {row["effort_theory_problem"]}'
+            for row in analysis.rows if row.get('effort_theory_problem')]
 
 
 def incompleteness(recording: Recording) -> List[str]:

@@ -29,7 +29,8 @@ from typing import Optional, Sequence
 
 from qrm_ros.analysis.measurement import analyse
 from qrm_ros.analysis.recorded_run import AnalysisError, read_recording
-from qrm_ros.analysis.report import format_table, incompleteness, write_outputs
+from qrm_ros.analysis.report import (format_table, incompleteness, theory_shortfalls,
+                                     write_outputs)
 from qrm_ros.cli.arguments import add_geometry_override_arguments, geometry_overrides
 from qrm_ros.cli.exit_codes import (EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_INCOMPLETE,
                                     EXIT_INTERRUPTED, EXIT_OK)
@@ -82,7 +83,7 @@ def _main(args: argparse.Namespace) -> int:
         return EXIT_FAILURE
     for path in figure_paths:
         print(f'figure: {path}')
-    lines = incompleteness(recording)
+    lines = incompleteness(recording) + theory_shortfalls(result)
     for line in lines:
         print(f'qrm_analyze: warning: {line}', file=sys.stderr)
     if lines:

@@ -35,11 +35,11 @@ from typing import BinaryIO, Dict, NamedTuple, Optional, Tuple
 
 from qrm_ros.core import dynamics as dyn
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.speed_drive import pair_efforts
+from qrm_ros.core.speed_drive import pair_efforts, ToleranceUnreachable
 from qrm_ros.core.steady_running import speed_fluctuation
 
 __all__ = ['BackgroundTheory', 'EFFORT_FIGURES', 'Setting', 'steady_effort_theory',
-           'THEORY_FIGURES', 'ZERO_CAN_BE_EXACT']
+           'steady_effort_theory_and_problem', 'THEORY_FIGURES', 'ZERO_CAN_BE_EXACT']
 
 # Per-pair effort figures (strokes.measure_pair_efforts), in the order of the tables.
 EFFORT_FIGURES = ('peak_input_torque', 'rms_input_torque', 'mean_input_power',
@@ -74,17 +74,26 @@ class Setting(NamedTuple):
 
 
 def steady_effort_theory(setting: Setting) -> Dict[str, Optional[float]]:
+    """Return the drive's figures of one pair (steady_effort_theory_and_problem's first)."""
+    return steady_effort_theory_and_problem(setting)[0]
+
+
+def steady_effort_theory_and_problem(
+        setting: Setting) -> Tuple[Dict[str, Optional[float]], Optional[str]]:
     """
     Return the drive's figures of one pair at a steady setting, name -> value.
 
     None where there is no theory: a stopped shaft, a setting the core refuses (an offset at
-    the coupling radius, a speed too large to be finite) or a motor that stalls.
+    the coupling radius, a speed too large to be finite) or a motor that stalls. The problem
+    (str) says when the theory exists but cannot be worked out to its tolerance within its
+    bounded cost (near the coupling radius): the figures are then missing, not absent.
     """
     theory: Dict[str, Optional[float]] = dict.fromkeys(THEORY_FIGURES)
     if setting.input_speed == 0.0:
-        return theory
+        return theory, None
+    problem = None
     geometry, mass, loads = setting.geometry, setting.mass, setting.loads
-    with contextlib.suppress(kin.KinematicsError):
+    try:
         if setting.motor is None:  # the ideal speed drive holds the speed: no fluctuation
             figures = pair_efforts(geometry, mass, loads, setting.offset, setting.input_speed)
             if (loads.cutting_force == 0.0 and loads.ram_friction == 0.0
@@ -97,7 +106,12 @@ def steady_effort_theory(setting: Setting) -> Dict[str, Optional[float]]:
                                        setting.input_speed)
             theory.update(steady.pair_efforts._asdict(),
                           speed_fluctuation=steady.fluctuation)
-    return {name: None if value is None else float(value) for name, value in theory.items()}
+    except ToleranceUnreachable as error:
+        problem = str(error)
+    except kin.KinematicsError:
+        pass
+    return ({name: None if value is None else float(value) for name, value in theory.items()},
+            problem)
 
 
 # A lookup's answer: (theory or None, problem or None).

@@ -34,8 +34,8 @@ from qrm_ros.core.mechanism_state import (input_angle_for_flywheel_angle,
                                           reversal_flywheel_angles, state)
 from qrm_ros.core.peak_speeds import flat_design
 
-__all__ = ['load_switch_angles', 'PairEfforts', 'pair_efforts', 'PEAK_CANDIDATE_MARGIN',
-           'peak_input_torque']
+__all__ = ['load_switch_angles', 'MAX_EFFORT_PANELS', 'PairEfforts', 'pair_efforts',
+           'PEAK_CANDIDATE_MARGIN', 'peak_input_torque', 'ToleranceUnreachable']
 
 # Gauss-Legendre rule of each panel, and when the adaptive quadrature keeps a panel: its
 # rule and the rule on its two halves agree to this fraction of the halves' integral of
@@ -49,6 +49,10 @@ _PANEL_TOLERANCE = 1e-13
 _ROUNDOFF_SUSPECT = 1e-9
 _STALLED_RATIO = 0.1
 _MAX_PANEL_LEVELS = 40
+# Panels the integrals may evaluate in all: 57 at offset 0, 167 at 0.999 coupling_radius;
+# nearer the coupling radius the round-off floor keeps panels splitting, and without a bound
+# 0.9999 r1 took gigabytes. 20000 is about 30 MB of samples and a second.
+MAX_EFFORT_PANELS = 20_000
 # Peak refinement: samples across each bracket per round; each round narrows the bracket to
 # two sample spacings (1/16), so the rounds take it to about 4e-9 of a sample spacing.
 _ZOOM_SAMPLES = 33
@@ -95,6 +99,10 @@ def load_switch_angles(geometry: Geometry, loads: dyn.Loads, offset: float) -> n
             flywheel += [turn - math.atan(tangent) - geometry.crank_phase
                          for turn in (spread, -spread)]
     return np.asarray(input_angle_for_flywheel_angle(geometry, offset, np.array(flywheel)))
+
+
+class ToleranceUnreachable(dyn.DynamicsError):
+    """The theory cannot be worked out to its tolerance within its bounded cost."""
 
 
 def _smooth_pieces(geometry, loads, offset, input_speed, period):
@@ -156,7 +164,14 @@ def _integrate_pieces(evaluate, starts, ends, loads, period):
     before = np.full(low.size, math.inf)
     integral = square = 0.0
     samples = []
+    evaluated = low.size
     for _ in range(_MAX_PANEL_LEVELS):
+        evaluated += 2 * low.size
+        if evaluated > MAX_EFFORT_PANELS:
+            raise ToleranceUnreachable(
+                f'the effort integrals cannot be worked out to their tolerance within '
+                f'{MAX_EFFORT_PANELS} panels (offset too near the coupling radius: its '
+                'round-off grows as (r1 / (r1 - |offset|))^2)')
         middle = 0.5 * (low + high)
         halves_low, halves_high = np.concatenate([low, middle]), np.concatenate([middle, high])
         halves_piece = np.concatenate([piece, piece])

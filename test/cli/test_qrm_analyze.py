@@ -23,6 +23,7 @@ from qrm_ros.analysis import recorded_run
 from qrm_ros.cli import exit_codes
 from qrm_ros.cli import qrm_analyze
 from qrm_ros.analysis import figures
+from qrm_ros.core import dynamics as dyn
 from qrm_ros.core import kinematics as kin
 from synthetic_run import write_run, write_truncated_run
 
@@ -244,3 +245,21 @@ def test_exit_status_policy(tmp_path, capsys, case):
     assert code == {'complete': 0, 'incomplete': 3, 'bad input': 2, 'output': 1}[case], err
     if code in (1, 2):
         assert len(err.strip().splitlines()) == 1 and err.startswith('qrm_analyze: error: ')
+
+
+def test_an_offset_just_inside_the_coupling_radius_costs_a_bounded_effort_and_says_so(
+        tmp_path, capsys):
+    # 0.02499999 m with r1 = 0.025 m: the effort theory's round-off floor kept its panels
+    # splitting (gigabytes); now it stops at its bound, and says so in the table, the JSON
+    # and the exit status rather than growing or printing nothing.
+    run = tmp_path / 'singular.mcap'
+    write_run(run, kin.Geometry.paper(), [0.02499999], hold=3.0,
+              mass=dyn.MassProperties.small_shaper(), loads=dyn.Loads.small_shaper())
+    code = qrm_analyze.main([str(run), '--json', str(tmp_path / 'out.json')])
+    out, err = capsys.readouterr()
+    assert code == exit_codes.EXIT_INCOMPLETE, err
+    said = 'the effort integrals cannot be worked out to their tolerance within 20000 panels'
+    assert f'theory missing: {said}' in out
+    assert 'segment at offset 0.02499999 m' in err and said in err
+    row, = json.loads((tmp_path / 'out.json').read_text())['segments']
+    assert said in row['effort_theory_problem'] and row['peak_input_torque_theory'] is None

@@ -33,6 +33,8 @@ from qrm_ros.core.geometry import Geometry, KinematicsError
 from qrm_ros.core.kinematics import state
 from synthetic_run import dense_revolution
 
+PAPER_GEOMETRY = Geometry.paper()
+
 GEOMETRY = Geometry.paper()
 MASS = dyn.MassProperties.small_shaper()
 LOADS = dyn.Loads.small_shaper()
@@ -214,3 +216,17 @@ def test_pair_efforts_near_the_coupling_radius_stays_at_round_off():
         round_off = 1e-14 / (1 - abs(fraction)) ** 2
         assert figures.energy_per_pair == pytest.approx(
             path_work, abs=round_off * 2 * math.pi * figures.rms_input_torque)
+
+
+@pytest.mark.parametrize('fraction', [0.9999, 0.99999, 1 - 4e-7])
+def test_the_effort_integrals_stop_at_their_bound_near_the_coupling_radius(fraction):
+    # Within 0.999 r1 they converge in a few hundred panels; nearer, the round-off floor kept
+    # them splitting without end (gigabytes): now they stop at MAX_EFFORT_PANELS and say so.
+    mass, loads = dyn.MassProperties.small_shaper(), dyn.Loads.small_shaper()
+    with pytest.raises(sd.ToleranceUnreachable, match=f'{sd.MAX_EFFORT_PANELS} panels'):
+        sd.pair_efforts(PAPER_GEOMETRY, mass, loads, fraction * PAPER_GEOMETRY.coupling_radius,
+                        2 * math.pi)
+    assert isinstance(sd.ToleranceUnreachable('x'), KinematicsError)  # commands catch it
+    figures = sd.pair_efforts(PAPER_GEOMETRY, mass, loads,
+                              0.999 * PAPER_GEOMETRY.coupling_radius, 2 * math.pi)
+    assert math.isfinite(figures.peak_input_torque)
