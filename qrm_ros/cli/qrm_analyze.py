@@ -14,9 +14,9 @@
 """
 ``qrm_analyze RUN.mcap``: measured time and speed ratios per offset in a run, against theory.
 
-Reads the run (qrm_ros.analysis.recorded_run), measures every steady segment
-(qrm_ros.analysis.measurement) and prints the table; writes CSV, JSON and the paper's
-figures when asked (qrm_ros.analysis.report, qrm_ros.analysis.figures).
+Streams the run through the analysis in bounded memory (qrm_ros.analysis.streamed_run:
+read, check, decode, segment and measure block by block) and prints the table; writes CSV,
+JSON and the paper's figures when asked (qrm_ros.analysis.report, qrm_ros.analysis.figures).
 
 Exit status: 0 analysed, complete; 1 failure at run time (an output could not be written;
 no output file is left half written); 2 bad usage or an input that cannot be analysed (one
@@ -27,9 +27,9 @@ import argparse
 import sys
 from typing import Optional, Sequence
 
-from qrm_ros.analysis.measurement import analyse
-from qrm_ros.analysis.recorded_run import AnalysisError, read_recording
+from qrm_ros.analysis.recorded_run import AnalysisError
 from qrm_ros.analysis.report import format_table, incompleteness, write_outputs
+from qrm_ros.analysis.streamed_run import analyse_file
 from qrm_ros.cli.arguments import add_geometry_override_arguments, geometry_overrides
 from qrm_ros.cli.exit_codes import (EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_INCOMPLETE,
                                     EXIT_INTERRUPTED, EXIT_OK)
@@ -68,11 +68,11 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 def _main(args: argparse.Namespace) -> int:
     overrides = geometry_overrides(args)
     try:
-        recording = read_recording(args.run, overrides)
+        result = analyse_file(args.run, overrides)
     except AnalysisError as error:
         print(f'qrm_analyze: error: {error}', file=sys.stderr)
         return EXIT_BAD_INPUT
-    result = analyse(recording)
+    recording = result.recording
     print(format_table(result))
     try:
         figure_paths = write_outputs(result, args.csv, args.json, args.plot)
