@@ -166,7 +166,8 @@ def to_document(analysis: Analysis) -> Dict[str, Any]:
     })
 
 
-def _write_csv(analysis: Analysis, path: str) -> None:
+def write_csv_to(analysis: Analysis, path: str) -> None:
+    """Write the per-segment table as CSV to path (a staged name: see write_outputs)."""
     fields = list(analysis.rows[0]) if analysis.rows else ['offset']
     with open(path, 'w', newline='') as handle:
         writer = csv.DictWriter(handle, fieldnames=fields)
@@ -175,7 +176,8 @@ def _write_csv(analysis: Analysis, path: str) -> None:
             writer.writerow({k: ('' if v is None else v) for k, v in row.items()})
 
 
-def _write_json(analysis: Analysis, path: str) -> None:
+def write_json_to(analysis: Analysis, path: str) -> None:
+    """Write the results as JSON to path (a staged name: see write_outputs)."""
     with open(path, 'w') as handle:
         json.dump(to_document(analysis), handle, indent=2, allow_nan=False)
         handle.write('\n')
@@ -184,13 +186,13 @@ def _write_json(analysis: Analysis, path: str) -> None:
 def write_csv(analysis: Analysis, path: str) -> None:
     """Write the per-segment table as CSV, all or nothing."""
     with staged_outputs() as stage:
-        _write_csv(analysis, stage(path))
+        write_csv_to(analysis, stage(path))
 
 
 def write_json(analysis: Analysis, path: str) -> None:
     """Write the results as JSON, all or nothing."""
     with staged_outputs() as stage:
-        _write_json(analysis, stage(path))
+        write_json_to(analysis, stage(path))
 
 
 def write_outputs(analysis: Analysis, csv_path: Optional[str] = None,
@@ -202,9 +204,9 @@ def write_outputs(analysis: Analysis, csv_path: Optional[str] = None,
     try:
         with staged_outputs() as stage:
             if csv_path:
-                _write_csv(analysis, stage(csv_path))
+                write_csv_to(analysis, stage(csv_path))
             if json_path:
-                _write_json(analysis, stage(json_path))
+                write_json_to(analysis, stage(json_path))
             if plot_folder:
                 os.makedirs(plot_folder, exist_ok=True)
                 from qrm_ros.analysis.figures import write_figures
