@@ -189,3 +189,30 @@ def test_ctrl_c_stops_every_worker(tmp_path):
         time.sleep(0.05)
     assert not any(_alive(pid) for pid in workers)
     assert not (tmp_path / 'out' / 'fleet.json').exists()
+
+
+def test_ctrl_c_cancels_the_fleet_on_a_dask_cluster(tmp_path):
+    from distributed import Client, LocalCluster
+    folder = tmp_path / 'many'
+    folder.mkdir()
+    for copy in range(24):
+        shutil.copy(GOLDEN[copy % len(GOLDEN)], folder / f'run{copy:02d}.mcap')
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host='127.0.0.1',
+                      dashboard_address=None) as cluster, Client(cluster) as observer:
+        command = subprocess.Popen(
+            [sys.executable, '-m', 'qrm_ros.cli.qrm_analyze', str(folder), '--scheduler',
+             cluster.scheduler_address], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+            text=True)
+        deadline = time.monotonic() + 60.0
+        while time.monotonic() < deadline and not any(observer.processing().values()):
+            time.sleep(0.05)
+        assert any(observer.processing().values()), 'no task ever reached a worker'
+        command.send_signal(signal.SIGINT)
+        _, err = command.communicate(timeout=60.0)
+        assert command.returncode == exit_codes.EXIT_INTERRUPTED, err
+        assert 'Traceback' not in err and 'interrupted' in err
+        deadline = time.monotonic() + 30.0
+        while time.monotonic() < deadline and any(observer.processing().values()):
+            time.sleep(0.05)
+        assert not any(observer.processing().values()), 'tasks still running'
+        assert len(observer.scheduler_info()['workers']) == 2  # the cluster itself goes on
