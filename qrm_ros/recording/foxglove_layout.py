@@ -14,8 +14,8 @@
 """
 The Foxglove layout of a run, generated from the geometry (``qrm_urdf --foxglove-layout``).
 
-A 3D panel that frames the machine (drawn from the recorded URDF and transforms, and from the
-node's markers), plots of the ram, the shaft speeds and the input torque, and the stroke-pair
+A 3D panel that frames the machine (drawn from the recorded URDF and transforms, with the
+node's markers' label and workpiece), plots of the ram, the shaft speeds and the input torque, and the stroke-pair
 diagnostics. The camera looks straight down on the mechanism's plane with an orthographic
 view whose height is ``distance`` (how Foxglove's orthographic camera is defined): centred on
 the machine's drawn extent and sized so that it fills the panel at the layout's proportions.
@@ -33,18 +33,23 @@ from qrm_ros.core.names import (absolute_topic, DIAGNOSTICS_TOPIC, JOINT_NAMES,
                                 ROBOT_DESCRIPTION_TOPIC, STROKE_PAIR_STATUS)
 from qrm_ros.recording.urdf_model import BASE_LINK, urdf_joints
 
-__all__ = ['FOXGLOVE_LAYOUT_FILE_NAME', 'PANEL_ASPECT', 'ViewBounds', 'foxglove_layout',
+__all__ = ['FOXGLOVE_LAYOUT_FILE_NAME', 'MARKERS_THE_URDF_DRAWS', 'PANEL_ASPECT', 'ViewBounds', 'foxglove_layout',
            'foxglove_layout_text', 'machine_view_bounds']
 
 FOXGLOVE_LAYOUT_FILE_NAME = 'foxglove_layout.json'
-# The 3D panel's share of the window's width and height in this layout, and its width over
-# height in a 1600 x 1000 window with the app's side bar open (the machine is wider than
-# tall: a wider panel only adds room at the sides).
-SCENE_WIDTH_SHARE, SCENE_HEIGHT_SHARE = 0.6, 0.62
-PANEL_ASPECT = 1.3
+# The 3D panel's share of the window's height (it spans the width), and the least width over
+# height it is framed for: about 3 in a 1600 x 1000 window with the app's side bar open, 2.6
+# leaves room for a narrower one.
+SCENE_HEIGHT_SHARE = 0.48
+PANEL_ASPECT = 2.6
 MARGIN = 1.08  # the view is this much larger than the machine's extent
 # The markers' label: its text height, as a share of the ram height (linkage_markers).
 LABEL_HEIGHT_SHARE = 0.08
+# The node's marker namespaces that draw what the URDF draws: hidden, as the markers come
+# less often than the transforms and would show a second, lagging machine. The label (offset,
+# TR, SR) and the workpiece stay; a user can show the others in the panel's settings.
+MARKERS_THE_URDF_DRAWS = ('frame', 'flywheel', 'coupling_slot', 'links', 'ram', 'pins',
+                          'pivots')
 
 
 class ViewBounds(NamedTuple):
@@ -111,7 +116,10 @@ def _scene(geometry: Geometry) -> Dict[str, Any]:
         # No axes: each link's frame hidden (they would hide the small parts).
         'transforms': {f'frame:{link}': {'visible': False} for link in links},
         'layers': {},
-        'topics': {absolute_topic(LINKAGE_MARKERS_TOPIC): {'visible': True},
+        'topics': {absolute_topic(LINKAGE_MARKERS_TOPIC): {
+                       'visible': True,
+                       'namespaces': {name: {'visible': False}
+                                      for name in MARKERS_THE_URDF_DRAWS}},
                    ROBOT_DESCRIPTION_TOPIC: {'visible': True}},
         'imageMode': {}})
 
@@ -138,16 +146,19 @@ def foxglove_layout(geometry: Geometry) -> Dict[str, Any]:
         },
         'globalVariables': {}, 'userNodes': {}, 'linkedGlobalVariables': [],
         'playbackConfig': {'speed': 1},
+        # The machine across the top (it is wider than tall), the plots and the diagnostics
+        # side by side below.
         'layout': {
-            'direction': 'row', 'splitPercentage': round(100 * SCENE_WIDTH_SHARE, 3),
-            'first': {'direction': 'column', 'splitPercentage': round(100 * SCENE_HEIGHT_SHARE, 3),
-                      'first': '3D!linkage', 'second': 'DiagnosticStatusPanel!pair'},
-            'second': {'direction': 'column', 'splitPercentage': 75,
-                       'first': {'direction': 'column', 'splitPercentage': 33.3,
-                                 'first': 'Plot!ram',
-                                 'second': {'direction': 'column', 'splitPercentage': 50,
-                                            'first': 'Plot!speeds', 'second': 'Plot!torque'}},
-                       'second': 'DiagnosticSummary!summary'},
+            'direction': 'column', 'splitPercentage': round(100 * SCENE_HEIGHT_SHARE, 3),
+            'first': '3D!linkage',
+            'second': {
+                'direction': 'row', 'splitPercentage': 50,
+                'first': {'direction': 'column', 'splitPercentage': 33.3, 'first': 'Plot!ram',
+                          'second': {'direction': 'column', 'splitPercentage': 50,
+                                     'first': 'Plot!speeds', 'second': 'Plot!torque'}},
+                'second': {'direction': 'column', 'splitPercentage': 70,
+                           'first': 'DiagnosticStatusPanel!pair',
+                           'second': 'DiagnosticSummary!summary'}},
         },
     }
 

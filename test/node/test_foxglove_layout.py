@@ -249,8 +249,9 @@ def test_camera_frames_the_machine_the_urdf_draws(geometry, tmp_path):
     half = 0.5 * camera['distance'] * np.array([PANEL_ASPECT, 1.0])
     low, high = _urdf_bounds(geometry, tmp_path)
     assert np.all(centre - half <= low) and np.all(high <= centre + half)
-    # The machine is wider than tall: it fills the view's width but for the margin.
-    assert (high - low)[0] / (2 * half[0]) > 0.9
+    # It fills the view in one direction but for the margin and the room left for the
+    # markers' label above it (and the workpiece below).
+    assert max((high - low) / (2 * half)) > 0.7
     # The drawn extent the layout frames holds the URDF (and the markers' label above it).
     bounds = machine_view_bounds(geometry)
     assert bounds.x_min <= low[0] + 1e-9 and high[0] <= bounds.x_max + 1e-9
