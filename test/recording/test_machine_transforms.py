@@ -18,6 +18,8 @@ same in our reader, qrm_analyze, rosbags and Foxglove's own readers (@mcap/core,
 @foxglove/rosmsg, @foxglove/rosmsg2-serialization, run by node when it is installed).
 """
 
+import fcntl
+import hashlib
 import json
 import math
 import os
@@ -265,23 +267,37 @@ def test_rosbags_reads_it(with_machine, tmp_path):
     assert (first.header.frame_id, first.child_frame_id) == _decoded(ours[TF_TOPIC][0])[0][:2]
 
 
-def _foxglove_reader(cache_folder):
-    """The folder holding read_run.mjs with its npm packages installed (None: no node/npm)."""
-    node, npm = shutil.which('node'), shutil.which('npm')
-    if node is None or npm is None:
+def _foxglove_reader():
+    """
+    A folder with read_run.mjs and its pinned npm packages (None: no node or npm).
+
+    Installed once per package.json into a cache outside the repository
+    (``~/.cache/qrm_ros/npm/<hash>``, or under ``QRM_ROS_NPM_CACHE``), shared by concurrent
+    runs; nothing is written into the repository.
+    """
+    if shutil.which('node') is None or shutil.which('npm') is None:
         return None
-    folder = str(cache_folder)
-    for name in ('package.json', 'read_run.mjs'):
-        shutil.copyfile(os.path.join(FOXGLOVE_READER, name), os.path.join(folder, name))
-    if not os.path.isdir(os.path.join(folder, 'node_modules', '@mcap', 'core')):
-        done = subprocess.run([npm, 'install', '--no-audit', '--no-fund', '--loglevel=error'],
-                              cwd=folder, capture_output=True, text=True, timeout=300)
-        assert done.returncode == 0, done.stderr
+    with open(os.path.join(FOXGLOVE_READER, 'package.json'), 'rb') as handle:
+        key = hashlib.sha256(handle.read()).hexdigest()[:16]
+    folder = os.path.join(os.environ.get('QRM_ROS_NPM_CACHE') or os.path.join(
+        os.path.expanduser('~'), '.cache', 'qrm_ros', 'npm'), 'reader-' + key)
+    os.makedirs(folder, exist_ok=True)
+    with open(os.path.join(folder, '.lock'), 'w') as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        for name in ('package.json', 'read_run.mjs'):
+            shutil.copyfile(os.path.join(FOXGLOVE_READER, name), os.path.join(folder, name))
+        if not os.path.exists(os.path.join(folder, 'installed')):
+            done = subprocess.run(['npm', 'install', '--no-audit', '--no-fund',
+                                   '--loglevel=error'], cwd=folder, capture_output=True,
+                                  text=True, timeout=300)
+            assert done.returncode == 0, f'npm install failed: {done.stderr[-2000:]}'
+            with open(os.path.join(folder, 'installed'), 'w') as handle:
+                handle.write(key + '\n')
     return folder
 
 
-def test_foxglove_reads_it(with_machine, request):
-    folder = _foxglove_reader(request.config.cache.mkdir('foxglove_reader'))
+def test_foxglove_reads_it(with_machine):
+    folder = _foxglove_reader()
     if folder is None:
         pytest.skip('node and npm are not installed')
     path, geometry = with_machine
