@@ -361,7 +361,7 @@ class Recorder(Node):
             idle = idle + 1 if self.run_file.message_count == before else 0
 
     def finish(self):
-        if self.machine.dropped:
+        if self.machine.started and self.machine.dropped:
             self.get_logger().warning(f'{self.machine.dropped} joint states have no transforms '
                                       '(undecodable, a joint missing or not finite, or recorded '
                                       'long before the geometry was known)')

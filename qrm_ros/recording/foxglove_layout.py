@@ -15,10 +15,11 @@
 The Foxglove layout of a run, generated from the geometry (``qrm_urdf --foxglove-layout``).
 
 A 3D panel that frames the machine (drawn from the recorded URDF and transforms, with the
-node's markers' label and workpiece), plots of the ram, the shaft speeds and the input torque, and the stroke-pair
-diagnostics. The camera looks straight down on the mechanism's plane with an orthographic
-view whose height is ``distance`` (how Foxglove's orthographic camera is defined): centred on
-the machine's drawn extent and sized so that it fills the panel at the layout's proportions.
+node's markers' label and workpiece), plots of the ram, the shaft speeds and the input
+torque, and the stroke-pair diagnostics. The camera looks straight down on the mechanism's
+plane with an orthographic view whose height is ``distance`` (how Foxglove's orthographic
+camera is defined): centred on the machine's drawn extent and sized so that it fills the panel
+at the layout's proportions.
 The shipped ``config/foxglove_layout.json`` is this module's output for the default geometry
 (a test keeps the two equal).
 """
@@ -33,8 +34,8 @@ from qrm_ros.core.names import (absolute_topic, DIAGNOSTICS_TOPIC, JOINT_NAMES,
                                 ROBOT_DESCRIPTION_TOPIC, STROKE_PAIR_STATUS)
 from qrm_ros.recording.urdf_model import BASE_LINK, urdf_joints
 
-__all__ = ['FOXGLOVE_LAYOUT_FILE_NAME', 'MARKERS_THE_URDF_DRAWS', 'PANEL_ASPECT', 'ViewBounds', 'foxglove_layout',
-           'foxglove_layout_text', 'machine_view_bounds']
+__all__ = ['FOXGLOVE_LAYOUT_FILE_NAME', 'MARKERS_THE_URDF_DRAWS', 'PANEL_ASPECT', 'ViewBounds',
+           'foxglove_layout', 'foxglove_layout_text', 'machine_view_bounds']
 
 FOXGLOVE_LAYOUT_FILE_NAME = 'foxglove_layout.json'
 # The 3D panel's share of the window's height (it spans the width), and the least width over

@@ -23,7 +23,8 @@ machine is there from the first message. Messages then overlap in log time acros
 or two, which MCAP's index and every reader of it allow for.
 """
 
-from typing import List, Optional, Tuple
+from collections import deque
+from typing import Deque, Optional, Tuple
 
 from qrm_ros.core.geometry import Geometry
 from qrm_ros.core.names import (ROBOT_DESCRIPTION_TOPIC, ROBOT_DESCRIPTION_TYPE, TF_MESSAGE_TYPE,
@@ -34,9 +35,10 @@ from qrm_ros.recording.rosbag2_formats import publisher_qos_profile_yaml
 
 __all__ = ['MAX_WAITING_JOINT_STATES', 'MachineChannels']
 
-# Joint states remembered while the geometry is not known: 60 s at 1 kHz. Past that the
-# oldest go without transforms (the sim never said its geometry, or is not ours).
-MAX_WAITING_JOINT_STATES = 60_000
+# Joint states remembered while the geometry is not known (it usually comes within a second):
+# 5 s at 1 kHz, about 1 MB. Past that the oldest go without transforms (the sim is slow to say
+# its geometry, or never does: a publisher that is not ours).
+MAX_WAITING_JOINT_STATES = 5000
 LATCHED = publisher_qos_profile_yaml('reliable', 'transient_local')
 STREAMED = publisher_qos_profile_yaml('reliable', 'volatile')
 
@@ -49,7 +51,7 @@ class MachineChannels:
         self._messages: Optional[MachineMessages] = None
         self._tf_channel = 0
         # (log time, publish time, data) of the joint states before the geometry
-        self._waiting: List[Tuple[int, int, bytes]] = []
+        self._waiting: Deque[Tuple[int, int, bytes]] = deque()
         self.dropped = 0  # joint states without transforms (undecodable, or too many waiting)
 
     @property
@@ -61,7 +63,7 @@ class MachineChannels:
         """Add the transforms of a joint state just written (or keep it until the geometry)."""
         if self._messages is None:
             if len(self._waiting) >= MAX_WAITING_JOINT_STATES:
-                self._waiting.pop(0)
+                self._waiting.popleft()
                 self.dropped += 1
             self._waiting.append((log_time, publish_time, data))
             return
@@ -98,6 +100,6 @@ class MachineChannels:
         run_file.add_message(channels[TF_STATIC_TOPIC], log_time, log_time,
                              messages.static_transforms(stamp))
         self._messages, self._tf_channel = messages, channels[TF_TOPIC]
-        waiting, self._waiting = self._waiting, []
+        waiting, self._waiting = self._waiting, deque()
         for log_time, publish_time, data in waiting:
             self.joint_state(log_time, publish_time, data)

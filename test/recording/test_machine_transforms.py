@@ -325,3 +325,28 @@ def test_foxglove_reads_it(with_machine):
         decoded = STORE.deserialize_cdr(ours.data, JOINT_STATE_TYPE)
         assert message['message']['name'] == list(decoded.name)
         assert message['message']['position'] == list(decoded.position)
+
+
+def test_joint_states_waiting_for_the_geometry_are_bounded(tmp_path, monkeypatch):
+    from qrm_ros.recording import machine_channels
+    monkeypatch.setattr(machine_channels, 'MAX_WAITING_JOINT_STATES', 5)
+    geometry = GEOMETRIES['paper']
+    run_file = McapRunFile(str(tmp_path / 'run.mcap'), COMPRESSIONS['none'], 1_000_000_000)
+    machine = MachineChannels(run_file)
+    values = _published(geometry, 0.0, 1.0)
+    states = [_joint_state(1000 + i, JOINT_NAMES, [values[n] for n in JOINT_NAMES])
+              for i in range(8)]
+    for i, data in enumerate(states[:7]):
+        machine.joint_state(2000 + i, 1000 + i, data)
+    assert not machine.started and machine.dropped == 2
+    machine.start(geometry, 9999)
+    machine.joint_state(2007, 1007, states[7])
+    machine.joint_state(2008, 1008, b'\x00')  # undecodable: no transforms, counted
+    run_file.finish()
+    assert machine.started and machine.dropped == 3
+    run = open_run(str(tmp_path / 'run.mcap'))
+    assert [m.log_time for m in run.messages([TF_TOPIC])] == [2002, 2003, 2004, 2005, 2006,
+                                                              2007]
+    assert [m.log_time for m in run.messages([ROBOT_DESCRIPTION_TOPIC])] == [2002]
+    (static,) = run.messages([TF_STATIC_TOPIC])
+    assert {stamp for *_, stamp in _decoded(static.data)} == {1002}
