@@ -338,7 +338,7 @@ class Recorder(Node):
     def _start_machine(self, parameters):
         try:
             geometry = Geometry(**{name: float(parameters[name]) for name in GEOMETRY_PARAMETERS})
-        except KinematicsError as error:
+        except (KinematicsError, ValueError) as error:
             self.get_logger().warning(f'the sim\'s geometry is not a mechanism ({error}): no '
                                       'URDF or transforms are recorded')
             return
