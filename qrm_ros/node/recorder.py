@@ -43,6 +43,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from qrm_ros.core.geometry import Geometry, KinematicsError
 from qrm_ros.recording.machine_channels import MachineChannels
+from qrm_ros.recording.machine_transforms import preload_typestore
 from qrm_ros.recording.mcap_run_file import COMPRESSIONS, ConfigurationError, McapRunFile
 from qrm_ros.core.names import (DIAGNOSTICS_TOPIC, GEOMETRY_METADATA, JOINT_STATE_TYPE,
                                 JOINT_STATES_TOPIC, PARAMETER_EVENTS_TOPIC, PARAMETERS_METADATA,
@@ -162,6 +163,7 @@ class Recorder(Node):
         self.run_file = McapRunFile(self.settings['output'],
                                     COMPRESSIONS[self.settings['compression']], chunk_duration_ns)
         self.machine = MachineChannels(self.run_file)
+        preload_typestore()
         self._wanted = {self.resolve_topic_name(topic): topic
                         for topic in self.settings['topics']}
         self._recorded_topics = {}

@@ -28,6 +28,7 @@ rosbags included, reads them as it reads the rest.
 """
 
 import math
+import threading
 from typing import Any, List, Mapping, NamedTuple, Optional, Sequence, Tuple
 
 from qrm_ros.core.geometry import Geometry
@@ -37,7 +38,7 @@ from qrm_ros.core.units import NANOSECONDS_PER_SECOND
 from qrm_ros.recording.urdf_model import urdf_joints, urdf_text, UrdfJoint
 
 __all__ = ['LinkTransform', 'MachineMessages', 'fixed_transforms', 'joint_transform',
-           'moving_transforms']
+           'moving_transforms', 'preload_typestore']
 
 
 class LinkTransform(NamedTuple):
@@ -76,11 +77,28 @@ def moving_transforms(geometry: Geometry,
             for joint in urdf_joints(geometry).values() if joint.kind != 'fixed']
 
 
+_TYPESTORE: List[Any] = []
+_TYPESTORE_LOCK = threading.Lock()
+
+
 def _jazzy_typestore() -> Any:
-    # rosbags' type store takes about 60 ms to load: only a recorder that writes the machine
-    # pays for it, when it first does.
-    from rosbags.typesys import get_typestore, Stores
-    return get_typestore(Stores.ROS2_JAZZY)
+    # rosbags' type store takes about 0.1 s to load (seconds on a loaded machine): loaded once,
+    # when first needed or ahead of time by preload_typestore.
+    with _TYPESTORE_LOCK:
+        if not _TYPESTORE:
+            from rosbags.typesys import get_typestore, Stores
+            _TYPESTORE.append(get_typestore(Stores.ROS2_JAZZY))
+        return _TYPESTORE[0]
+
+
+def preload_typestore() -> None:
+    """
+    Load rosbags' type store on a thread of its own, now.
+
+    The recorder calls it when it starts, so that the load does not stall its subscriptions
+    when the geometry arrives (the import gives up the GIL every few milliseconds).
+    """
+    threading.Thread(target=_jazzy_typestore, name='typestore_preload', daemon=True).start()
 
 
 class MachineMessages:
