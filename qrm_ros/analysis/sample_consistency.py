@@ -19,48 +19,51 @@ that caught it; a recording most of whose samples it contradicts was made with a
 geometry (or is not this machine's), and is refused rather than analysed with the wrong one.
 """
 
-from typing import Any, List, NamedTuple
+from typing import List, Optional, Tuple
 
 import numpy as np
 
 from qrm_ros.core.geometry import Geometry
 from qrm_ros.core.joint_consistency import CONSISTENCY_CHECKS, inconsistent_samples
 
-__all__ = ['ConsistencyVerdict', 'FOREIGN_FRACTION', 'judge_samples', 'SHOWN_TIMES']
+__all__ = ['contradicted', 'FOREIGN_FRACTION', 'foreign_geometry_problem']
 
 # More than this fraction of the samples contradicted: not this geometry's recording.
 FOREIGN_FRACTION = 0.5
-# Times listed per check in a report line (the count says how many in all).
-SHOWN_TIMES = 5
 
 
-class ConsistencyVerdict(NamedTuple):
-    """Which samples to keep, and one line per check that caught some."""
+def contradicted(geometry: Geometry, position: np.ndarray, velocity: np.ndarray,
+                 judged: np.ndarray) -> List[Tuple[str, np.ndarray]]:
+    """
+    Return (reason, caught) per check that caught samples of a decoded block.
 
-    keep: np.ndarray  # bool per sample
-    lines: List[str]  # '<n> samples: <what the check says> (at t = ... s)'
-    counts: List[int]  # samples each line's check caught
-    foreign: bool  # most samples contradicted: another geometry
-
-
-def judge_samples(geometry: Geometry, samples: Any) -> ConsistencyVerdict:
-    """Judge samples (Samples of recorded_run: time, input_angle, ... arrays) sample by sample."""
-    failed = inconsistent_samples(geometry, samples.input_angle, samples.input_speed,
-                                  samples.offset, samples.offset_rate, samples.flywheel_angle,
-                                  samples.flywheel_speed, samples.ram_position,
-                                  samples.ram_velocity)
-    bad = np.zeros(np.shape(samples.time), dtype=bool)
-    lines, counts = [], []
+    position and velocity: (n, joints) in JOINT_NAMES order (input, flywheel, lever, ram,
+    offset); judged: which rows to judge (the finite ones). Each sample is caught once,
+    by the first check it fails.
+    """
+    caught_any = np.zeros(judged.shape, dtype=bool)
+    found = []
+    if not judged.any():
+        return found
+    rows = np.flatnonzero(judged)
+    failed = inconsistent_samples(geometry, position[rows, 0], velocity[rows, 0],
+                                  position[rows, 4], velocity[rows, 4], position[rows, 1],
+                                  velocity[rows, 1], position[rows, 3], velocity[rows, 3])
     for name, failing in failed.items():
-        caught = failing & ~bad  # each sample said once, under the first check it fails
-        count = int(np.count_nonzero(caught))
-        if not count:
-            continue
-        bad |= caught
-        times = ', '.join(f'{time:.6g}' for time in samples.time[caught][:SHOWN_TIMES])
-        more = f' and {count - SHOWN_TIMES} more' if count > SHOWN_TIMES else ''
-        lines.append(f'{CONSISTENCY_CHECKS[name]} (closed form, check {name}) at t = '
-                     f'{times}{more} s')
-        counts.append(count)
-    foreign = bad.size > 0 and np.count_nonzero(bad) > FOREIGN_FRACTION * bad.size
-    return ConsistencyVerdict(~bad, lines, counts, bool(foreign))
+        caught = np.zeros(judged.shape, dtype=bool)
+        caught[rows[failing]] = True
+        caught &= ~caught_any
+        if caught.any():
+            caught_any |= caught
+            found.append((f'{CONSISTENCY_CHECKS[name]} (closed form, check {name})', caught))
+    return found
+
+
+def foreign_geometry_problem(path: str, geometry: Geometry, inconsistent: int,
+                             used: int) -> Optional[str]:
+    """Say why a run most of whose samples the closed form contradicts is refused, or None."""
+    if inconsistent <= FOREIGN_FRACTION * (inconsistent + used):
+        return None
+    return (f'{path}: {inconsistent} of {inconsistent + used} joint states contradict the closed '
+            f'form of the geometry in use ({geometry.as_dict()}): recorded with another '
+            'geometry? Give it with the geometry options')
