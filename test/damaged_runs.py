@@ -343,7 +343,7 @@ TIED_POSITIONS, TIED_VELOCITIES = (0, 1, 3, 4), (0, 1, 3)
 
 
 def value_flips(rng, recorded):
-    """One bit flipped in one joint value of a few messages: no CRC sees it (re-encoded)."""
+    """Flip one bit of one joint value in a few messages: no CRC sees it (re-encoded)."""
     picked = _pick(rng, recorded.joint_states())
     chosen = {id(m) for m in picked}
 
@@ -360,7 +360,7 @@ def value_flips(rng, recorded):
 
 
 def foreign_geometry(rng, recorded):
-    """The metadata names another valid geometry than the one the run was made with."""
+    """Name in the metadata another valid geometry than the one the run was made with."""
     geometry = recorded.metadata.setdefault(GEOMETRY_METADATA, {})
     key = rng.choice(['crank_radius', 'pivot_distance', 'ram_height', 'coupling_radius'])
     geometry[key] = repr(float(geometry[key]) * rng.choice([0.9, 1.05, 1.2]))

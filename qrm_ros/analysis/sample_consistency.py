@@ -42,7 +42,7 @@ def contradicted(geometry: Geometry, position: np.ndarray, velocity: np.ndarray,
     by the first check it fails.
     """
     caught_any = np.zeros(judged.shape, dtype=bool)
-    found = []
+    found: List[Tuple[str, np.ndarray]] = []
     if not judged.any():
         return found
     rows = np.flatnonzero(judged)
