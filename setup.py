@@ -56,6 +56,7 @@ setup(
             'qrm_main = qrm_ros.cli.entry_points:qrm_main',
             'qrm_urdf = qrm_ros.cli.entry_points:qrm_urdf',
             'qrm_simulate = qrm_ros.cli.entry_points:qrm_simulate',
+            'mcap_player = qrm_ros.cli.entry_points:mcap_player',
         ],
     },
 )
