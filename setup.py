@@ -23,7 +23,8 @@ setup(
     version='0.1.0',
     packages=find_packages(exclude=['test', 'test.*', 'bench']),
     # PEP 561: the package is typed; type checkers read its hints once it is installed.
-    package_data={package_name: ['py.typed']},
+    package_data={package_name: ['py.typed', 'testing/examples/*.mcap',
+                                 'testing/examples/*.yaml']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -47,6 +48,9 @@ setup(
                 'MCAP recorder and TR/SR analysis.',
     license='Apache-2.0',
     entry_points={
+        # The test kit's fixtures (qrm_ros.testing) in every pytest run of an environment
+        # that has the package.
+        'pytest11': ['qrm_ros = qrm_ros.testing.plugin'],
         'console_scripts': [
             'qrm_design = qrm_ros.cli.entry_points:qrm_design',
             'shaper_sim = qrm_ros.cli.entry_points:shaper_sim',
