@@ -40,6 +40,7 @@ import time
 from typing import List, Optional
 
 from qrm_ros import analysis
+from qrm_ros.cli.main_job_offline import simulate_schedule
 from qrm_ros.cli.exit_codes import (EXIT_FAILURE, EXIT_INCOMPLETE, EXIT_INTERRUPTED, EXIT_OK,
                                     exit_code_for_signal)
 from qrm_ros.core import kinematics as kin
@@ -120,6 +121,9 @@ def _parser():
                         'with the load (default: speed)')
     parser.add_argument('--output-dir', default='runs',
                         help='folder for the run folder (default: runs)')
+    parser.add_argument('--offline', action='store_true',
+                        help='simulate the schedule offline (qrm_simulate), as fast as the CPU '
+                        'allows, instead of running the nodes live over DDS')
     return parser
 
 
@@ -255,7 +259,10 @@ def run(options):
     print(f'qrm_main: run folder {folder}', flush=True)
     try:
         with StopRequest() as stop:  # a stop signal ends the schedule; children stop cleanly
-            recording = record(options, folder, stop)
+            if options.offline:
+                recording = simulate_schedule(options, folder, stop)
+            else:
+                recording = record(options, folder, stop)
     except Interrupted as error:
         raise Interrupted(error.signal_number, folder) from None
     missing = report(recording, folder)
