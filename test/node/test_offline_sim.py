@@ -41,7 +41,7 @@ from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 from diagnostic_msgs.msg import DiagnosticArray
-from qrm_ros.core.names import PARAMETERS_METADATA, STROKE_PAIR_STATUS
+from qrm_ros.core.names import CUTTING_SPEED_STATUS, PARAMETERS_METADATA, STROKE_PAIR_STATUS
 from qrm_ros.node.offline_sim import Simulation, THEORY_TIMEOUT
 from qrm_ros.node.scenario import scenario_from_mapping, ScenarioError
 from qrm_ros.node.shaper_sim import ShaperSimNode
@@ -275,3 +275,21 @@ def test_signal_stops_the_command_cleanly(tmp_path):
     assert code == 128 + signal.SIGTERM, process.stderr.read()
     assert 'Traceback' not in process.stderr.read()
     assert len(_messages(path, '/joint_states')) > 100
+
+
+def test_a_held_cutting_speed_is_held_offline(tmp_path):
+    path = tmp_path / 'hold.mcap'
+    # Set by an event: the node refuses a cutting speed target at start-up (its
+    # coupling_offset check sees the target).
+    Simulation(scenario_from_mapping({'duration': 12.0, 'parameters': {
+        'offset_rate_limit': 0.02, 'input_speed': 9.0}, 'events': [
+            {'at': 0.0, 'set': {'cutting_speed_target': 0.4}}]}), str(path)).run()
+    statuses = _statuses(path)
+    holds = [s for s in statuses if s[0] == CUTTING_SPEED_STATUS]
+    assert holds and holds[0][1] == b'\x00'  # OK: reachable
+    steady = [s[3] for s in statuses if s[0] == STROKE_PAIR_STATUS
+              and s[3]['offset_steady'] == 'true']
+    assert len(steady) >= 3
+    for values in steady:
+        assert float(values['cutting_speed_measured']) == pytest.approx(0.4, rel=1e-3)
+        assert float(values['cutting_speed_error']) == pytest.approx(0.0, abs=1e-3)
