@@ -44,7 +44,7 @@ __all__ = ['EXAMPLES_FOLDER', 'McapReplay', 'RosProcess', 'example_names', 'exam
 # The example runs and their scenarios, installed with the package.
 EXAMPLES_FOLDER = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'examples')
 # s a process is given to stop after SIGINT before it is killed.
-STOP_TIMEOUT = 10.0
+STOP_TIMEOUT = 30.0
 # s the test's node is spun at a time while waiting.
 IDLE_SPIN = 0.05
 # Spins after the last message, for callbacks of the node's own.

@@ -64,7 +64,7 @@ def test_shaper_sim_runs_for_a_test_and_stops_cleanly(context):
     node = Node('kit_probe', context=context)
     try:
         with start_shaper_sim({'coupling_offset': 0.01, 'frame_id': 'base'}) as process:
-            wait_for_topics(node, ['joint_states', 'ram/twist'])
+            wait_for_topics(node, ['joint_states', 'ram/twist'], timeout=60.0)
             assert process.running
         assert process.process.returncode == 0
     finally:
