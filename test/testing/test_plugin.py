@@ -54,3 +54,46 @@ def test_a_wrong_expectation_fails(pytester):
 def test_the_fixtures_are_registered(pytester):
     result = pytester.runpytest_subprocess('--fixtures', '-q', timeout=300)
     result.stdout.fnmatch_lines(['*shaper_sim_process*', '*mcap_replay*', '*simulated_run*'])
+
+
+FIXTURES_TEST = '''
+import rclpy
+from sensor_msgs.msg import JointState
+
+from qrm_ros.testing import spin_until, wait_for_topics
+
+
+def test_a_scenario_is_simulated_once_and_replayed_on_clock(simulated_run, mcap_replay):
+    scenario = {'duration': 2.0, 'parameters': {'coupling_offset': 0.01}}
+    path = simulated_run(scenario)
+    assert simulated_run(dict(scenario)) == path  # made once per test run
+    rclpy.init()
+    node = rclpy.create_node('listener')
+    seen = []
+    node.create_subscription(JointState, 'joint_states', seen.append, 100)
+    replay = mcap_replay(path, clock=50.0, rate=2.0)
+    assert replay.play_to_end(node) == 0
+    assert len(seen) == replay.message_count('/joint_states') == 200
+    node.destroy_node()
+    rclpy.shutdown()
+
+
+def test_shaper_sim_runs_for_the_test(shaper_sim_process):
+    process = shaper_sim_process(coupling_offset=0.005, input_speed=9.0)
+    rclpy.init()
+    node = rclpy.create_node('listener')
+    seen = []
+    node.create_subscription(JointState, 'joint_states', seen.append, 100)
+    wait_for_topics(node, ['joint_states'], timeout=60.0)
+    spin_until(node, lambda: len(seen) > 20, 60.0, 'joint states')
+    assert seen[-1].position[4] == 0.005
+    assert process.running
+    node.destroy_node()
+    rclpy.shutdown()
+'''
+
+
+def test_the_other_fixtures_in_a_user_test(pytester):
+    pytester.makepyfile(test_fixtures=FIXTURES_TEST)
+    result = pytester.runpytest_subprocess('-q', '-p', 'no:cacheprovider', timeout=300)
+    result.assert_outcomes(passed=2)
