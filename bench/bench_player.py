@@ -51,7 +51,7 @@ QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 
 
 def sleeping_publisher(path):
-    """The baseline: publish the file's joint states at their times with plain sleeps."""
+    """Publish the file's joint states at their times with plain sleeps (the baseline)."""
     rclpy.init()
     node = Node('sleeping_publisher')
     publisher = node.create_publisher(JointState, 'joint_states', QOS)

@@ -46,7 +46,7 @@ PERIOD_NS = 10_000_000
 
 
 def floor(path, ticks):
-    """Ticks per second of filling, serializing and writing the two messages alone."""
+    """Return the ticks per second of filling, serializing and writing the two messages."""
     with open(path, 'wb') as stream:
         writer = Writer(stream, compression=CompressionType.ZSTD)
         writer.start('ros2', 'bench')
@@ -74,7 +74,7 @@ def floor(path, ticks):
 
 
 def simulated(path, seconds, drive):
-    """Ticks per second of the simulator's loop on `seconds` of machine time."""
+    """Return the ticks per second of the simulator's loop on `seconds` of machine time."""
     scenario = scenario_from_mapping({'duration': seconds, 'parameters': {
         'coupling_offset': 0.01, 'drive': drive}})
     summary = Simulation(scenario, path).run()
