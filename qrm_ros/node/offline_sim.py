@@ -34,6 +34,8 @@ import os
 import time
 from typing import Callable, Dict, NamedTuple, Optional, Sequence
 
+from qrm_ros.core.motor_kernel_loading import COMPILED_MOTOR_KERNEL
+from qrm_ros.core.motor_stepper import MotorStepper
 from qrm_ros.core.names import LINKAGE_MARKERS_TOPIC, SPEED_COMMAND_TOPIC
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
 from qrm_ros.node.recorder import DEFAULT_TOPICS, sim_metadata_records
@@ -56,6 +58,8 @@ __all__ = ['OfflineShaperSim', 'RecordingPublisher', 'Simulation', 'SimulationSu
 
 # s a stroke pair's report waits for its effort theory (worked out in a worker process).
 THEORY_TIMEOUT = 120.0
+# s a motor-drive run waits for the motor's compiled forms before its first tick.
+KERNEL_LOAD_TIMEOUT = 30.0
 # s of log time per chunk, as the recorder's default max_chunk_duration.
 CHUNK_DURATION_NS = NANOSECONDS_PER_SECOND
 
@@ -229,6 +233,10 @@ class Simulation:
         events = deque((start_ns + round(e.at * NANOSECONDS_PER_SECOND), e)
                        for e in self.scenario.events)
         self._set_clock(start_ns)
+        if isinstance(node.stepper, MotorStepper):
+            # Its compiled forms load on a thread (0.3-1 s); the same numbers, faster.
+            COMPILED_MOTOR_KERNEL.start_loading()  # once per process: started already
+            COMPILED_MOTOR_KERNEL.loaded.wait(KERNEL_LOAD_TIMEOUT)
         progress_every = max(1, round(NANOSECONDS_PER_SECOND / stamps.step))
         on_timer, wait_for_reports, set_clock = (node.on_timer, node.wait_for_pair_reports,
                                                  self._set_clock)
