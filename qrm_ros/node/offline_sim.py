@@ -125,8 +125,9 @@ class Simulation:
         self._node: Optional[OfflineShaperSim] = None
         self._run_file: Optional[McapRunFile] = None
         self._now_ns = 0
-        overrides = [Parameter('use_sim_time', value=True)] + [
-            Parameter(name, value=value) for name, value in scenario.parameters.items()]
+        # Always on the simulated clock (last: a scenario's use_sim_time does not undo it).
+        overrides = [Parameter(name, value=value) for name, value in
+                     scenario.parameters.items()] + [Parameter('use_sim_time', value=True)]
         topics = list(topics) + ([LINKAGE_MARKERS_TOPIC] if markers else [])
         try:
             self._node = node = OfflineShaperSim(markers=markers, context=context,
