@@ -95,13 +95,16 @@ class _LiveRun:
         for topic in ('/joint_states', '/ram/twist', '/diagnostics', '/parameter_events'):
             wait_for(lambda: any(info.node_name == 'mcap_recorder'
                                  for info in node.get_subscriptions_info_by_topic(topic)),
-                     20.0, f'the recorder on {topic}')
-        wait_for(lambda: self.speed.get_subscription_count() >= 2, 20.0,
+                     60.0, f'the recorder on {topic}')
+        wait_for(lambda: self.speed.get_subscription_count() >= 2, 60.0,
                  'the node and the recorder on input_speed_cmd')
 
     def tick(self, stamp):
         self.clock.publish(Clock(clock=_time(stamp)))
-        wait_for(lambda: self.stamps and self.stamps[-1] == stamp, 20.0, f'the tick at {stamp}')
+        # Long: a report waits in the node's thread for its effort theory (a worker's first
+        # theory of a motor setting takes seconds on a loaded machine).
+        wait_for(lambda: self.stamps and self.stamps[-1] == stamp, THEORY_TIMEOUT,
+                 f'the tick at {stamp}')
 
     def apply(self, event):
         kind, value = event.kind, event.value
