@@ -243,3 +243,24 @@ def test_a_stop_signal_ends_it_cleanly(context, signal_number):
     finally:
         stop_process(player)
         probe.close()
+
+
+def _profile_yaml(reliability, durability, depth=0, history='unknown'):
+    return (f'- history: {history}\n  depth: {depth}\n  reliability: {reliability}\n'
+            f'  durability: {durability}')
+
+
+def test_the_played_qos_is_what_every_recorded_publisher_offered():
+    both = _profile_yaml('reliable', 'transient_local', 5, 'keep_last') + '\n' + _profile_yaml(
+        'reliable', 'transient_local', 20, 'keep_last')
+    qos = played_qos(both)
+    assert (qos.reliability, qos.durability, qos.depth) == (
+        ReliabilityPolicy.RELIABLE, DurabilityPolicy.TRANSIENT_LOCAL, 20)
+    mixed = '\n'.join([_profile_yaml('reliable', 'volatile'),
+                       _profile_yaml('best_effort', 'volatile')])
+    qos = played_qos(mixed)
+    assert qos.reliability == ReliabilityPolicy.BEST_EFFORT and qos.depth == 1000
+    for unknown in ('', '[]', 'not: [yaml', '42'):
+        qos = played_qos(unknown)
+        assert (qos.reliability, qos.durability) == (ReliabilityPolicy.BEST_EFFORT,
+                                                     DurabilityPolicy.VOLATILE)
