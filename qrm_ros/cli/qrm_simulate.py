@@ -44,6 +44,7 @@ from rclpy.logging import LoggingSeverity, set_logger_level
 __all__ = ['PROGRESS_MIN_DURATION', 'main', 'parse_parameter_options', 'simulate']
 
 PROGRAM = 'qrm_simulate'
+DISCOVERY_VARIABLE = 'ROS_AUTOMATIC_DISCOVERY_RANGE'
 # s of simulated time from which a terminal gets a progress bar (shorter runs take < 1 s).
 PROGRESS_MIN_DURATION = 60.0
 
@@ -109,12 +110,19 @@ def simulate(scenario: Scenario, output: str, markers: bool = False,
     """
     Run a scenario into output (Simulation's errors pass through); return its summary.
 
-    The node's discovery is turned off in this process (ROS_AUTOMATIC_DISCOVERY_RANGE): an
-    offline run has nothing to do on the network.
+    The node's discovery is off (ROS_AUTOMATIC_DISCOVERY_RANGE, read when the node is made,
+    then put back): an offline run has nothing to do on the network.
     """
-    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'OFF'
-    simulation = Simulation(scenario, output, topics=DEFAULT_TOPICS, markers=markers,
-                            compression=compression)
+    before = os.environ.get(DISCOVERY_VARIABLE)
+    os.environ[DISCOVERY_VARIABLE] = 'OFF'
+    try:
+        simulation = Simulation(scenario, output, topics=DEFAULT_TOPICS, markers=markers,
+                                compression=compression)
+    finally:
+        if before is None:
+            del os.environ[DISCOVERY_VARIABLE]
+        else:
+            os.environ[DISCOVERY_VARIABLE] = before
     if not progress:
         return simulation.run(stop=stop)
     with tqdm(total=round(scenario.duration), unit='s', desc='simulated', file=sys.stderr,
