@@ -16,8 +16,9 @@
 
 ROS arguments after ``--ros-args``. Exit codes (qrm_ros.cli.exit_codes): 0 played to the end
 or stopped by Ctrl-C or SIGTERM; 1 a failure while running; 2 bad options or a file that is
-no recording (one line says why); 3 played, but part of the file was damaged or a topic's
-type is unknown here (stderr says what was not played), as qrm_analyze reports such files.
+no recording (one line says why); 3 played, but part of the file was damaged (stderr says
+what was not played, as qrm_analyze reports such files). A topic whose message type this
+environment cannot import is not played, with a warning.
 """
 
 import argparse
@@ -59,7 +60,7 @@ def _parser() -> argparse.ArgumentParser:
                     'timing. Services: ~/pause, ~/resume, ~/toggle_paused, ~/play_next '
                     '(std_srvs/Trigger).',
         epilog='Exit status: 0 played (or stopped by Ctrl-C/SIGTERM); 1 a failure; 2 bad '
-               'options or not a recording; 3 played, but parts were damaged or not playable.')
+               'options or not a recording; 3 played, but parts were damaged.')
     parser.add_argument('run', help='recorded run (.mcap)')
     parser.add_argument('--rate', type=_positive, default=1.0,
                         help='playback speed factor (default: %(default)s)')
@@ -139,10 +140,10 @@ def _play(argv: List[str], args: argparse.Namespace, run: Run) -> int:
             player.destroy_node()
         try_shutdown()
     print(f'played {player.published} messages on {len(player.topics)} topics')
-    lines = what_was_not_played(run, player)
-    for line in lines:
+    for line in what_was_not_played(run, player):
         print(f'{PLAYER_NODE_NAME}: warning: {line}', file=sys.stderr)
-    return EXIT_INCOMPLETE if lines else EXIT_OK
+    # Damage makes the playback incomplete; a type this environment lacks only warns.
+    return EXIT_INCOMPLETE if run.problem or player.losses else EXIT_OK
 
 
 def main(argv: Optional[List[str]] = None) -> int:

@@ -22,7 +22,8 @@ stroke measurement, the diagnostics and the markers are the node's; a scenario's
 between the ticks through the node's own paths: its parameter changes (judged by its rules,
 with a /parameter_events message each), its speed-command subscription, its pause and reset
 services. The channels carry the QoS and type hash the recorder would find for the node's
-publishers, the metadata the records it would read from the node's parameters. What differs
+publishers, the metadata the records it would read from the node's parameters, and the
+machine is written beside the joint states by the recorder's own MachineChannels. What differs
 from a live recording: the log time of each message is the simulated time it was sent at,
 not a wall-clock receive time, and a stroke pair's report waits for its effort theory (the
 live node reports 'pending' while the theory is worked out).
@@ -36,12 +37,14 @@ from typing import Callable, Dict, NamedTuple, Optional, Sequence
 
 from qrm_ros.core.motor_kernel_loading import COMPILED_MOTOR_KERNEL
 from qrm_ros.core.motor_stepper import MotorStepper
-from qrm_ros.core.names import LINKAGE_MARKERS_TOPIC, SPEED_COMMAND_TOPIC
+from qrm_ros.core.names import (JOINT_STATE_TYPE, JOINT_STATES_TOPIC, LINKAGE_MARKERS_TOPIC,
+                                SPEED_COMMAND_TOPIC)
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
 from qrm_ros.node.recorder import DEFAULT_TOPICS, sim_metadata_records
 from qrm_ros.node.ros_process import init_rclpy
 from qrm_ros.node.scenario import Event, Scenario, ScenarioError
 from qrm_ros.node.shaper_sim import ShaperSimNode
+from qrm_ros.recording.machine_channels import MachineChannels
 from qrm_ros.recording.mcap_run_file import COMPRESSIONS, McapRunFile
 import rclpy
 from rclpy.clock import ClockType, ROSClock
@@ -144,7 +147,12 @@ class Simulation:
             self._speed_subscription = next(s for s in node.subscriptions
                                             if s.topic_name == speed_topic)
             self._run_file = McapRunFile(output, COMPRESSIONS[compression], CHUNK_DURATION_NS)
+            # The machine beside the joint states, as the recorder writes it: the URDF and
+            # fixed transforms at the first tick, each joint state's link transforms.
+            self._machine = MachineChannels(self._run_file)
             self._add_channels(topics)
+            stamps = self.tick_stamps()
+            self._machine.start(node.geometry, stamps[0] if stamps else stamps.start)
             parameters = {name: node.get_parameter(name).value
                           for name in node.get_parameters_by_prefix('')}
             for name, data in sim_metadata_records(parameters)[0]:
@@ -178,13 +186,21 @@ class Simulation:
             channel = run_file.add_channel(
                 resolved, found[0].topic_type, [info.qos_profile for info in found],
                 next((h for h in hashes if h.startswith('RIHS')), ''))
+            joint_states = (found[0].topic_type == JOINT_STATE_TYPE
+                            and resolved == node.resolve_topic_name(JOINT_STATES_TOPIC))
+            write = self._write_joint_state if joint_states else self._write
             for publisher in node.publishers:
                 if isinstance(publisher, RecordingPublisher) and publisher.topic_name == resolved:
-                    publisher.write = functools.partial(self._write, channel)
+                    publisher.write = functools.partial(write, channel)
 
     def _write(self, channel: int, data: bytes) -> None:
         now = self._now_ns
         self._run_file.add_message(channel, now, now, data)  # type: ignore[union-attr]
+
+    def _write_joint_state(self, channel: int, data: bytes) -> None:
+        now = self._now_ns
+        self._run_file.add_message(channel, now, now, data)  # type: ignore[union-attr]
+        self._machine.joint_state(now, now, data)
 
     def _set_clock(self, stamp_ns: int) -> None:
         self._now_ns = stamp_ns

@@ -19,7 +19,8 @@ use_sim_time, driven by /clock at the same stamps one tick at a time, its parame
 through its parameter service, its speed commanded on input_speed_cmd, reset through its
 service, and recorded by the real mcap_recorder process. The two files then hold bit-identical
 joint states and twists, the same stroke-pair diagnostics key by key, the same parameter
-changes, QoS metadata and type hashes, and the same parameter metadata.
+changes, QoS metadata and type hashes, the same parameter metadata, and the same machine
+(URDF and link transforms).
 """
 
 import json
@@ -35,6 +36,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.serialization import deserialize_message
+from rosbags.typesys import get_typestore, Stores
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
@@ -50,6 +52,7 @@ from ros_probe import BackgroundSpinner, call, installed_executable, stamp_ns, s
 from ros_probe import wait_for
 
 NS = 1_000_000_000
+STORE = get_typestore(Stores.ROS2_JAZZY)
 PERIOD_NS = 10_000_000  # 100 Hz, the default publish_rate
 SCENARIO = {
     'duration': 6.0,
@@ -172,6 +175,18 @@ def _bits(path, topic):
             for m in (deserialize_message(d, TwistStamped) for d in _messages(path, topic))]
 
 
+def _unstamped(path, topic):
+    """A TFMessage topic's transforms (frames and poses), without their stamps."""
+    found = []
+    for data in _messages(path, topic):
+        for transform in STORE.deserialize_cdr(data, 'tf2_msgs/msg/TFMessage').transforms:
+            pose = transform.transform
+            found.append((transform.header.frame_id, transform.child_frame_id,
+                          pose.translation.x, pose.translation.y, pose.translation.z,
+                          pose.rotation.x, pose.rotation.y, pose.rotation.z, pose.rotation.w))
+    return found
+
+
 def _statuses(path):
     found = []
     for data in _messages(path, '/diagnostics'):
@@ -200,6 +215,12 @@ def test_offline_run_is_the_live_recording(context, tmp_path, drive):
         offline_messages, live_messages = _bits(offline, topic), _bits(live, topic)
         assert len(offline_messages) == 600
         assert offline_messages == live_messages, topic
+    # The machine beside them, written by the recorder's own code in both; the fixed
+    # transforms are stamped when the recorder learns the geometry (live: its wall clock).
+    for topic in ('/tf', '/robot_description'):
+        assert _messages(offline, topic) == _messages(live, topic), topic
+    assert len(_messages(offline, '/tf')) == 600
+    assert _unstamped(offline, '/tf_static') == _unstamped(live, '/tf_static') != []
     offline_statuses, live_statuses = _statuses(offline), _statuses(live)
     pairs = [s for s in offline_statuses if s[0] == STROKE_PAIR_STATUS]
     assert len(pairs) >= 4 and any(s[3].get('effort_theory') == 'steady setting' for s in pairs)
