@@ -31,6 +31,7 @@
 //   {"op": "count"}                     (prints how many messages arrived, by topic)
 //   {"op": "quiet", "topic": "/joint_states"}   (count that topic's messages, print none)
 //   {"op": "fetchAsset", "uri": "package://qrm_ros/urdf/qrm_shaper.urdf"}
+//   {"op": "raw", "text": "..."}          (sent as it is: a malformed message, say)
 //   {"op": "close"}
 
 'use strict';
@@ -53,7 +54,8 @@ function say(event) {
   process.stdout.write(JSON.stringify(event, plain) + '\n');
 }
 
-const client = new FoxgloveClient({ ws: new WebSocket(process.argv[2], SUBPROTOCOLS) });
+const socket = new WebSocket(process.argv[2], SUBPROTOCOLS);
+const client = new FoxgloveClient({ ws: socket });
 const channels = new Map(); // topic -> channel
 const readers = new Map(); // channel id -> {topic, reader}
 const subscriptions = new Map(); // topic -> subscription id
@@ -89,7 +91,8 @@ client.on('advertise', (advertised) => {
   for (const channel of advertised) {
     channels.set(channel.topic, channel);
     say({ event: 'advertise', topic: channel.topic, encoding: channel.encoding,
-          schemaName: channel.schemaName, schemaEncoding: channel.schemaEncoding });
+          schemaName: channel.schemaName, schemaEncoding: channel.schemaEncoding,
+          schema: channel.schema });
     if (waiting.has(channel.topic)) {
       waiting.delete(channel.topic);
       subscribe(channel.topic);
@@ -163,6 +166,7 @@ function run(command) {
     case 'count': say({ event: 'count', counts }); break;
     case 'quiet': quiet.add(command.topic); break;
     case 'fetchAsset': client.fetchAsset(command.uri, nextAsset++); break;
+    case 'raw': socket.send(command.text); break;
     case 'close': client.close(); break;
     default: say({ event: 'error', text: `unknown op ${command.op}` });
   }
