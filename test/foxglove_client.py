@@ -30,6 +30,8 @@ import subprocess
 import threading
 import time
 
+from qrm_ros.core.names import BRIDGE_SERVING_PREFIX
+
 from repo_paths import TEST_FOLDER
 
 # Foxglove's protocol client and its ROS 2 message definition parser and CDR reader/writer.
@@ -37,7 +39,7 @@ NPM_PACKAGES = ('@foxglove/ws-protocol@0.8.0', '@foxglove/rosmsg@5.0.5',
                 '@foxglove/rosmsg2-serialization@3.1.0')
 CLIENT_SCRIPT = os.path.join(TEST_FOLDER, 'foxglove_ws_client.js')
 NPM_INSTALL_TIMEOUT = 300.0  # s
-ADDRESS_LINE = re.compile(r'serving (ws://\S+)')
+ADDRESS_LINE = re.compile(re.escape(BRIDGE_SERVING_PREFIX) + r'(ws://\S+)')
 
 
 def node_executable():

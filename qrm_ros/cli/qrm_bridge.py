@@ -28,8 +28,9 @@ import sys
 from typing import List, Optional
 
 from qrm_ros.cli.exit_codes import EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_OK
-from qrm_ros.node.foxglove_bridge import (BRIDGE_NODE_NAME, BridgeNode, BridgeSettings,
-                                          DEFAULT_ADDRESS, DEFAULT_CLIENT_QUEUE, DEFAULT_PORT)
+from qrm_ros.core.names import BRIDGE_NODE_NAME, BRIDGE_SERVING_PREFIX
+from qrm_ros.node.foxglove_bridge import (BridgeNode, BridgeSettings, DEFAULT_ADDRESS,
+                                          DEFAULT_CLIENT_QUEUE, DEFAULT_PORT)
 from qrm_ros.node.ros_process import (executor_kind, ExecutorChoiceError, init_rclpy,
                                       new_executor, RCLError, rcl_error_text,
                                       spin_until_stopped, StopRequest)
@@ -107,7 +108,7 @@ def main(argv: Optional[List[str]] = None) -> int:
             except RuntimeError as error:  # the SDK cannot bind (port taken, bad address)
                 _error(f'cannot serve on {settings.address} port {settings.port}: {error}')
                 return EXIT_FAILURE
-            print(f'{BRIDGE_NODE_NAME}: serving {node.address} (in the Foxglove app: Open '
+            print(f'{BRIDGE_SERVING_PREFIX}{node.address} (in the Foxglove app: Open '
                   'connection, Foxglove WebSocket, this address)', flush=True)
             executor = new_executor(kind)
             executor.add_node(node)

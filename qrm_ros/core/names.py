@@ -71,3 +71,10 @@ LINKAGE_MARKERS_TOPIC = 'linkage_markers'
 LINKAGE_MARKERS_TYPE = 'visualization_msgs/msg/MarkerArray'
 # What robot_state_publisher publishes the URDF on (display.launch.py, shaper.rviz).
 ROBOT_DESCRIPTION_TOPIC = '/robot_description'
+
+# The Foxglove WebSocket bridge's node name, and what it prints before the ws:// address once
+# it listens (qrm_main --live reads the address from that line).
+__all__ += ['BRIDGE_DEFAULT_PORT', 'BRIDGE_NODE_NAME', 'BRIDGE_SERVING_PREFIX']
+BRIDGE_NODE_NAME = 'qrm_bridge'
+BRIDGE_SERVING_PREFIX = f'{BRIDGE_NODE_NAME}: serving '
+BRIDGE_DEFAULT_PORT = 8765  # the Foxglove app's default for a Foxglove WebSocket connection

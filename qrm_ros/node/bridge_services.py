@@ -29,7 +29,9 @@ import threading
 from typing import Callable, Dict, List, Optional, Tuple
 
 from foxglove import MessageSchema, Schema, Service, ServiceRequest, ServiceSchema
+from rclpy.client import Client
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from rclpy.serialization import deserialize_message, serialize_message
 
 from qrm_ros.node.bridge_topics import CDR, message_class, ROS2MSG
@@ -68,7 +70,7 @@ class ServiceBridge:
                  remove: Callable[[List[str]], None], warn: Callable[[str], None]):
         self._node = node
         self._add, self._remove, self._warn = add, remove, warn
-        self._clients: Dict[str, Tuple[str, object]] = {}  # name -> (type, rclpy client)
+        self._clients: Dict[str, Tuple[str, Client]] = {}  # name -> (type, rclpy client)
         self._warned: set = set()
 
     @property
@@ -85,9 +87,9 @@ class ServiceBridge:
             self._remove(gone)
             for name in gone:
                 self._node.destroy_client(self._clients.pop(name)[1])
-        new = [self._service(name, present[name]) for name in sorted(present)
-               if name not in self._clients]
-        new = [service for service in new if service is not None]
+        made = [self._service(name, present[name]) for name in sorted(present)
+                if name not in self._clients]
+        new = [service for service in made if service is not None]
         if new:
             self._add(new)
 
@@ -95,10 +97,12 @@ class ServiceBridge:
         try:
             kind = service_class(type_name)
         except LookupError as error:
-            return self._refuse(name, str(error))
+            self._refuse(name, str(error))
+            return None
         texts, problem = find_service_definitions(type_name)
         if texts is None:
-            return self._refuse(name, problem or 'no definition')
+            self._refuse(name, problem or 'no definition')
+            return None
         schema = ServiceSchema(type_name, **{
             part: MessageSchema(encoding=CDR, schema=Schema(
                 name=f'{type_name}_{part.capitalize()}', encoding=ROS2MSG, data=text.encode()))
@@ -112,7 +116,6 @@ class ServiceBridge:
         if name not in self._warned:
             self._warned.add(name)
             self._warn(f'service {name}: {why}; not served')
-        return None
 
     def _call(self, kind, client, call: ServiceRequest) -> bytes:
         """Serve one call on a server thread; an exception's text goes back as the failure."""
@@ -138,7 +141,7 @@ class ServiceBridge:
 class _ClientChannel:
     def __init__(self, topic: str, kind):
         self.topic, self.kind = topic, kind
-        self.publisher = None
+        self.publisher: Optional[Publisher] = None
         self.ready = threading.Event()
 
 
@@ -205,6 +208,6 @@ class ClientPublishers:
             raise PublishRefusal(f'{channel.topic}: a {len(data)}-byte message that is not a '
                                  f'CDR {channel.kind.__name__}: {rcl_error_text(error)}'
                                  ) from None
-        if not channel.ready.wait(PUBLISHER_WAIT):
+        if not channel.ready.wait(PUBLISHER_WAIT) or channel.publisher is None:
             raise PublishRefusal(f'{channel.topic}: no publisher yet, message dropped')
         channel.publisher.publish(bytes(data))

@@ -35,22 +35,21 @@ from typing import Dict, List, Optional, Sequence
 
 import foxglove
 from ament_index_python.packages import get_package_share_directory, PackageNotFoundError
-from foxglove import Context, StatusLevel
-from foxglove.websocket import Capability, ChannelView, Client, ClientChannel
+from foxglove import Context, Parameter, StatusLevel
+from foxglove.websocket import Capability, ChannelView, Client, ClientChannel, ServerListener
 from rcl_interfaces.msg import ParameterEvent
 from rclpy.node import Node
 
 from qrm_ros.node.bridge_parameters import from_ros, NODE_SEPARATOR, ParameterBridge
 from qrm_ros.node.bridge_services import ClientPublishers, PublishRefusal, ServiceBridge
 from qrm_ros.node.bridge_topics import CDR, TopicChannels
-from qrm_ros.core.names import PARAMETER_EVENTS_TOPIC
+from qrm_ros.core.names import BRIDGE_DEFAULT_PORT, BRIDGE_NODE_NAME, PARAMETER_EVENTS_TOPIC
 
-__all__ = ['BRIDGE_NODE_NAME', 'BridgeNode', 'BridgeSettings', 'DEFAULT_ADDRESS',
+__all__ = ['BridgeNode', 'BridgeSettings', 'DEFAULT_ADDRESS',
            'DEFAULT_CLIENT_QUEUE', 'DEFAULT_PORT', 'package_asset']
 
-BRIDGE_NODE_NAME = 'qrm_bridge'
 DEFAULT_ADDRESS = '127.0.0.1'  # loopback: nothing outside this machine reaches the bridge
-DEFAULT_PORT = 8765  # the Foxglove app's default for a Foxglove WebSocket connection
+DEFAULT_PORT = BRIDGE_DEFAULT_PORT
 DEFAULT_CLIENT_QUEUE = 1024  # messages per client before its oldest are dropped
 TICK_PERIOD = 0.05  # s, how soon a client's subscription or advertisement takes effect
 GRAPH_TICKS = 10  # ticks between looks at the graph (0.5 s)
@@ -100,7 +99,7 @@ class _SdkLog(logging.Handler):
             self._bridge.get_logger().warning(f'server: {text}')
 
 
-class _Listener:
+class _Listener(ServerListener):
     """The server's callbacks (on its threads), handed to the bridge's parts."""
 
     def __init__(self, bridge: 'BridgeNode'):
@@ -129,11 +128,11 @@ class _Listener:
             self._bridge.report(f'client {client.id}: {refusal}', StatusLevel.Error)
 
     def on_get_parameters(self, client: Client, param_names: List[str],
-                          request_id: Optional[str] = None) -> list:
+                          request_id: Optional[str] = None) -> List[Parameter]:
         return self._bridge.parameters.get(param_names)
 
-    def on_set_parameters(self, client: Client, parameters: list,
-                          request_id: Optional[str] = None) -> list:
+    def on_set_parameters(self, client: Client, parameters: List[Parameter],
+                          request_id: Optional[str] = None) -> List[Parameter]:
         return self._bridge.parameters.set(parameters)
 
     def on_parameters_subscribe(self, param_names: List[str]) -> None:
