@@ -30,6 +30,7 @@
 //   {"op": "stall", "seconds": 5}       (blocks this process: it reads nothing meanwhile)
 //   {"op": "count"}                     (prints how many messages arrived, by topic)
 //   {"op": "quiet", "topic": "/joint_states"}   (count that topic's messages, print none)
+//   {"op": "report"}                    (counts, and the quiet topics' stamps and latencies)
 //   {"op": "fetchAsset", "uri": "package://qrm_ros/urdf/qrm_shaper.urdf"}
 //   {"op": "raw", "text": "..."}          (sent as it is: a malformed message, say)
 //   {"op": "close"}
@@ -66,6 +67,8 @@ const calls = new Map(); // call id -> service
 const published = new Map(); // topic -> {id, writer}
 const counts = {};
 const quiet = new Set();
+const stamps = {}; // quiet topic -> header stamps 'sec.nanosec'
+const latencies = {}; // quiet topic -> stamp-to-arrival times, ms
 let nextCall = 1;
 let nextAsset = 1;
 
@@ -107,13 +110,26 @@ client.on('unadvertise', (ids) => {
     }
   }
 });
-client.on('message', ({ subscriptionId, timestamp, data }) => {
+// Wall-clock time in ms with sub-millisecond resolution, comparable with ROS header stamps.
+const wallMs = () => performance.timeOrigin + performance.now();
+
+client.on('message', ({ subscriptionId, data }) => {
+  const received = wallMs();
   const entry = readers.get(bySubscription.get(subscriptionId));
   if (!entry) return;
   counts[entry.topic] = (counts[entry.topic] || 0) + 1;
-  if (quiet.has(entry.topic)) return;
-  say({ event: 'message', topic: entry.topic, receivedNs: Number(process.hrtime.bigint()),
-        wallNs: Date.now() * 1e6, message: entry.reader.readMessage(data) });
+  if (quiet.has(entry.topic)) {
+    // Quiet: keep each stamped message's stamp and delivery latency (stamp to here), in ms.
+    const { header } = entry.reader.readMessage(data);
+    if (header) {
+      const stamp = header.stamp.sec * 1e3 + header.stamp.nanosec / 1e6;
+      (stamps[entry.topic] = stamps[entry.topic] || []).push(
+        `${header.stamp.sec}.${String(header.stamp.nanosec).padStart(9, '0')}`);
+      (latencies[entry.topic] = latencies[entry.topic] || []).push(received - stamp);
+    }
+    return;
+  }
+  say({ event: 'message', topic: entry.topic, wallMs: received, message: entry.reader.readMessage(data) });
 });
 client.on('parameterValues', ({ parameters, id }) => say({ event: 'parameterValues', id, parameters }));
 client.on('advertiseServices', (advertised) => {
@@ -164,6 +180,7 @@ function run(command) {
     case 'publishBytes': client.sendMessage(published.get(command.topic).id, Buffer.from(command.hex, 'hex')); break;
     case 'stall': Atomics.wait(new Int32Array(new SharedArrayBuffer(4)), 0, 0, command.seconds * 1000); break;
     case 'count': say({ event: 'count', counts }); break;
+    case 'report': say({ event: 'report', counts, stamps, latencies }); break;
     case 'quiet': quiet.add(command.topic); break;
     case 'fetchAsset': client.fetchAsset(command.uri, nextAsset++); break;
     case 'raw': socket.send(command.text); break;
