@@ -281,3 +281,24 @@ def test_a_taken_port_exits_1_with_one_line(running):
     assert result.returncode == 1, result.stderr
     assert f'cannot serve on 127.0.0.1 port {port}' in result.stderr
     assert 'Traceback' not in result.stderr
+
+
+def test_a_topic_is_subscribed_on_ros_only_while_a_client_wants_it(running, client):
+    _, probe = running
+
+    def bridge_subscribed():
+        return [info for info in probe.node.get_subscriptions_info_by_topic('/joint_states')
+                if info.node_name == 'qrm_bridge']
+    wait_for(lambda: not bridge_subscribed(), 20.0, 'no client, no ROS subscription')
+    first, second = client(), client()
+    for viewer in (first, second):
+        viewer.send(op='subscribe', topic='/joint_states')
+        viewer.wait_event('message', topic='/joint_states')
+    assert len(bridge_subscribed()) == 1  # one ROS subscription, whatever the clients
+    first.close()  # a client leaving mid-stream: the other is still served
+    count = len(second.matching('message', topic='/joint_states'))
+    second.wait(lambda events: len([e for e in events if e.get('topic') == '/joint_states'
+                                    and e['event'] == 'message']) > count + 10,
+                what='more joint states after the other client left')
+    second.close()
+    wait_for(lambda: not bridge_subscribed(), 20.0, 'the ROS subscription dropped')
