@@ -34,6 +34,7 @@ from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.parameter import parameter_value_to_python
 from sensor_msgs.msg import JointState
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
 from foxglove_client import bridge_address, FoxgloveClient, node_executable, node_modules
@@ -302,3 +303,19 @@ def test_a_topic_is_subscribed_on_ros_only_while_a_client_wants_it(running, clie
                 what='more joint states after the other client left')
     second.close()
     wait_for(lambda: not bridge_subscribed(), 20.0, 'the ROS subscription dropped')
+
+
+def test_a_latched_robot_description_reaches_a_client_that_subscribes_later(running, client):
+    _, probe = running
+    latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                         reliability=ReliabilityPolicy.RELIABLE)  # as robot_state_publisher
+    publisher = probe.node.create_publisher(String, '/robot_description', latched)
+    publisher.publish(String(data='<robot name="qrm_shaper"/>'))
+    try:
+        viewer = client()
+        viewer.wait_event('advertise', topic='/robot_description')
+        viewer.send(op='subscribe', topic='/robot_description')
+        got = viewer.wait_event('message', topic='/robot_description')
+        assert got['message'] == {'data': '<robot name="qrm_shaper"/>'}
+    finally:
+        probe.node.destroy_publisher(publisher)
