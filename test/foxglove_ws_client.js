@@ -22,6 +22,7 @@
 //   {"op": "subscribe", "topic": "/joint_states"}      (waits for the channel to be advertised)
 //   {"op": "unsubscribe", "topic": "/joint_states"}
 //   {"op": "getParameters", "names": [...]}            {"op": "setParameters", "parameters": [...]}
+//   {"op": "subscribeParameterUpdates", "names": [...]}
 //   {"op": "call", "service": "/shaper_sim/pause", "request": {"data": true}}
 //   {"op": "advertise", "topic": "input_speed_cmd", "schemaName": "std_msgs/msg/Float64",
 //    "schema": "float64 data"}
@@ -156,6 +157,7 @@ function run(command) {
     case 'unsubscribe': client.unsubscribe(subscriptions.get(command.topic)); break;
     case 'getParameters': client.getParameters(command.names, command.id); break;
     case 'setParameters': client.setParameters(command.parameters, command.id); break;
+    case 'subscribeParameterUpdates': client.subscribeParameterUpdates(command.names); break;
     case 'call': {
       const service = services.get(command.service);
       if (!service) { say({ event: 'error', text: `no service ${command.service}` }); break; }

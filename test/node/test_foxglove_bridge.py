@@ -28,11 +28,11 @@ from ament_index_python.packages import get_package_share_directory
 import pytest
 from qrm_ros.node.foxglove_bridge import package_asset
 from qrm_ros.recording.rosbag2_formats import find_message_definition
-from rcl_interfaces.srv import GetParameters
+from rcl_interfaces.srv import GetParameters, SetParameters
 import rclpy
 from rclpy.context import Context
 from rclpy.node import Node
-from rclpy.parameter import parameter_value_to_python
+from rclpy.parameter import Parameter as RosParameter, parameter_value_to_python
 from sensor_msgs.msg import JointState
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
@@ -65,11 +65,17 @@ class Probe:
         self.subscription = self.node.create_subscription(
             JointState, 'joint_states', self.joint_states.append, 1000)
         self.get_client = self.node.create_client(GetParameters, '/shaper_sim/get_parameters')
+        self.set_client = self.node.create_client(SetParameters, '/shaper_sim/set_parameters')
         self.spinner = BackgroundSpinner(self.context, self.node)
 
     def parameter(self, name):
         answer = call(self.get_client, GetParameters.Request(names=[name]), timeout=15.0)
         return parameter_value_to_python(answer.values[0])
+
+    def set_parameter(self, name, value):
+        request = SetParameters.Request(parameters=[RosParameter(name, value=value)
+                                                    .to_parameter_msg()])
+        return call(self.set_client, request, timeout=15.0).results[0]
 
     def close(self):
         self.spinner.stop()
@@ -319,3 +325,20 @@ def test_a_latched_robot_description_reaches_a_client_that_subscribes_later(runn
         assert got['message'] == {'data': '<robot name="qrm_shaper"/>'}
     finally:
         probe.node.destroy_publisher(publisher)
+
+
+def test_a_change_made_over_ros_reaches_a_client_subscribed_to_the_parameter(running, client):
+    _, probe = running
+    viewer = client()
+    viewer.send(op='subscribeParameterUpdates', names=[OFFSET])
+    viewer.send(op='getParameters', names=[OFFSET], id='subscribed')  # the subscription is in
+    viewer.wait_event('parameterValues', id='subscribed')
+    try:
+        assert probe.set_parameter('coupling_offset', -0.005).successful
+        update = viewer.wait(lambda events: [e for e in events if e['event'] == 'parameterValues'
+                                             and e.get('id') is None
+                                             and e['parameters'][0]['value'] == -0.005],
+                             what='the update from /parameter_events')
+        assert update[0]['parameters'] == [{'name': OFFSET, 'type': 'float64', 'value': -0.005}]
+    finally:
+        probe.set_parameter('coupling_offset', 0.0)
