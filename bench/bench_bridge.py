@@ -21,7 +21,9 @@ window: a bare rclpy process whose raw subscriptions of the same topics, on the 
 (EventsExecutor) and QoS, only count. Prints the CPU of each (user + system of the whole
 process, from /proc), the ratio bridge / bare (goal <= 1.5), the messages each got, and the
 delivery latency of the joint states from their stamp to the client (median, 99th percentile),
-beside a DDS subscriber's in the same run.
+beside a DDS subscriber's in the same run; and what the bridge costs per message over the bare
+subscription beside what the SDK's server alone costs per message (a plain loop logging to a
+channel one client subscribes to).
 
 Part 2, a stalled client (--stall-seconds): beside the joint states, a stand-in publisher sends
 --big-size-byte images at --big-rate Hz. One client reads everything; another subscribes and
@@ -140,6 +142,39 @@ def images(size, rate):
             sent += 1
     node.destroy_node()
     rclpy.try_shutdown()
+
+
+def sdk_alone(rate, seconds):
+    """Child: the SDK's server alone, fed 300-byte messages at `rate` for one subscribed client."""
+    import resource
+    import foxglove
+    from foxglove import Channel, Context, Schema
+
+    def cpu():
+        usage = resource.getrusage(resource.RUSAGE_SELF)
+        return usage.ru_utime + usage.ru_stime
+
+    def paced(send):
+        start, count = time.monotonic(), int(rate * seconds)
+        before = cpu()
+        for index in range(count):
+            time.sleep(max(0.0, start + index / rate - time.monotonic()))
+            send()
+        return (cpu() - before) / count
+    context = Context()
+    server = foxglove.start_server(port=0, context=context)
+    channel = Channel('/sdk_alone', schema=Schema(name='std_msgs/msg/String', encoding='ros2msg',
+                                                  data=b'string data\n'),
+                      message_encoding='cdr', context=context)
+    print(f'ws://127.0.0.1:{server.port}', flush=True)
+    while not channel.has_sinks():
+        time.sleep(0.01)
+    data = b'\x00\x01\x00\x00' + (292).to_bytes(4, 'little') + b'a' * 291 + b'\x00'
+    log = channel.base.log
+    with_sdk = paced(lambda: log(data))
+    loop = paced(lambda: None)
+    print(f'{(with_sdk - loop) * 1e6:.1f}', flush=True)
+    server.stop()
 
 
 # --- the parent ----------------------------------------------------------------------------
@@ -310,6 +345,20 @@ def stall(args, env, modules, folder):
     return result
 
 
+def run_sdk_alone(args, env, modules, folder):
+    """Return the SDK's own CPU per message (us) serving one client, measured in a child."""
+    run = Run(env, folder)
+    try:
+        child = run.start('sdk', [sys.executable, __file__, '--sdk-alone', str(args.rate),
+                                  str(args.seconds)], stdout=subprocess.PIPE)
+        address = child.stdout.readline().strip()
+        viewer = run.client(address, modules, ['/sdk_alone'])
+        viewer.wait_event('subscribed', topic='/sdk_alone')
+        return float(child.stdout.readline())
+    finally:
+        run.stop()
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--seconds', type=float, default=10.0)
@@ -322,6 +371,7 @@ def main():
     parser.add_argument('--floor', action='store_true', help=argparse.SUPPRESS)
     parser.add_argument('--probe', nargs='+', help=argparse.SUPPRESS)
     parser.add_argument('--images', nargs=2, type=float, help=argparse.SUPPRESS)
+    parser.add_argument('--sdk-alone', nargs=2, type=float, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.floor:
         return floor()
@@ -329,6 +379,8 @@ def main():
         return probe(args.probe)
     if args.images:
         return images(int(args.images[0]), args.images[1])
+    if args.sdk_alone:
+        return sdk_alone(*args.sdk_alone)
     if node_executable() is None:
         sys.exit('bench_bridge: Node.js is needed (Foxglove\'s client runs on it)')
     env = dict(os.environ)
@@ -354,6 +406,11 @@ def main():
         for key, name in (('latency_client', 'through the bridge'), ('latency_dds', 'DDS')):
             print(f'latency {name}: median {statistics.median(r[key][0] for r in results):.2f}'
                   f' ms, p99 {statistics.median(r[key][1] for r in results):.2f} ms')
+        sdk = run_sdk_alone(args, env, modules, folder)
+        per_message = [(r['bridge'] - r['bare']) / 100.0 * args.seconds / r['client_messages']
+                       * 1e6 for r in results]
+        print(f'the bridge over the bare subscription: {statistics.median(per_message):.0f} us '
+              f'of CPU per message; the SDK alone, from a plain loop: {sdk:.0f} us per message')
         stalled = stall(args, env, modules, folder)
     mib = [value / 2**20 for value in stalled['rss']]
     sent = args.big_size * args.big_rate * args.stall_seconds / 2**20
