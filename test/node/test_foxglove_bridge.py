@@ -342,3 +342,26 @@ def test_a_change_made_over_ros_reaches_a_client_subscribed_to_the_parameter(run
         assert update[0]['parameters'] == [{'name': OFFSET, 'type': 'float64', 'value': -0.005}]
     finally:
         probe.set_parameter('coupling_offset', 0.0)
+
+
+def test_topics_limits_what_is_served(running, modules):
+    bridge = _start('qrm_bridge', '--port', '0', '--topics', 'joint_states')
+    viewer = None
+    try:
+        viewer = FoxgloveClient(bridge_address(bridge, []), modules)
+        viewer.send(op='subscribe', topic='/joint_states')
+        viewer.wait_event('message', topic='/joint_states')
+        assert {e['topic'] for e in viewer.matching('advertise')} == {'/joint_states'}
+    finally:
+        if viewer is not None:
+            viewer.close()
+        assert stop_process(bridge) == 0
+
+
+def test_an_address_not_of_this_machine_exits_1_with_one_line():
+    # 192.0.2.1 is a documentation address (RFC 5737): binding to it fails here, nothing is sent.
+    result = subprocess.run([installed_executable('qrm_bridge'), '--address', '192.0.2.1',
+                             '--port', '0'], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 1
+    assert 'cannot serve on 192.0.2.1 port 0' in result.stderr
+    assert 'Traceback' not in result.stderr
