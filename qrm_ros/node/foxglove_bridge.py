@@ -150,6 +150,7 @@ class BridgeNode(Node):
         self.settings = settings
         self.slow_client_notices: Dict[str, int] = {}  # client address -> notices from the SDK
         self._lock = threading.Lock()
+        self._slow_pending: List[str] = []
         self._foxglove_context = Context()
         self.topic_channels = TopicChannels(self, self._foxglove_context, settings.topics,
                                             self.get_logger().warning)
@@ -188,11 +189,18 @@ class BridgeNode(Node):
         self.server.publish_status(text, level)
 
     def slow_client(self, client_address: str) -> None:
+        """Note the SDK's notice; said at the next tick (not from inside the SDK's send)."""
         with self._lock:
             self.slow_client_notices[client_address] = (
                 self.slow_client_notices.get(client_address, 0) + 1)
-        self.report(f'client {client_address} falls behind: its oldest messages are dropped '
-                    f'(queue of {self.settings.client_queue} messages per client)')
+            self._slow_pending.append(client_address)
+
+    def _say_slow_clients(self) -> None:
+        with self._lock:
+            pending, self._slow_pending = self._slow_pending, []
+        for client_address in pending:
+            self.report(f'client {client_address} falls behind: its oldest messages are '
+                        f'dropped (queue of {self.settings.client_queue} messages per client)')
 
     def _foreign_publishers(self, topic: str) -> list:
         return [info for info in self.get_publishers_info_by_topic(topic)
@@ -204,6 +212,8 @@ class BridgeNode(Node):
 
     def _tick(self) -> None:
         self._ticks += 1
+        if self._slow_pending:
+            self._say_slow_clients()
         if self._ticks % GRAPH_TICKS == 0:
             self._look_at_graph()
         elif self.topic_channels.changed.is_set():
