@@ -172,15 +172,16 @@ class ParameterBridge:
             result.append(from_ros(full, value))
         return result
 
-    def get(self, names: Sequence[str]) -> List[FoxgloveParameter]:
+    def get(self, names: Sequence[str], quiet: bool = False) -> List[FoxgloveParameter]:
         """Return the named parameters (all of every node's when none are named)."""
+        report = (lambda text: None) if quiet else self._report
         by_node: Dict[str, List[str]] = {}
         if names:
             for name in names:
                 try:
                     node_name, parameter = split_name(name)
                 except ParameterRefusal as refusal:
-                    self._report(str(refusal))
+                    report(str(refusal))
                     continue
                 by_node.setdefault(node_name, []).append(parameter)
         else:
@@ -198,7 +199,7 @@ class ParameterBridge:
                 result += self._values(node_name, parameters)
             except ParameterRefusal as refusal:
                 if names:
-                    self._report(str(refusal))
+                    report(str(refusal))
         return result
 
     def set(self, parameters: Sequence[FoxgloveParameter]) -> List[FoxgloveParameter]:

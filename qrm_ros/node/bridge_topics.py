@@ -80,6 +80,7 @@ class TopicChannels:
         self._lock = threading.Lock()
         self._subscribers: Dict[int, Set[int]] = {}  # channel id -> client ids
         self.changed = threading.Event()  # a client (un)subscribed: reconcile soon
+        self.reserved: Set[str] = set()  # topics the bridge serves itself, not from ROS
 
     def _warn_once(self, topic: str, text: str) -> None:
         if (topic, text) not in self._warned:
@@ -99,7 +100,7 @@ class TopicChannels:
         """Advertise the topics with a foreign publisher, remove the rest (executor thread)."""
         present = {}
         for topic, types in graph.items():
-            if self._wanted is not None and topic not in self._wanted:
+            if (self._wanted is not None and topic not in self._wanted) or topic in self.reserved:
                 continue
             if not publishers(topic):
                 continue
@@ -130,6 +131,16 @@ class TopicChannels:
         with self._lock:
             self._subscribers.pop(served.channel.id(), None)
         self._node.get_logger().info(f'{topic} is gone: removed')
+
+    def subscriber_count(self, channel_id: int) -> int:
+        with self._lock:
+            return len(self._subscribers.get(channel_id, ()))
+
+    def reserve(self, topics: Set[str]) -> None:
+        """Serve these topics from the bridge itself: never from ROS (executor thread)."""
+        self.reserved |= topics
+        for topic in [t for t in self._served if t in topics]:
+            self._remove(topic)
 
     def client_subscribed(self, client_id: int, channel_id: int) -> None:
         with self._lock:

@@ -23,6 +23,8 @@ this module only maps the graph onto it:
 - services -> the services capability, client channels -> ROS publishers
   (``bridge_services``);
 - ``package://`` URIs -> assets read from the package's share folder (the URDF);
+- the machine's URDF and link transforms, when nothing in the graph publishes them
+  (``bridge_machine``);
 - slow clients: the SDK keeps one bounded queue per client and drops that client's oldest
   messages when it is full (the others and the graph are never held up); the bridge passes
   the SDK's notice of it to the log and to the clients' status.
@@ -40,10 +42,12 @@ from foxglove.websocket import Capability, ChannelView, Client, ClientChannel, S
 from rcl_interfaces.msg import ParameterEvent
 from rclpy.node import Node
 
+from qrm_ros.node.bridge_machine import MACHINE_TOPICS, MachineView
 from qrm_ros.node.bridge_parameters import from_ros, NODE_SEPARATOR, ParameterBridge
 from qrm_ros.node.bridge_services import ClientPublishers, PublishRefusal, ServiceBridge
 from qrm_ros.node.bridge_topics import CDR, TopicChannels
-from qrm_ros.core.names import BRIDGE_DEFAULT_PORT, BRIDGE_NODE_NAME, PARAMETER_EVENTS_TOPIC
+from qrm_ros.core.names import (absolute_topic, BRIDGE_DEFAULT_PORT, BRIDGE_NODE_NAME,
+                                PARAMETER_EVENTS_TOPIC)
 
 __all__ = ['BridgeNode', 'BridgeSettings', 'DEFAULT_ADDRESS',
            'DEFAULT_CLIENT_QUEUE', 'DEFAULT_PORT', 'package_asset']
@@ -173,6 +177,12 @@ class BridgeNode(Node):
                                             self.get_logger().warning)
         self.create_subscription(ParameterEvent, PARAMETER_EVENTS_TOPIC,
                                  self._on_parameter_event, 100)
+        # The machine's URDF and transforms: served unless --topics leaves them out.
+        self.machine = MachineView(self, self._foxglove_context, self.parameters,
+                                   self.topic_channels.subscriber_count,
+                                   self.topic_channels.reserve) if (
+            settings.topics is None or set(MACHINE_TOPICS) & {
+                absolute_topic(topic) for topic in settings.topics}) else None
         self._ticks = 0
         self.create_timer(TICK_PERIOD, self._tick)
         self._look_at_graph()
@@ -220,6 +230,8 @@ class BridgeNode(Node):
             self.topic_channels.reconcile(self._foreign_publishers)
         if self.client_publishers.changed.is_set():
             self.client_publishers.make_publishers()
+        if self.machine is not None:
+            self.machine.tick(lambda: dict(self.get_topic_names_and_types()))
 
     def _look_at_graph(self) -> None:
         self.topic_channels.update(dict(self.get_topic_names_and_types()),
@@ -244,5 +256,7 @@ class BridgeNode(Node):
 
     def close(self) -> None:
         """Stop the server (its clients are disconnected) and let go of the SDK's log."""
+        if self.machine is not None:
+            self.machine.close()
         self.server.stop()
         logging.getLogger(SDK_LOGGER).removeHandler(self._sdk_log)

@@ -26,6 +26,7 @@ import subprocess
 
 from ament_index_python.packages import get_package_share_directory
 import pytest
+from qrm_ros.core.names import JOINT_NAMES
 from qrm_ros.node.foxglove_bridge import package_asset
 from qrm_ros.recording.rosbag2_formats import find_message_definition
 from rcl_interfaces.srv import GetParameters, SetParameters
@@ -311,20 +312,39 @@ def test_a_topic_is_subscribed_on_ros_only_while_a_client_wants_it(running, clie
     wait_for(lambda: not bridge_subscribed(), 20.0, 'the ROS subscription dropped')
 
 
-def test_a_latched_robot_description_reaches_a_client_that_subscribes_later(running, client):
+def test_a_latched_topic_reaches_a_client_that_subscribes_later(running, client):
     _, probe = running
     latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
-                         reliability=ReliabilityPolicy.RELIABLE)  # as robot_state_publisher
-    publisher = probe.node.create_publisher(String, '/robot_description', latched)
+                         reliability=ReliabilityPolicy.RELIABLE)  # as robot_state_publisher's
+    publisher = probe.node.create_publisher(String, '/bridge_test_latched', latched)
     publisher.publish(String(data='<robot name="qrm_shaper"/>'))
     try:
         viewer = client()
-        viewer.wait_event('advertise', topic='/robot_description')
-        viewer.send(op='subscribe', topic='/robot_description')
-        got = viewer.wait_event('message', topic='/robot_description')
+        viewer.wait_event('advertise', topic='/bridge_test_latched')
+        viewer.send(op='subscribe', topic='/bridge_test_latched')
+        got = viewer.wait_event('message', topic='/bridge_test_latched')
         assert got['message'] == {'data': '<robot name="qrm_shaper"/>'}
     finally:
         probe.node.destroy_publisher(publisher)
+
+
+def test_the_machine_is_served_for_the_3d_panel_without_robot_state_publisher(running, client):
+    _, probe = running
+    viewer = client()
+    for topic in ('/robot_description', '/tf_static', '/tf'):
+        viewer.send(op='subscribe', topic=topic)
+    description = viewer.wait_event('message', topic='/robot_description', timeout=30.0)
+    path = os.path.join(get_package_share_directory('qrm_ros'), 'urdf', 'qrm_shaper.urdf')
+    with open(path) as handle:  # the simulator runs the default geometry, the installed URDF's
+        assert description['message']['data'] == handle.read()
+    fixed = viewer.wait_event('message', topic='/tf_static')['message']['transforms']
+    moving = viewer.wait_event('message', topic='/tf')['message']['transforms']
+    assert {t['child_frame_id'] for t in fixed}.isdisjoint(t['child_frame_id'] for t in moving)
+    assert len(moving) == len(JOINT_NAMES)  # one per moving joint
+    # Stamped as the joint state they are computed from, which DDS delivered here too.
+    wait_for(lambda: _stamp(moving[0]['header']) in {
+        m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec
+        for m in list(probe.joint_states)}, 10.0, 'the joint state the transforms are of')
 
 
 def test_a_change_made_over_ros_reaches_a_client_subscribed_to_the_parameter(running, client):
