@@ -39,11 +39,27 @@ from qrm_ros.core.names import (JOINT_STATES_TOPIC, ROBOT_DESCRIPTION_TOPIC,
 from qrm_ros.node.bridge_parameters import NODE_SEPARATOR, ParameterBridge
 from qrm_ros.node.bridge_topics import CDR, ROS2MSG
 from qrm_ros.recording.machine_transforms import MachineMessages
+from qrm_ros.recording.rosbag2_formats import (complete_definition, DEFINITION_DELIMITER,
+                                               find_message_definition)
 
-__all__ = ['MACHINE_TOPICS', 'MachineView']
+__all__ = ['MACHINE_TOPICS', 'MachineView', 'definition']
 
 MACHINE_TOPICS = (ROBOT_DESCRIPTION_TOPIC, TF_STATIC_TOPIC, TF_TOPIC)
 GEOMETRY_RETRY = 1.0  # s, between attempts to read the simulator's geometry
+
+
+def definition(messages: MachineMessages, type_name: str) -> str:
+    """
+    Return the type's ros2msg text with the installed texts of its nested types.
+
+    rosbags writes nested types without comments and defaults; a viewer that sees one nested
+    type defined two ways (here and in the markers' schema) reports a changed schema.
+    """
+    text, _ = find_message_definition(type_name)  # installed: the same text as the recorder's
+    if text is None:  # tf2_msgs is not installed without ROS: its own line, nested installed
+        own = messages.definition(type_name).split('\n' + DEFINITION_DELIMITER)[0]
+        text, _ = complete_definition(type_name, own)
+    return text if text is not None else messages.definition(type_name)
 
 
 class MachineView:
@@ -122,7 +138,7 @@ class MachineView:
         for topic, type_name in ((ROBOT_DESCRIPTION_TOPIC, ROBOT_DESCRIPTION_TYPE),
                                  (TF_STATIC_TOPIC, TF_MESSAGE_TYPE), (TF_TOPIC, TF_MESSAGE_TYPE)):
             schema = Schema(name=type_name, encoding=ROS2MSG,
-                            data=messages.definition(type_name).encode())
+                            data=definition(messages, type_name).encode())
             self._channels[topic] = Channel(topic, schema=schema, message_encoding=CDR,
                                             context=self._context)
         self._node.get_logger().info('serving the machine: its URDF on /robot_description and '

@@ -35,7 +35,8 @@ if TYPE_CHECKING:  # the recorder hands over rclpy's profiles; this module never
     from rclpy.duration import Duration
     from rclpy.qos import QoSProfile
 
-__all__ = ['DEFINITION_DELIMITER', 'find_message_definition', 'find_service_definitions',
+__all__ = ['DEFINITION_DELIMITER', 'complete_definition', 'find_message_definition',
+           'find_service_definitions',
            'offered_qos_profiles_yaml', 'publisher_qos_profile_yaml', 'qos_profile_yaml_lines',
            'rosbag2_metadata_yaml', 'NO_QOS_PROFILES', 'TopicSummary']
 
@@ -97,6 +98,24 @@ def find_message_definition(
         package, text = _msg_text(type_name, share_directory)
         return _with_dependencies(type_name, package, text, share_directory), None
     except LookupError as error:
+        return None, str(error)
+
+
+def complete_definition(type_name: str, text: str,
+                        share_directory: Callable[[str], str] = get_package_share_directory,
+                        ) -> Tuple[Optional[str], Optional[str]]:
+    """
+    Return a type's own .msg text completed with its nested types as find_message_definition does.
+
+    For a type whose package is not installed but whose nested types are (``tf2_msgs``): the
+    nested texts are then the installed ones, as every other channel of the same types has.
+    """
+    match = _TYPE_NAME.match(type_name)
+    if not match:
+        return None, f'message type name {type_name!r} is not pkg/Type or pkg/msg/Type'
+    try:
+        return _with_dependencies(type_name, match.group(1), text, share_directory), None
+    except (LookupError, OSError) as error:
         return None, str(error)
 
 

@@ -28,7 +28,7 @@ from ament_index_python.packages import get_package_share_directory
 import pytest
 from qrm_ros.core.names import JOINT_NAMES
 from qrm_ros.node.foxglove_bridge import package_asset
-from qrm_ros.recording.rosbag2_formats import find_message_definition
+from qrm_ros.recording.rosbag2_formats import DEFINITION_DELIMITER, find_message_definition
 from rcl_interfaces.srv import GetParameters, SetParameters
 import rclpy
 from rclpy.context import Context
@@ -341,6 +341,12 @@ def test_the_machine_is_served_for_the_3d_panel_without_robot_state_publisher(ru
     moving = viewer.wait_event('message', topic='/tf')['message']['transforms']
     assert {t['child_frame_id'] for t in fixed}.isdisjoint(t['child_frame_id'] for t in moving)
     assert len(moving) == len(JOINT_NAMES)  # one per moving joint
+    # Nested types are defined as in every other channel (a viewer compares them).
+    tf_schema = viewer.wait_event('advertise', topic='/tf')['schema']
+    markers_schema = viewer.wait_event('advertise', topic='/linkage_markers')['schema']
+    quaternion = 'MSG: geometry_msgs/Quaternion\n'
+    assert (tf_schema.split(quaternion)[1].split(DEFINITION_DELIMITER)[0]
+            == markers_schema.split(quaternion)[1].split(DEFINITION_DELIMITER)[0])
     # Stamped as the joint state they are computed from, which DDS delivered here too.
     wait_for(lambda: _stamp(moving[0]['header']) in {
         m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec
