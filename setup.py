@@ -34,7 +34,7 @@ setup(
         ('share/' + package_name + '/urdf', glob('urdf/*.urdf')),
     ],
     install_requires=['setuptools', 'numpy', 'scipy', 'mcap', 'rosbags', 'matplotlib', 'tqdm',
-                      'numba', 'pyyaml'],
+                      'numba', 'pyyaml', 'foxglove-sdk'],
     extras_require={
         'test': ['pytest', 'flake8', 'pydocstyle', 'mcap-ros2-support', 'pyyaml',
                  'yourdfpy', 'mypy'],
@@ -62,6 +62,7 @@ setup(
             'qrm_urdf = qrm_ros.cli.entry_points:qrm_urdf',
             'qrm_simulate = qrm_ros.cli.entry_points:qrm_simulate',
             'mcap_player = qrm_ros.cli.entry_points:mcap_player',
+            'qrm_bridge = qrm_ros.cli.entry_points:qrm_bridge',
         ],
     },
 )

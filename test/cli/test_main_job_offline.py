@@ -57,3 +57,10 @@ def test_the_main_job_offline_measures_each_offset(tmp_path, capsys):
         assert segment['stroke_pairs'] >= 2
         assert segment['time_ratio_measured'] == pytest.approx(
             kin.time_ratio(kin.Geometry.paper(), segment['offset']), rel=1e-4)
+
+
+def test_offline_and_live_exclude_each_other(capsys):
+    with pytest.raises(SystemExit) as exited:
+        qrm_main.main(['--offline', '--live'])
+    assert exited.value.code == 2
+    assert '--offline and --live exclude each other' in capsys.readouterr().err
