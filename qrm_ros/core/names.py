@@ -83,3 +83,10 @@ ROBOT_DESCRIPTION_TYPE = 'std_msgs/msg/String'
 TF_TOPIC = '/tf'
 TF_STATIC_TOPIC = '/tf_static'
 TF_MESSAGE_TYPE = 'tf2_msgs/msg/TFMessage'
+
+# The Foxglove WebSocket bridge's node name, and what it prints before the ws:// address once
+# it listens (qrm_main --live reads the address from that line).
+__all__ += ['BRIDGE_DEFAULT_PORT', 'BRIDGE_NODE_NAME', 'BRIDGE_SERVING_PREFIX']
+BRIDGE_NODE_NAME = 'qrm_bridge'
+BRIDGE_SERVING_PREFIX = f'{BRIDGE_NODE_NAME}: serving '
+BRIDGE_DEFAULT_PORT = 8765  # the Foxglove app's default for a Foxglove WebSocket connection
