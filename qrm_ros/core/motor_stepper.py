@@ -49,12 +49,13 @@ from qrm_ros.core.motor_kernel_loading import COMPILED_MOTOR_KERNEL
 from qrm_ros.core.motor_segment import (Segment, segment_functions, SegmentFunctions,
                                         SegmentPlan)
 from qrm_ros.core.stepping import checked_limits, wrap_angle
+from qrm_ros.core.stroke_adjustment import fixed_stroke, HeldStroke, StrokeRamp
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
 
 __all__ = ['MotorStepper', 'Simulation', 'simulate']
 
 
-class MotorStepper:
+class MotorStepper(HeldStroke):
     """
     The mechanism under a motor drive: the input speed is a state of the equation of motion.
 
@@ -62,13 +63,14 @@ class MotorStepper:
     from the present stamp, time resets, wrapped angle); the speed command ramps into the
     motor's speed reference. An offset-rate jump is an impulse on the offset only: the
     input's generalised momentum is kept, its speed jumps. Integration and the stall rule:
-    the module's docstring. motor=None runs the shaft free (no motor torque).
+    the module's docstring. motor=None runs the shaft free (no motor torque). Stroke: held.
     """
 
     def __init__(self, geometry: Geometry, mass: dyn.MassProperties, loads: dyn.Loads,
                  motor: Optional[dyn.MotorDrive], input_speed: float, offset: float,
-                 input_acceleration_limit: float, offset_rate_limit: float) -> None:
-        self._geometry = geometry
+                 input_acceleration_limit: float, offset_rate_limit: float,
+                 stroke: Optional[StrokeRamp] = None) -> None:
+        self._geometry = geometry = self._take_stroke(stroke or fixed_stroke(geometry))
         self._plan = SegmentPlan(
             positive('input_acceleration_limit', input_acceleration_limit, 'rad/s^2'),
             positive('offset_rate_limit', offset_rate_limit, 'm/s'))
@@ -126,8 +128,10 @@ class MotorStepper:
             plan.acceleration_limit, plan.offset_rate_limit = limits
         self._changed(change)
 
-    def reset(self, input_speed: float, offset: float) -> None:
+    def reset(self, input_speed: float, offset: float, *,
+              stroke_length: Optional[float] = None) -> None:
         """Input angle to zero; speed, reference and offset set at once; new time base next."""
+        self._held_stroke(stroke_length)
         input_speed = finite('input_speed', input_speed, 'rad/s')
         offset = float(check_offset(self._geometry, offset))
         self._plan.reset(input_speed, offset)
@@ -141,7 +145,8 @@ class MotorStepper:
         self._acceleration_now = None
 
     def restore(self, stamp_ns: int, input_angle: float, input_speed: float, offset: float,
-                speed_reference: Optional[float] = None) -> None:
+                speed_reference: Optional[float] = None, *,
+                stroke_length: Optional[float] = None) -> None:
         """
         Take a recorded state as the present one, at its stamp (to replay a logged run).
 
@@ -151,7 +156,7 @@ class MotorStepper:
         input_angle = finite('input_angle', input_angle, 'rad')
         reference = input_speed if speed_reference is None else speed_reference
         reference = finite('speed_reference', reference, 'rad/s')
-        self.reset(input_speed, offset)
+        self.reset(input_speed, offset, stroke_length=stroke_length)
         self._plan.reference = self._plan.speed_command = reference
         self._angle = wrap_angle(input_angle)
         self._new_base(int(stamp_ns))
@@ -273,10 +278,6 @@ class MotorStepper:
         return Segment(self._plan, self._functions, self._equation)
 
     # State --------------------------------------------------------------------------------
-
-    @property
-    def geometry(self) -> Geometry:
-        return self._geometry
 
     @property
     def stamp_ns(self) -> Optional[int]:
