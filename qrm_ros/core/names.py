@@ -71,3 +71,11 @@ LINKAGE_MARKERS_TOPIC = 'linkage_markers'
 LINKAGE_MARKERS_TYPE = 'visualization_msgs/msg/MarkerArray'
 # What robot_state_publisher publishes the URDF on (display.launch.py, shaper.rviz).
 ROBOT_DESCRIPTION_TOPIC = '/robot_description'
+
+
+# The stroke adjustment (added after the names above; recordings made before it have the
+# five JOINT_NAMES only, and the analysis reads the crank radius's joint when present).
+CRANK_RADIUS_JOINT = 'crank_radius_joint'
+PUBLISHED_JOINT_NAMES = JOINT_NAMES + (CRANK_RADIUS_JOINT,)  # joint_states' order
+TIME_RATIO_STATUS = f'{SIM_NODE_NAME}: time ratio'
+__all__ += ['CRANK_RADIUS_JOINT', 'PUBLISHED_JOINT_NAMES', 'TIME_RATIO_STATUS']

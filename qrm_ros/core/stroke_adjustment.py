@@ -107,7 +107,8 @@ class StrokeRamp:
         self._max_radius = check_max_crank_radius(geometry, max_crank_radius)
         self._rate_limit = positive('stroke_rate_limit', rate_limit, 'm/s')
         self._geometry = geometry
-        self.reset(stroke)
+        self._stroke = self._command = self.check(stroke)
+        self._update_geometry()
 
     def check(self, stroke: float) -> float:
         """Return stroke (m) if the slot allows its crank radius; else KinematicsError."""
@@ -122,10 +123,14 @@ class StrokeRamp:
         self._rate_limit = positive('stroke_rate_limit', rate_limit, 'm/s')
 
     def reset(self, stroke: Optional[float] = None) -> None:
-        """Stroke and command set at once, no ramp (None: to the command in force)."""
-        stroke = self._command if stroke is None else self.check(stroke)
-        self._stroke = self._command = stroke
+        """Stroke and command set at once, no ramp (None: leave both as they are)."""
+        if stroke is None:
+            return
+        self._stroke = self._command = self.check(stroke)
         self._update_geometry()
+
+    def _base_stroke(self) -> float:
+        return float(self._base.ram_stroke)
 
     def advance(self, duration: float) -> None:
         """Move the stroke toward its command for duration (s) at the rate limit."""
@@ -134,20 +139,27 @@ class StrokeRamp:
             self._update_geometry()
 
     def _update_geometry(self) -> None:
+        self._geometry = self.geometry_at(self._stroke, self._geometry)
+
+    def geometry_at(self, stroke: float, known: Optional[Geometry] = None) -> Geometry:
+        """
+        Return the base geometry with the crank radius of a stroke (m).
+
+        The base itself at its own stroke (its radius, not a rounded one), known if it has
+        that radius already (one object per radius: the caches keyed on it keep working).
+        """
         base = self._base
-        radius = float(crank_radius_for_stroke(self._stroke, base.pivot_distance,
-                                               base.ram_height))
-        if radius != self._geometry.crank_radius:
-            # At the base's own stroke the base itself (its radius, not a rounded one).
-            if self._stroke == self.base_stroke:
-                self._geometry = base
-            else:
-                self._geometry = dataclasses.replace(base, crank_radius=radius)
+        if stroke == self.base_stroke:
+            return base
+        radius = float(crank_radius_for_stroke(stroke, base.pivot_distance, base.ram_height))
+        if known is not None and radius == known.crank_radius:
+            return known
+        return dataclasses.replace(base, crank_radius=radius)
 
     @property
     def base_stroke(self) -> float:
         """The stroke of the base geometry's crank radius, m."""
-        return float(self._base.ram_stroke)
+        return self._base_stroke()
 
     @property
     def geometry(self) -> Geometry:

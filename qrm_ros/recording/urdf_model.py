@@ -17,7 +17,8 @@ URDF model of the shaper, generated from a geometry (``qrm_urdf``; no ROS needed
 The real chain is closed; a URDF is a tree. Every moving joint hangs from ``shaper_base``
 and takes the value the node publishes under the same name, so with published joint values
 the pins meet: ``coupling_pin`` lies on the flywheel's slot (its local x axis),
-``crank_pin`` and ``ram_block`` on the lever's slot (its local y axis). The shipped
+``crank_pin`` (at the published crank radius along the crank) and ``ram_block`` on the
+lever's slot (its local y axis). The shipped
 ``urdf/qrm_shaper.urdf`` is this module's output for the default geometry (a test keeps the
 two equal); regenerate it with ``qrm_urdf -o urdf/qrm_shaper.urdf``.
 
@@ -33,7 +34,7 @@ import xml.etree.ElementTree as ET
 
 from qrm_ros.core.geometry import Geometry
 from qrm_ros.core.linkage import COLOURS, linkage_sizes
-from qrm_ros.core.names import JOINT_NAMES
+from qrm_ros.core.names import CRANK_RADIUS_JOINT, JOINT_NAMES
 
 if TYPE_CHECKING:  # the fields it reads; any object with them will do
     from qrm_ros.core.dynamics import MassProperties
@@ -193,10 +194,11 @@ def urdf_text(geometry: Geometry, mass_properties: Optional['MassProperties'] = 
     build.bar(flywheel, (0.0, 0.0), (r * math.cos(phase), r * math.sin(phase)), 0,
               'flywheel_blue')
     build.joint(FLYWHEEL_JOINT, 'continuous', BASE_LINK, 'flywheel', axis=(0.0, 0.0, 1.0))
+    # The crank pin slides along the crank (the stroke screw): its radius is a joint.
     crank_pin = build.link('crank_pin')
     build.pin(crank_pin)
-    build.joint('crank_pin_joint', 'fixed', 'flywheel', 'crank_pin',
-                xyz=(r * math.cos(phase), r * math.sin(phase), 0.0))
+    build.joint(CRANK_RADIUS_JOINT, 'prismatic', 'flywheel', 'crank_pin',
+                axis=(math.cos(phase), math.sin(phase), 0.0), limits=(0.0, h))
 
     # Slotted lever along its local +y; its angle is positive toward +x, i.e. clockwise
     # seen from +z: hence the axis -z.
