@@ -76,6 +76,10 @@ class Samples(NamedTuple):
     offset_rate: np.ndarray
     input_torque: Optional[np.ndarray] = None
     offset_force: Optional[np.ndarray] = None
+    # The crank radius joint (m, m/s); None in recordings made before the node published it
+    # (their crank radius is the geometry's, from the metadata).
+    crank_radius: Optional[np.ndarray] = None
+    crank_radius_rate: Optional[np.ndarray] = None
 
 
 class Lost(NamedTuple):
@@ -240,6 +244,9 @@ def _combine(path: str, run: Run, geometry: kin.Geometry, parts: List[DecodedPar
     position = np.concatenate([part.positions for part in parts])
     velocity = np.concatenate([part.velocities for part in parts])
     effort = np.concatenate([part.efforts for part in parts])
+    radius = np.concatenate([_column(part.crank_radius, part.stamps) for part in parts])
+    radius_rate = np.concatenate([_column(part.crank_radius_rate, part.stamps)
+                                  for part in parts])
     finite = np.isfinite(position).all(axis=1) & np.isfinite(velocity).all(axis=1)
     if not finite.all():
         bad = log_times[~finite]
@@ -247,6 +254,7 @@ def _combine(path: str, run: Run, geometry: kin.Geometry, parts: List[DecodedPar
                                                           int(bad.max())]
     stamps, log_times = stamps[finite], log_times[finite]
     position, velocity, effort = position[finite], velocity[finite], effort[finite]
+    radius, radius_rate = radius[finite], radius_rate[finite]
     # A recorded effort that is not finite is not a measurement: the sample keeps its motion,
     # its efforts count as not recorded (NaN), and how many is listed.
     recorded = ~np.isnan(effort).all(axis=1)
@@ -276,6 +284,10 @@ def _combine(path: str, run: Run, geometry: kin.Geometry, parts: List[DecodedPar
     keep = ~repeat
     stamps, position, velocity = stamps[keep], position[keep], velocity[keep]
     effort = effort[keep]
+    radius, radius_rate = radius[keep], radius_rate[keep]
+    # The crank radius where every sample has it (a recording of this version's node).
+    with_radius = bool(radius.size and np.isfinite(radius).all()
+                       and np.isfinite(radius_rate).all())
     if stamps.size < MIN_SEGMENT_SAMPLES:
         raise AnalysisError(f'{path} holds {stamps.size} usable {JOINT_STATES_TOPIC} messages: '
                             'too few to find any stroke' + _loss_clause(losses, run))
@@ -284,10 +296,16 @@ def _combine(path: str, run: Run, geometry: kin.Geometry, parts: List[DecodedPar
     samples = Samples(time, position[:, 0], velocity[:, 0], position[:, 1], velocity[:, 1],
                       position[:, 3], velocity[:, 3], position[:, 4], velocity[:, 4],
                       effort[:, 0] if with_efforts else None,
-                      effort[:, -1] if with_efforts else None)
+                      effort[:, -1] if with_efforts else None,
+                      radius if with_radius else None, radius_rate if with_radius else None)
     return Recording(path, geometry, samples, run.problem if run.truncated else None,
                      tuple(losses), in_file, read, int((repeat & same).sum()),
                      time_origin_ns=int(stamps[0]))
+
+
+def _column(values: Optional[np.ndarray], stamps: np.ndarray) -> np.ndarray:
+    """Return a decoded part's crank radius column, NaN where it has none."""
+    return np.full(stamps.shape, np.nan) if values is None else values
 
 
 def _loss_clause(losses: Sequence[Lost], run: Run) -> str:

@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 """
-The steady spans of a run: one offset, one commanded input speed, one drive, no gap.
+The steady spans of a run: one offset, one stroke, one commanded input speed, one drive, no gap.
 
 Only whole stroke pairs inside such a span are measured; what lies between two spans (a
 ramp of the offset, a speed change, a load change, a pause or a clock jump) is a transition,
@@ -40,6 +40,7 @@ class Segment(NamedTuple):
     offset: float
     input_speed: float  # rad/s, commanded (setting_speed)
     drive: Optional[Drive] = None  # what drove it (None: no theory of the efforts)
+    crank_radius: Optional[float] = None  # m, recorded (None: the metadata's geometry's)
 
 
 def sample_period(samples: Samples) -> Optional[float]:
@@ -96,10 +97,15 @@ def split_segments(samples: Samples, drives: Sequence[DriveSpan] = ()
                | ~(np.abs(np.diff(speed)) <= STEADY_TOLERANCE * scale) | gap
                | (np.diff(span) != 0))
     steady = samples.offset_rate == 0.0
+    radius = samples.crank_radius
+    if radius is not None and samples.crank_radius_rate is not None:
+        # A stroke change splits as an offset change does: the screw still, one radius.
+        changed = changed | (np.abs(np.diff(radius)) > STEADY_TOLERANCE)
+        steady = steady & (samples.crank_radius_rate == 0.0)
     starts = np.flatnonzero(np.concatenate([[True], changed | (steady[1:] != steady[:-1])]))
     ends = np.append(starts[1:], offset.size)
     segments = [Segment(int(a), int(b), float(offset[a]), float(speed[a]),
-                        drives[span[a]].drive)
+                        drives[span[a]].drive, None if radius is None else float(radius[a]))
                 for a, b in zip(starts, ends) if steady[a] and b - a >= MIN_SEGMENT_SAMPLES]
     transitions = []
     for before, after in zip(segments, segments[1:]):
@@ -112,6 +118,9 @@ def split_segments(samples: Samples, drives: Sequence[DriveSpan] = ()
                            f'the clock jumps back by {-largest:.3f} s')
         if after.offset != before.offset:
             changes.append(f'offset {before.offset * 1e3:g} -> {after.offset * 1e3:g} mm')
+        if after.crank_radius != before.crank_radius:
+            changes.append(f'crank radius {(before.crank_radius or 0.0) * 1e3:g} -> '
+                           f'{(after.crank_radius or 0.0) * 1e3:g} mm (a stroke change)')
         if after.input_speed != before.input_speed:
             changes.append(f'input speed {before.input_speed:g} -> {after.input_speed:g} rad/s')
         changes += drive_differences(before.drive, after.drive)

@@ -56,12 +56,15 @@ def chain_with_stroke_screw(geometry: Geometry, mass: MassProperties, offset: Fl
     arguments = (input_angle, input_speed, input_acceleration, offset_rate,
                  offset_acceleration, external_ram_force, crank_radius_rate,
                  crank_radius_acceleration)
-    offset = check_offset(geometry, offset)
     fields = geometry_fields(geometry)
     r1, r, h, height, phase = fields
-    if all(type(value) is float and math.isfinite(value) for value in (*arguments, *fields)):
+    if (type(offset) is float and abs(offset) < r1  # type: ignore[operator]
+            and all(type(value) is float and math.isfinite(value)
+                    for value in (*arguments, *fields))):
+        # One sample of floats (the node, every tick): math's functions, no array checks.
         return evaluate_chain(SCALAR_OPS, r1, r, h, height, phase, _masses(mass), offset,
                               *arguments)
+    offset = check_offset(geometry, offset)
     units = ('rad', 'rad/s', 'rad/s^2', 'm/s', 'm/s^2', 'N', 'm/s', 'm/s^2')
     names = ('input_angle', 'input_speed', 'input_acceleration', 'offset_rate',
              'offset_acceleration', 'external_ram_force', 'crank_radius_rate',
@@ -80,6 +83,8 @@ def efforts_with_stroke_screw(*arguments: Any, **keywords: Any) -> Tuple[Efforts
     """
     chain = chain_with_stroke_screw(*arguments, **keywords)
     efforts, force = chain.efforts, chain.crank_radius_force
+    if type(force) is float:  # the one-sample path: floats throughout
+        return efforts, force
     if all(np.ndim(value) == 0 for value in (*efforts, force)):
         return Efforts(*(float(value) for value in efforts)), float(force)
     shaped = np.broadcast_arrays(*efforts, force)

@@ -31,7 +31,7 @@ from qrm_ros.core.stroke_timing import time_ratio
 from rclpy.parameter import Parameter
 from std_srvs.srv import Trigger
 
-from shaper_harness import H_PIVOT, NS, pair_values
+from shaper_harness import H_PIVOT, NS
 from test_shaper_sim_motor import pair_reports
 
 RAM_HEIGHT = 0.2

@@ -1,0 +1,79 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+The analysis with a live stroke: segments split on a stroke change, each measured at its
+recorded crank radius and reporting it; the golden logs (five joints) analyse as before.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from qrm_ros.analysis import recorded_run
+from qrm_ros.analysis.measurement import measure_segment, segment_geometry
+from qrm_ros.analysis.segments import split_segments
+from qrm_ros.core.geometry import crank_radius_for_stroke, Geometry
+from qrm_ros.core.stepping import ShaperStepper
+from qrm_ros.core.stroke_adjustment import StrokeRamp
+from qrm_ros.core.stroke_timing import time_ratio
+
+PAPER = Geometry.paper()
+RATE = 1000  # Hz
+
+
+def stroke_change_samples():
+    """3 s at the paper's stroke, a change to 60 mm at 0.1 m/s, 3 s there (1 kHz)."""
+    stepper = ShaperStepper(PAPER, 2 * math.pi, 0.0, 20.0, 0.005,
+                            StrokeRamp(PAPER, 0.07, float(PAPER.ram_stroke), 0.1))
+    rows = []
+    for index in range(int(7.5 * RATE)):
+        stamp = index * 10 ** 9 // RATE
+        if index == 3 * RATE:
+            stepper.set_stroke_command(0.06)
+        s = stepper.advance_to(stamp)
+        radius_rate, _ = stepper.stroke.crank_radius_rates()
+        rows.append((stamp / 1e9, stepper.input_angle, stepper.input_speed, s.flywheel_angle,
+                     s.flywheel_speed, s.ram_position, s.ram_velocity, stepper.offset,
+                     stepper.offset_rate, stepper.stroke.crank_radius, radius_rate))
+    table = np.array(rows)
+    return recorded_run.Samples(*table[:, :9].T, None, None, table[:, 9], table[:, 10])
+
+
+def test_a_stroke_change_splits_the_segments_and_each_reports_its_stroke():
+    samples = stroke_change_samples()
+    segments, transitions = split_segments(samples)
+    assert [segment.crank_radius for segment in segments] == [
+        PAPER.crank_radius, pytest.approx(crank_radius_for_stroke(0.06, 0.113, 0.2),
+                                          rel=1e-15)]
+    assert 'a stroke change' in transitions[0]['change']
+    # The ramp's samples belong to no segment.
+    moving = np.flatnonzero(samples.crank_radius_rate != 0.0)
+    assert segments[0].end <= moving[0] and segments[1].start > moving[-1]
+    for segment, stroke in zip(segments, (float(PAPER.ram_stroke), 0.06)):
+        geometry = segment_geometry(PAPER, segment)
+        assert float(geometry.ram_stroke) == pytest.approx(stroke, rel=1e-12)
+        row = measure_segment(samples, segment, geometry)
+        assert row['stroke_pairs'] >= 2
+        # Measured from the samples against the closed form at the segment's radius.
+        assert row['time_ratio_measured'] == pytest.approx(time_ratio(geometry, 0.0),
+                                                           rel=1e-4)
+    assert row['time_ratio_measured'] < 1.21  # the short stroke's lost quick return
+
+
+def test_a_recording_without_the_crank_radius_joint_is_one_geometry():
+    samples = stroke_change_samples()._replace(crank_radius=None, crank_radius_rate=None)
+    segments, _ = split_segments(samples)
+    assert all(segment.crank_radius is None for segment in segments)
+    assert segment_geometry(PAPER, segments[0]) is PAPER
