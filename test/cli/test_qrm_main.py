@@ -13,6 +13,7 @@
 # limitations under the License.
 """The main job end to end, with a short schedule: real processes, real DDS, real files."""
 
+import dataclasses
 import json
 import math
 import os
@@ -45,7 +46,8 @@ def test_main_job_runs_a_short_schedule_end_to_end(tmp_path, capsys):
         assert (folder / name).is_file(), name
     assert sorted(os.listdir(folder / 'figures')) == sorted(
         ['fig10_time_ratio.png', 'fig11_speed_ratio.png', 'fig12_flywheel_speed.png',
-         'ram_motion.png', 'fig_input_torque.png', 'fig_offset_cost.png', qrm_main.TOUR_FILE])
+         'ram_motion.png', 'fig_input_torque.png', 'fig_offset_cost.png',
+         'fig_time_ratio_stroke.png', qrm_main.TOUR_FILE])
     # the last input revolution (0.5 s) of each offset at 20 frames per second, both ends
     with Image.open(folder / 'figures' / qrm_main.TOUR_FILE) as tour:
         assert (tour.n_frames, tour.size) == (2 * 11, linkage_figure.FRAME_SIZE)
@@ -53,10 +55,22 @@ def test_main_job_runs_a_short_schedule_end_to_end(tmp_path, capsys):
     assert str(folder / 'run.mcap') in out
     document = json.loads((folder / 'results.json').read_text())
     segments = document['segments']
-    assert [s['offset'] for s in segments] == [-0.006, 0.008]  # exactly what was commanded
+    assert [s['offset'] for s in segments[:3]] == [-0.006, 0.008, 0.0]  # as commanded
     geometry = kin.Geometry.paper()
     tolerance = (speed * 0.01) ** 3  # the stroke finder's bound at 100 Hz
-    for segment in segments:
+    # The short-stroke experiment after the schedule: 60 mm at offset 0 (the quick return
+    # lost), then the long stroke's time ratio held by the offset.
+    short = dataclasses.replace(geometry, crank_radius=0.06 * 0.113 / math.sqrt(0.16 + 0.0036))
+    at_zero, held = segments[2], segments[-1]
+    assert len(segments) == 4 and at_zero['stroke_length'] == pytest.approx(0.06, rel=1e-12)
+    assert at_zero['time_ratio_measured'] == pytest.approx(kin.time_ratio_rk4(short, 0.0),
+                                                           rel=tolerance)
+    assert at_zero['time_ratio_measured'] < 1.25
+    assert held['crank_radius'] == at_zero['crank_radius'] and held['offset'] > 0.0
+    assert held['time_ratio_measured'] == pytest.approx(kin.time_ratio(geometry, 0.0),
+                                                        rel=tolerance)
+    assert 'stroke 60.0 mm, time ratio 1.8367 held' in out
+    for segment in segments[:2]:
         assert segment['stroke_pairs'] >= 2
         assert segment['input_speed'] == pytest.approx(speed, rel=1e-15)
         assert segment['time_ratio_measured'] == pytest.approx(
