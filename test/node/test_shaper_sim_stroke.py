@@ -30,6 +30,7 @@ from qrm_ros.core.names import TIME_RATIO_STATUS
 from qrm_ros.core.stroke_timing import time_ratio
 from rclpy.parameter import Parameter
 from std_srvs.srv import Trigger
+from visualization_msgs.msg import MarkerArray
 
 from shaper_harness import H_PIVOT, NS
 from test_shaper_sim_motor import pair_reports
@@ -205,3 +206,31 @@ def test_cutting_speed_hold_follows_a_stroke_change(harness):
     expected = hold_offset(short, 2 * math.pi, 0.25, 'mean').offset
     assert h.shaper.stepper.offset_command == pytest.approx(expected, rel=1e-9)
     assert expected != pytest.approx(hold_offset(base, 2 * math.pi, 0.25, 'mean').offset)
+
+
+def test_a_stroke_length_at_start_up_is_a_command_from_crank_radius(harness):
+    h = harness(spin_shaper=False, stroke_length=0.1, stroke_rate_limit=0.5)
+    assert h.shaper.stepper.stroke.stroke == pytest.approx(0.19983, abs=1e-5)
+    publish_for(h, 5 * NS, 0.5)
+    first, last = h.joint_states[0], h.joint_states[-1]
+    # The crank pin starts from crank_radius and moves: no step to the commanded stroke.
+    assert radius_for(0.1) < first.position[5] < 0.0505 and first.velocity[5] < 0.0
+    assert 0.0505 - first.position[5] < 0.5 * 1e-3  # < stroke rate x dt (dr/dS < 1)
+    assert last.position[5] == pytest.approx(radius_for(0.1), rel=1e-14)
+    assert last.velocity[5] == 0.0
+
+
+def test_the_markers_draw_the_crank_pin_at_the_published_radius(harness):
+    h = harness(spin_shaper=False, stroke_rate_limit=0.05, marker_rate=0.0)
+    arrays = []
+    h.probe.create_subscription(MarkerArray, 'linkage_markers', arrays.append, 10)
+    now = publish_for(h, 5 * NS, 0.1)
+    set_ok(h, stroke_length=0.1)
+    publish_for(h, now, 0.7)
+    assert h.shaper.publish_markers()
+    h.wait_for(lambda: arrays, what='markers')
+    angle, flywheel, _, _, offset, radius = h.joint_states[-1].position
+    assert h.joint_states[-1].velocity[5] < 0.0  # drawn mid-change
+    crank_pin = {(m.ns, m.id): m for m in arrays[-1].markers}['pins', 0].points[1]
+    assert (crank_pin.x, crank_pin.y) == pytest.approx(
+        (radius * math.cos(flywheel), radius * math.sin(flywheel)), abs=1e-12)
