@@ -15,8 +15,9 @@
 The shaper_sim node: the mechanism stepped in time, published as joint states.
 
 A thin adapter: ShaperStepper (qrm_ros.core.stepping) integrates the input angle and moves the
-offset; the kinematics core gives every other state in closed form. The rest has a module of
-its own: the parameters, their rules and effects are data (shaper_parameters) that
+offset and the stroke; the kinematics core gives every other state in closed form. The rest
+has a module of its own: what the parameters command (the stroke, the offset and its holds:
+held_figures), the parameters, their rules and effects are data (shaper_parameters) that
 parameter_services declares and guards through rclpy; the stroke-pair reports are measured
 a step at a time after the ticks (stroke_pair_reports); what goes on /diagnostics is built in
 shaper_diagnostics; marker_schedule says when the linkage markers go out. This module only
@@ -31,8 +32,6 @@ import time
 from typing import Optional
 
 from diagnostic_msgs.msg import DiagnosticArray
-from qrm_ros.core.stroke_adjustment import StrokeRamp
-from qrm_ros.core.stroke_efforts import efforts_with_stroke_screw, lever_radius_coefficient
 from qrm_ros.core.dynamics import (Loads, MassProperties, MotorDrive, parameter_names,
                                    ram_load_force)
 from qrm_ros.core.motor_stepper import MotorStepper
@@ -40,10 +39,12 @@ from qrm_ros.core.stepper import Stepper
 from qrm_ros.core.names import (DIAGNOSTICS_TOPIC, LINKAGE_MARKERS_TOPIC, SIM_NODE_NAME,
                                 SPEED_COMMAND_TOPIC)
 from qrm_ros.core.stepping import ShaperStepper, wrap_angle
+from qrm_ros.core.stroke_adjustment import StrokeRamp
+from qrm_ros.core.stroke_efforts import efforts_with_stroke_screw, lever_radius_coefficient
+from qrm_ros.node.held_figures import HeldFigures
 from qrm_ros.node.marker_schedule import LinkageMarkerSchedule, MarkerScene
 from qrm_ros.node.parameter_services import ShaperParameterNode, WARNING_PERIOD
 from qrm_ros.node.shaper_diagnostics import DriveStatusReport
-from qrm_ros.node.held_figures import HeldFigures
 from qrm_ros.node.shaper_parameters import shown
 from qrm_ros.node.state_publishers import MechanismStatePublishers, MIN_PUBLISHER_DEPTH
 from qrm_ros.node.stroke_pair_reports import StrokePairReports
@@ -169,7 +170,7 @@ class ShaperSimNode(HeldFigures, ShaperParameterNode):
             self.command_offset()
 
     def on_reset(self, request, response):
-        """Serve ~/reset: back to angle 0 at the input_speed and coupling_offset parameters."""
+        """Serve ~/reset: angle 0 at the input_speed, coupling_offset and stroke parameters."""
         del request
         speed, offset = self._values['input_speed'], self._values['coupling_offset']
         stroke = self.stroke_command
