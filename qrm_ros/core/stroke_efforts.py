@@ -23,7 +23,7 @@ in its slot against the lever.
 
 import functools
 import math
-from typing import Any, Dict, Tuple
+from typing import Any, Dict, Optional, Tuple
 
 import numpy as np
 
@@ -38,6 +38,16 @@ __all__ = ['chain_with_stroke_screw', 'efforts_with_stroke_screw', 'lever_radius
 def _masses(mass: MassProperties) -> Dict[str, Any]:
     """Return the masses as a dict, once per (frozen, identity-hashed) object."""
     return mass.as_dict()
+
+
+@functools.lru_cache(maxsize=8)
+def _float_fields(geometry: Geometry) -> Optional[Tuple[float, float, float, float, float]]:
+    """Return the geometry's fields if all are finite floats (once per geometry object)."""
+    r1, r, h, height, phase = geometry_fields(geometry)
+    fields = (r1, r, h, height, phase)
+    if all(type(value) is float and math.isfinite(value) for value in fields):
+        return fields  # type: ignore[return-value]  # floats, checked
+    return None
 
 
 def chain_with_stroke_screw(geometry: Geometry, mass: MassProperties, offset: FloatOrArray,
@@ -56,14 +66,13 @@ def chain_with_stroke_screw(geometry: Geometry, mass: MassProperties, offset: Fl
     arguments = (input_angle, input_speed, input_acceleration, offset_rate,
                  offset_acceleration, external_ram_force, crank_radius_rate,
                  crank_radius_acceleration)
-    fields = geometry_fields(geometry)
-    r1, r, h, height, phase = fields
-    if (type(offset) is float and abs(offset) < r1  # type: ignore[operator]
-            and all(type(value) is float and math.isfinite(value)
-                    for value in (*arguments, *fields))):
+    scalar_fields = _float_fields(geometry)
+    if (scalar_fields is not None and type(offset) is float
+            and abs(offset) < scalar_fields[0]
+            and all(type(value) is float and math.isfinite(value) for value in arguments)):
         # One sample of floats (the node, every tick): math's functions, no array checks.
-        return evaluate_chain(SCALAR_OPS, r1, r, h, height, phase, _masses(mass), offset,
-                              *arguments)
+        return evaluate_chain(SCALAR_OPS, *scalar_fields, _masses(mass), offset, *arguments)
+    r1, r, h, height, phase = geometry_fields(geometry)
     offset = check_offset(geometry, offset)
     units = ('rad', 'rad/s', 'rad/s^2', 'm/s', 'm/s^2', 'N', 'm/s', 'm/s^2')
     names = ('input_angle', 'input_speed', 'input_acceleration', 'offset_rate',

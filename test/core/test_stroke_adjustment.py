@@ -31,6 +31,7 @@ from qrm_ros.core import dynamics as dyn
 from qrm_ros.core.geometry import (crank_radius_for_stroke, Geometry, KinematicsError,
                                    stroke_for_crank_radius)
 from qrm_ros.core.mechanism_state import state
+from qrm_ros.core.motor_stepper import MotorStepper
 from qrm_ros.core.stepping import ShaperStepper
 from qrm_ros.core.stroke_adjustment import (check_stroke, crank_radius_motion,
                                             largest_stroke, StrokeRamp)
@@ -287,3 +288,21 @@ def test_speed_drive_stepper_moves_the_stroke_with_continuous_exact_states():
     assert stepper.stroke.stroke == 0.06 and stepper.stroke.rate == 0.0
     stepper.reset(6.0, 0.0, stroke_length=float(PAPER.ram_stroke))
     assert stepper.geometry is PAPER  # the base's own stroke: its own radius, exactly
+
+
+def test_motor_stepper_holds_the_stroke_and_says_why_it_refuses_a_change():
+    short = StrokeRamp(PAPER, 0.08, 0.1, 0.01)
+    stepper = MotorStepper(PAPER, MASS, dyn.Loads.none(), dyn.MotorDrive.small_shaper(), 6.0,
+                           0.0, 20.0, 0.005, short)
+    assert stepper.geometry is short.geometry
+    assert stepper.geometry.crank_radius == pytest.approx(crank_radius_for_stroke(0.1, 0.113,
+                                                                                  0.2))
+    with pytest.raises(KinematicsError, match=r'stroke_length 0\.06 m refused: the motor drive '
+                                              r'holds the stroke in force \(0\.1 m\)'):
+        stepper.set_stroke_command(0.06)
+    stepper.set_stroke_command(0.1)  # the stroke in force: nothing to refuse
+    stepper.reset(6.0, 0.0, stroke_length=0.1)
+    moving = StrokeRamp(PAPER, 0.08, 0.1, 0.01)
+    moving.set_command(0.06)
+    with pytest.raises(KinematicsError, match='holds the stroke'):
+        MotorStepper(PAPER, MASS, dyn.Loads.none(), None, 6.0, 0.0, 20.0, 0.005, moving)
