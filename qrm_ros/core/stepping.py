@@ -12,11 +12,12 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 """
-Deterministic time stepping of the mechanism's two driven states (no ROS).
+Deterministic time stepping of the mechanism's driven states (no ROS).
 
-Only two quantities are integrated: the input shaft angle (the integral of a speed that
-ramps toward its command at a limited acceleration) and the coupling offset (which moves
-toward its command at a limited rate). Both profiles are piecewise linear in time, so each
+Only three quantities are integrated: the input shaft angle (the integral of a speed that
+ramps toward its command at a limited acceleration), the coupling offset and the ram stroke
+(each moving toward its command at a limited rate; the crank radius follows the stroke in
+closed form, core.stroke_adjustment). The profiles are piecewise linear in time, so each
 step integrates them exactly (a ramp's integral is its trapezoid; an interval in which a ramp
 reaches its command is split there). Everything else is the kinematics core's closed form at
 the stamp, so the state is exact at every stamp whatever the spacing of the stamps.
@@ -89,10 +90,10 @@ def checked_limits(acceleration_limit: float, offset_rate_limit: float,
 
 class ShaperStepper:
     """
-    Input angle, input speed and offset of the mechanism, stepped exactly between stamps.
+    Input angle, input speed, offset and stroke of the mechanism, stepped exactly.
 
-    Rates reported at a stamp (input_acceleration, offset_rate) are the ones that apply
-    from that stamp on, given the commands known then.
+    Rates reported at a stamp (input_acceleration, offset_rate, the stroke's) are the ones
+    that apply from that stamp on, given the commands known then.
 
     Time going backwards (a simulated clock restarted) integrates nothing: the held state
     is returned at the new stamp, which becomes the new time base, and time_resets counts
@@ -137,7 +138,7 @@ class ShaperStepper:
         """
         Input angle to zero; speed, offset and stroke (state and command) set at once.
 
-        No ramp; stroke_length None: the stroke command in force. The next step starts a new
+        No ramp; stroke_length None: the stroke left as it is. The next step starts a new
         time base (it returns this state at its stamp).
         """
         input_speed = finite('input_speed', input_speed, 'rad/s')
