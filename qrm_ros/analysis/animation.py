@@ -165,7 +165,9 @@ def render_frames(figure: LinkageFigure, samples: Samples, indices: Iterable[int
         yield index, figure.draw(samples.input_angle[index], offset, time,
                                  samples.ram_velocity[index],
                                  ratio_text(row_at(time)),
-                                 None if efforts is None else efforts[index])
+                                 None if efforts is None else efforts[index],
+                                 None if samples.crank_radius is None
+                                 else float(samples.crank_radius[index]))
 
 
 def read_efforts(path: str, samples: Samples) -> Optional[np.ndarray]:

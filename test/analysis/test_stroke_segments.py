@@ -16,15 +16,19 @@ The analysis with a live stroke: segments split on a stroke change, each measure
 recorded crank radius and reporting it; the golden logs (five joints) analyse as before.
 """
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 
 from qrm_ros.analysis import recorded_run
+from qrm_ros.analysis.animation import render_frames
+from qrm_ros.analysis.linkage_figure import LinkageFigure
 from qrm_ros.analysis.measurement import measure_segment, segment_geometry
 from qrm_ros.analysis.segments import split_segments
 from qrm_ros.core.geometry import crank_radius_for_stroke, Geometry
+from qrm_ros.core.mechanism_state import state
 from qrm_ros.core.stepping import ShaperStepper
 from qrm_ros.core.stroke_adjustment import StrokeRamp
 from qrm_ros.core.stroke_timing import time_ratio
@@ -77,3 +81,20 @@ def test_a_recording_without_the_crank_radius_joint_is_one_geometry():
     segments, _ = split_segments(samples)
     assert all(segment.crank_radius is None for segment in segments)
     assert segment_geometry(PAPER, segments[0]) is PAPER
+
+
+def test_the_animation_draws_the_recorded_crank_radius():
+    samples = stroke_change_samples()
+    figure = LinkageFigure(PAPER, samples.time, samples.ram_velocity)
+    try:
+        for index in (100, 3500, 7000):  # before, during and after the stroke change
+            for _ in render_frames(figure, samples, [index], lambda time: None):
+                pass
+            drawn = figure.drawn_points()
+            radius = samples.crank_radius[index]
+            geometry = dataclasses.replace(PAPER, crank_radius=float(radius))
+            expected = state(geometry, samples.offset[index], samples.input_angle[index], 1.0)
+            assert np.hypot(*drawn['crank_pin']) == pytest.approx(radius, rel=1e-12)
+            assert drawn['ram_block'][0] == pytest.approx(expected.ram_position, abs=1e-12)
+    finally:
+        figure.close()
