@@ -14,6 +14,9 @@
 """
 ``qrm_urdf``: write the URDF of the shaper for a geometry (qrm_ros.recording.urdf_model).
 
+``--foxglove-layout FILE`` also writes the Foxglove layout whose 3D panel frames that machine
+(qrm_ros.recording.foxglove_layout).
+
 Exit status: 0 written; 1 the file could not be written; 2 bad geometry (one line says why).
 """
 
@@ -24,6 +27,8 @@ from typing import Optional, Sequence
 from qrm_ros.cli.arguments import add_geometry_arguments, geometry_from_arguments
 from qrm_ros.cli.exit_codes import EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_OK
 from qrm_ros.core.geometry import KinematicsError
+from qrm_ros.recording.atomic_files import staged_outputs
+from qrm_ros.recording.foxglove_layout import foxglove_layout_text
 from qrm_ros.recording.urdf_model import urdf_text, write_urdf
 
 
@@ -35,6 +40,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                     'default geometry, the paper\'s Table 1).')
     parser.add_argument('-o', '--output', metavar='FILE',
                         help='write to FILE (default: standard output)')
+    parser.add_argument('--foxglove-layout', metavar='FILE',
+                        help='also write the Foxglove layout framing this machine to FILE '
+                             '(config/foxglove_layout.json is the default geometry\'s)')
     add_geometry_arguments(parser)
     args = parser.parse_args(argv)
     try:
@@ -43,11 +51,16 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             write_urdf(args.output, geometry)
         else:
             sys.stdout.write(urdf_text(geometry))
+        if args.foxglove_layout:
+            with staged_outputs() as stage:
+                with open(stage(args.foxglove_layout), 'w') as layout:
+                    layout.write(foxglove_layout_text(geometry))
     except KinematicsError as error:
         print(f'qrm_urdf: error: {error}', file=sys.stderr)
         return EXIT_BAD_INPUT
     except OSError as error:
-        print(f'qrm_urdf: error: {error.filename or args.output}: {error.strerror}',
+        print(f'qrm_urdf: error: {error.filename or args.output or args.foxglove_layout}: '
+              f'{error.strerror}',
               file=sys.stderr)
         return EXIT_FAILURE
     return EXIT_OK

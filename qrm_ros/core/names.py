@@ -23,12 +23,19 @@ __all__ = ['CUTTING_SPEED_STATUS', 'DIAGNOSTICS_TOPIC', 'DRIVE_STATUS', 'DRIVES'
            'LINKAGE_MARKERS_TOPIC', 'LINKAGE_MARKERS_TYPE', 'MOTOR_DRIVE', 'MOTOR_PREFIX',
            'PARAMETER_EVENTS_TOPIC', 'PARAMETERS_METADATA', 'RAM_TWIST_TOPIC',
            'RECORDER_NODE_NAME', 'ROBOT_DESCRIPTION_TOPIC', 'SIM_NODE_NAME',
-           'SPEED_COMMAND_TOPIC', 'SPEED_DRIVE', 'STROKE_PAIR_STATUS', 'absolute_topic']
+           'SPEED_COMMAND_TOPIC', 'SPEED_DRIVE', 'STROKE_PAIR_STATUS', 'absolute_topic',
+           'MACHINE_NAME', 'ROBOT_DESCRIPTION_TYPE', 'TF_MESSAGE_TYPE', 'TF_STATIC_TOPIC',
+           'TF_TOPIC']
 
 SIM_NODE_NAME = 'shaper_sim'
+# The machine itself: the URDF's robot name and the hardware_id of the node's diagnostics
+# (diagnostic_updater's convention: status names start with the node's name, hardware_id
+# names the hardware).
+MACHINE_NAME = 'qrm_shaper'
 RECORDER_NODE_NAME = 'mcap_recorder'
 
-# Order of the joints in every JointState the node publishes (and the URDF's joint names).
+# Order of the joints in every JointState the node publishes (and the URDF's joint names);
+# the node publishes the crank radius's joint after them (PUBLISHED_JOINT_NAMES, below).
 JOINT_NAMES = ('input_shaft_joint', 'flywheel_joint', 'lever_joint', 'ram_joint',
                'coupling_offset_joint')
 
@@ -71,11 +78,18 @@ LINKAGE_MARKERS_TOPIC = 'linkage_markers'
 LINKAGE_MARKERS_TYPE = 'visualization_msgs/msg/MarkerArray'
 # What robot_state_publisher publishes the URDF on (display.launch.py, shaper.rviz).
 ROBOT_DESCRIPTION_TOPIC = '/robot_description'
+ROBOT_DESCRIPTION_TYPE = 'std_msgs/msg/String'
+# The links' transforms a recording carries beside the joint states (what
+# robot_state_publisher would publish), for viewers that draw the URDF.
+TF_TOPIC = '/tf'
+TF_STATIC_TOPIC = '/tf_static'
+TF_MESSAGE_TYPE = 'tf2_msgs/msg/TFMessage'
 
 
 # The stroke adjustment (added after the names above; recordings made before it have the
 # five JOINT_NAMES only, and the analysis reads the crank radius's joint when present).
 CRANK_RADIUS_JOINT = 'crank_radius_joint'
 PUBLISHED_JOINT_NAMES = JOINT_NAMES + (CRANK_RADIUS_JOINT,)  # joint_states' order
+# DiagnosticStatus name of the time-ratio hold (time_ratio_target).
 TIME_RATIO_STATUS = f'{SIM_NODE_NAME}: time ratio'
 __all__ += ['CRANK_RADIUS_JOINT', 'PUBLISHED_JOINT_NAMES', 'TIME_RATIO_STATUS']

@@ -19,7 +19,9 @@ Foxglove and the ``rosbags`` library open it unchanged (the text formats are in
 ``rosbag2_formats``, the file itself in ``mcap_run_file``). On top of that the run is made
 self-describing with two metadata records read from the sim node's parameter services:
 ``qrm_ros.geometry`` (the five geometry parameters, ``repr(float)`` strings) and
-``qrm_ros.parameters`` (every parameter, JSON-encoded).
+``qrm_ros.parameters`` (every parameter, JSON-encoded). With the geometry it also writes the
+machine beside the joint states (``machine_channels``): the URDF on ``/robot_description``
+and the links' transforms on ``/tf_static`` and ``/tf``, so a viewer draws it moving.
 
 Run it with the ``mcap_recorder`` command (qrm_ros.cli.mcap_recorder), which also finishes a
 file left unfinished.
@@ -39,11 +41,13 @@ from rclpy.parameter import parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from qrm_ros.core.geometry import Geometry
+from qrm_ros.core.geometry import Geometry, KinematicsError
+from qrm_ros.recording.machine_channels import MachineChannels
+from qrm_ros.recording.machine_transforms import preload_typestore
 from qrm_ros.recording.mcap_run_file import COMPRESSIONS, ConfigurationError, McapRunFile
-from qrm_ros.core.names import (DIAGNOSTICS_TOPIC, GEOMETRY_METADATA, JOINT_STATES_TOPIC,
-                                PARAMETER_EVENTS_TOPIC, PARAMETERS_METADATA, RAM_TWIST_TOPIC,
-                                RECORDER_NODE_NAME, SPEED_COMMAND_TOPIC)
+from qrm_ros.core.names import (DIAGNOSTICS_TOPIC, GEOMETRY_METADATA, JOINT_STATE_TYPE,
+                                JOINT_STATES_TOPIC, PARAMETER_EVENTS_TOPIC, PARAMETERS_METADATA,
+                                RAM_TWIST_TOPIC, RECORDER_NODE_NAME, SPEED_COMMAND_TOPIC)
 from qrm_ros.node.ros_process import MESSAGE_INFO_SIGNATURE, message_and_info
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
 
@@ -158,6 +162,8 @@ class Recorder(Node):
         chunk_duration_ns = round(self.settings['max_chunk_duration'] * NANOSECONDS_PER_SECOND)
         self.run_file = McapRunFile(self.settings['output'],
                                     COMPRESSIONS[self.settings['compression']], chunk_duration_ns)
+        self.machine = MachineChannels(self.run_file)
+        preload_typestore()
         self._wanted = {self.resolve_topic_name(topic): topic
                         for topic in self.settings['topics']}
         self._recorded_topics = {}
@@ -265,11 +271,17 @@ class Recorder(Node):
             self.get_logger().warning(f'{topic}: {problem}; recording without a schema')
         channel_id = self.run_file.add_channel(topic, type_name, offered, type_hash)
         write = self.run_file.add_message
+        joint_states = (type_name == JOINT_STATE_TYPE
+                        and topic == self.resolve_topic_name(JOINT_STATES_TOPIC))
+        machine = self.machine.joint_state
 
         def on_message(*arguments):
             data, info = message_and_info(arguments)  # either executor (ros_process)
             received = info.get('received_timestamp') or time.time_ns()
-            write(channel_id, received, info.get('source_timestamp') or received, data)
+            sent = info.get('source_timestamp') or received
+            write(channel_id, received, sent, data)
+            if joint_states:
+                machine(received, sent, data)
         on_message.__signature__ = MESSAGE_INFO_SIGNATURE  # so that rclpy passes the info
 
         self._recorded_topics[topic] = self.create_subscription(
@@ -315,6 +327,8 @@ class Recorder(Node):
         for name, data in records:
             self.run_file.add_metadata(name, data)
         self._metadata_done = True
+        if not missing:
+            self._start_machine(parameters)
         self._release_sim_parameter_clients()
         if missing:
             self.get_logger().warning(
@@ -322,6 +336,16 @@ class Recorder(Node):
                 f'no {GEOMETRY_METADATA} record written')
         self.get_logger().info(f'stored {len(parameters)} parameters of '
                                f'{self.settings["sim_node"]} in the file metadata')
+
+    def _start_machine(self, parameters):
+        try:
+            geometry = Geometry(**{name: float(parameters[name]) for name in GEOMETRY_PARAMETERS})
+        except (KinematicsError, ValueError) as error:
+            self.get_logger().warning(f'the sim\'s geometry is not a mechanism ({error}): no '
+                                      'URDF or transforms are recorded')
+            return
+        self.machine.start(geometry, time.time_ns())
+        self.get_logger().info('recording the machine: its URDF and its links\' transforms')
 
     def _release_sim_parameter_clients(self):
         # AsyncParameterClient has no destroy(): its six service clients would stay in every
@@ -339,6 +363,10 @@ class Recorder(Node):
             idle = idle + 1 if self.run_file.message_count == before else 0
 
     def finish(self):
+        if self.machine.started and self.machine.dropped:
+            self.get_logger().warning(f'{self.machine.dropped} joint states have no transforms '
+                                      '(undecodable, a joint missing or not finite, or recorded '
+                                      'long before the geometry was known)')
         if not self._metadata_done:
             self.get_logger().warning(
                 f'{self.settings["sim_node"]} never answered: the file has no '

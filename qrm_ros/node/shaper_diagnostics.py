@@ -16,7 +16,8 @@ What the shaper_sim node says on /diagnostics, as DiagnosticArray messages.
 
 Three statuses: a stroke pair's measured figures (with their theory and the cutting speed
 held), the motor drive's stall, the cutting-speed hold. Their names are in qrm_ros.core.names
-(the main job and the analysis read them back).
+(the main job and the analysis read them back); their hardware_id is the machine's
+(diagnostic_updater's convention: viewers show ``hardware_id: name``).
 """
 
 import math
@@ -26,7 +27,7 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from qrm_ros.core.cutting_speed_hold import CUTTING_SPEED_FIGURES, HoldAnswer
 from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.names import (CUTTING_SPEED_STATUS, DRIVE_STATUS, SIM_NODE_NAME,
+from qrm_ros.core.names import (CUTTING_SPEED_STATUS, DRIVE_STATUS, MACHINE_NAME,
                                 STROKE_PAIR_STATUS, TIME_RATIO_STATUS)
 from qrm_ros.core.stroke_monitor import PairReport
 from qrm_ros.node.linkage_markers import stamp_message
@@ -79,7 +80,7 @@ def stroke_pair_status(report: PairReport, effort_theory: List[KeyValue],
     measured = report.measured
     steady = 'steady' if report.steady else 'NOT steady (ratios mixed)'
     status = DiagnosticStatus(
-        level=DiagnosticStatus.OK, name=STROKE_PAIR_STATUS, hardware_id=SIM_NODE_NAME,
+        level=DiagnosticStatus.OK, name=STROKE_PAIR_STATUS, hardware_id=MACHINE_NAME,
         message=(f'TR {measured["time_ratio"]:.4f}, SR {measured["speed_ratio"]:.4f} '
                  f'(peak {measured["peak_speed_ratio"]:.4f}) at offset '
                  f'{report.coupling_offset:.6g} m, {report.input_speed:.6g} rad/s, stroke '
@@ -102,7 +103,7 @@ def cutting_speed_status(values: Mapping[str, object], answer: HoldAnswer,
         KeyValue(key='reachable_min', value=repr(answer.reachable[0])),
         KeyValue(key='reachable_max', value=repr(answer.reachable[1]))]
     status = DiagnosticStatus(level=level, name=CUTTING_SPEED_STATUS,
-                              hardware_id=SIM_NODE_NAME, message=text, values=key_values)
+                              hardware_id=MACHINE_NAME, message=text, values=key_values)
     return _array(status, stamp)
 
 
@@ -122,7 +123,7 @@ def time_ratio_status(values: Mapping[str, object], answer: HoldAnswer, geometry
         KeyValue(key='reachable_min', value=repr(answer.reachable[0])),
         KeyValue(key='reachable_max', value=repr(answer.reachable[1]))]
     status = DiagnosticStatus(level=level, name=TIME_RATIO_STATUS,
-                              hardware_id=SIM_NODE_NAME, message=text, values=key_values)
+                              hardware_id=MACHINE_NAME, message=text, values=key_values)
     return _array(status, stamp)
 
 
@@ -157,6 +158,6 @@ class DriveStatusReport:
                 self._logger.error(text)
         values = [KeyValue(key='stalled', value=str(reason is not None).lower()),
                   KeyValue(key='motor_torque', value=repr(stepper.motor_torque))]
-        status = DiagnosticStatus(level=level, name=DRIVE_STATUS, hardware_id=SIM_NODE_NAME,
+        status = DiagnosticStatus(level=level, name=DRIVE_STATUS, hardware_id=MACHINE_NAME,
                                   message=text, values=values)
         self._publisher.publish(_array(status, stamp_message(stamp_ns)))

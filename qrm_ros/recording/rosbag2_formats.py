@@ -36,7 +36,8 @@ if TYPE_CHECKING:  # the recorder hands over rclpy's profiles; this module never
     from rclpy.qos import QoSProfile
 
 __all__ = ['DEFINITION_DELIMITER', 'find_message_definition', 'offered_qos_profiles_yaml',
-           'qos_profile_yaml_lines', 'rosbag2_metadata_yaml', 'NO_QOS_PROFILES', 'TopicSummary']
+           'publisher_qos_profile_yaml', 'qos_profile_yaml_lines', 'rosbag2_metadata_yaml',
+           'NO_QOS_PROFILES', 'TopicSummary']
 
 DEFINITION_DELIMITER = '=' * 80 + '\n'
 NO_QOS_PROFILES = '[]'
@@ -140,6 +141,26 @@ def offered_qos_profiles_yaml(profiles: Sequence['QoSProfile']) -> str:
     if not profiles:
         return NO_QOS_PROFILES
     return '\n'.join(line for p in profiles for line in qos_profile_yaml_lines(p))
+
+
+# rmw's "infinite" duration (RMW_DURATION_INFINITE), as a publisher's offered profile reports
+# its unset deadline, lifespan and lease duration.
+_INFINITE_SECONDS, _INFINITE_NANOSECONDS = divmod(2 ** 63 - 1, NANOSECONDS_PER_SECOND)
+
+
+def publisher_qos_profile_yaml(reliability: str, durability: str) -> str:
+    """
+    One publisher's offered profile as rosbag2 records it, for messages written without ROS.
+
+    What a discovered publisher reports: history unknown, depth 0, durations infinite, automatic
+    liveliness; ``reliability`` 'reliable' or 'best_effort', ``durability`` 'volatile' or
+    'transient_local' (a latched topic, replayed to late subscribers).
+    """
+    infinite = [f'    sec: {_INFINITE_SECONDS}', f'    nsec: {_INFINITE_NANOSECONDS}']
+    return '\n'.join(['- history: unknown', '  depth: 0', f'  reliability: {reliability}',
+                      f'  durability: {durability}', '  deadline:', *infinite, '  lifespan:',
+                      *infinite, '  liveliness: automatic', '  liveliness_lease_duration:',
+                      *infinite, '  avoid_ros_namespace_conventions: false'])
 
 
 # --- the rosbag2 metadata record -----------------------------------------------------------

@@ -29,19 +29,20 @@ Numbers are written with 12 significant digits, so the file is the same on every
 import math
 import os
 import tempfile
-from typing import Optional, TYPE_CHECKING
+from typing import Dict, NamedTuple, Optional, Tuple, TYPE_CHECKING
 import xml.etree.ElementTree as ET
 
 from qrm_ros.core.geometry import Geometry
 from qrm_ros.core.linkage import COLOURS, linkage_sizes
-from qrm_ros.core.names import CRANK_RADIUS_JOINT, JOINT_NAMES
+from qrm_ros.core.names import CRANK_RADIUS_JOINT, JOINT_NAMES, MACHINE_NAME
 
 if TYPE_CHECKING:  # the fields it reads; any object with them will do
     from qrm_ros.core.dynamics import MassProperties
 
-__all__ = ['BASE_LINK', 'ROBOT_NAME', 'URDF_FILE_NAME', 'urdf_text', 'write_urdf']
+__all__ = ['BASE_LINK', 'ROBOT_NAME', 'URDF_FILE_NAME', 'UrdfJoint', 'urdf_joints', 'urdf_text',
+           'write_urdf']
 
-ROBOT_NAME = 'qrm_shaper'
+ROBOT_NAME = MACHINE_NAME
 URDF_FILE_NAME = ROBOT_NAME + '.urdf'
 BASE_LINK = 'shaper_base'
 (INPUT_SHAFT_JOINT, FLYWHEEL_JOINT, LEVER_JOINT, RAM_JOINT,
@@ -50,6 +51,50 @@ BASE_LINK = 'shaper_base'
 # no actuator limits on these, so they are written as effectively unbounded (N or N m, and
 # m/s or rad/s).
 UNBOUNDED = 1e9
+
+
+class UrdfJoint(NamedTuple):
+    """One joint of the model: its frame (origin in the parent, rpy 0), axis and range."""
+
+    name: str
+    kind: str  # 'fixed', 'continuous', 'revolute' or 'prismatic'
+    parent: str
+    child: str
+    origin: Tuple[float, float, float]  # m, in the parent link's frame
+    axis: Optional[Tuple[float, float, float]] = None
+    limits: Optional[Tuple[float, float]] = None  # rad or m
+
+
+def urdf_joints(geometry: Geometry) -> Dict[str, UrdfJoint]:
+    """
+    Every joint of the model, by name: the one table the URDF and the recorded transforms share.
+
+    Moving joints take the value the node publishes under the same name; the fixed ones place
+    the pins.
+    """
+    sizes = linkage_sizes(geometry)
+    r1, r = geometry.coupling_radius, geometry.crank_radius
+    h, phase = geometry.pivot_distance, geometry.crank_phase
+    half_stroke = 0.5 * float(geometry.ram_stroke)
+    z_axis = (0.0, 0.0, 1.0)
+    joints = [
+        UrdfJoint(COUPLING_OFFSET_JOINT, 'prismatic', BASE_LINK, 'input_carriage',
+                  (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), (-r1, r1)),
+        UrdfJoint(INPUT_SHAFT_JOINT, 'continuous', 'input_carriage', 'input_crank',
+                  (0.0, 0.0, 0.0), z_axis),
+        UrdfJoint('coupling_pin_joint', 'fixed', 'input_crank', 'coupling_pin', (r1, 0.0, 0.0)),
+        UrdfJoint(FLYWHEEL_JOINT, 'continuous', BASE_LINK, 'flywheel', (0.0, 0.0, 0.0), z_axis),
+        # The crank pin slides along the crank (the stroke screw): its radius is a joint.
+        UrdfJoint(CRANK_RADIUS_JOINT, 'prismatic', 'flywheel', 'crank_pin', (0.0, 0.0, 0.0),
+                  (math.cos(phase), math.sin(phase), 0.0), (0.0, h)),
+        # The lever's angle is positive toward +x, i.e. clockwise seen from +z: axis -z.
+        UrdfJoint(LEVER_JOINT, 'revolute', BASE_LINK, 'lever', (0.0, -h, 0.0),
+                  (0.0, 0.0, -1.0), (-sizes.max_lever_angle, sizes.max_lever_angle)),
+        UrdfJoint(RAM_JOINT, 'prismatic', BASE_LINK, 'ram', (0.0, sizes.ram_line_height, 0.0),
+                  (1.0, 0.0, 0.0), (-half_stroke, half_stroke)),
+        UrdfJoint('ram_block_joint', 'fixed', 'ram', 'ram_block', (0.0, 0.0, 0.0)),
+    ]
+    return {joint.name: joint for joint in joints}
 
 
 def _number(value):
@@ -106,16 +151,18 @@ class _Builder:
         self.disc(link, self.sizes.pin_radius, 0.5, 'pin_black', xy,
                   thickness=6.0 * self.sizes.bar_width)
 
-    def joint(self, name, kind, parent, child, xyz=(0.0, 0.0, 0.0), axis=None, limits=None):
-        joint = ET.SubElement(self.robot, 'joint', name=name, type=kind)
-        ET.SubElement(joint, 'origin', xyz=_vector(*xyz), rpy='0 0 0')
-        ET.SubElement(joint, 'parent', link=parent)
-        ET.SubElement(joint, 'child', link=child)
-        if axis is not None:
-            ET.SubElement(joint, 'axis', xyz=_vector(*axis))
-        if limits is not None:
-            ET.SubElement(joint, 'limit', lower=_number(limits[0]), upper=_number(limits[1]),
-                          effort=_number(UNBOUNDED), velocity=_number(UNBOUNDED))
+    def joint(self, spec):
+        """Add the joint of a UrdfJoint."""
+        joint = ET.SubElement(self.robot, 'joint', name=spec.name, type=spec.kind)
+        ET.SubElement(joint, 'origin', xyz=_vector(*spec.origin), rpy='0 0 0')
+        ET.SubElement(joint, 'parent', link=spec.parent)
+        ET.SubElement(joint, 'child', link=spec.child)
+        if spec.axis is not None:
+            ET.SubElement(joint, 'axis', xyz=_vector(*spec.axis))
+        if spec.limits is not None:
+            ET.SubElement(joint, 'limit', lower=_number(spec.limits[0]),
+                          upper=_number(spec.limits[1]), effort=_number(UNBOUNDED),
+                          velocity=_number(UNBOUNDED))
 
     def inertial(self, link, mass, inertia_zz, xyz=(0.0, 0.0, 0.0)):
         """
@@ -158,6 +205,7 @@ def urdf_text(geometry: Geometry, mass_properties: Optional['MassProperties'] = 
     r1, r = geometry.coupling_radius, geometry.crank_radius
     h, phase = geometry.pivot_distance, geometry.crank_phase
     build = _Builder(sizes)
+    joints = urdf_joints(geometry)
     width = sizes.bar_width
 
     # Fixed frame: column from the flywheel axis down to the lever pivot, bearings, ram
@@ -173,17 +221,15 @@ def urdf_text(geometry: Geometry, mass_properties: Optional['MassProperties'] = 
     # The input shaft's carriage, moved along y by the offset actuator.
     carriage = build.link('input_carriage')
     build.disc(carriage, 2.0 * sizes.pin_radius, 1, 'frame_grey')
-    build.joint(COUPLING_OFFSET_JOINT, 'prismatic', BASE_LINK, 'input_carriage',
-                axis=(0.0, 1.0, 0.0), limits=(-r1, r1))
+    build.joint(joints[COUPLING_OFFSET_JOINT])
 
     input_crank = build.link('input_crank')
     build.disc(input_crank, sizes.pin_radius * 1.6, 1, 'input_orange')
     build.bar(input_crank, (0.0, 0.0), (r1, 0.0), 1, 'input_orange')
-    build.joint(INPUT_SHAFT_JOINT, 'continuous', 'input_carriage', 'input_crank',
-                axis=(0.0, 0.0, 1.0))
+    build.joint(joints[INPUT_SHAFT_JOINT])
     coupling_pin = build.link('coupling_pin')
     build.pin(coupling_pin)
-    build.joint('coupling_pin_joint', 'fixed', 'input_crank', 'coupling_pin', xyz=(r1, 0.0, 0.0))
+    build.joint(joints['coupling_pin_joint'])
 
     # Flywheel (bull gear) with the coupling's radial slot along its local x axis and the
     # crank at the crank phase.
@@ -193,20 +239,15 @@ def urdf_text(geometry: Geometry, mass_properties: Optional['MassProperties'] = 
               width=0.6 * width)
     build.bar(flywheel, (0.0, 0.0), (r * math.cos(phase), r * math.sin(phase)), 0,
               'flywheel_blue')
-    build.joint(FLYWHEEL_JOINT, 'continuous', BASE_LINK, 'flywheel', axis=(0.0, 0.0, 1.0))
-    # The crank pin slides along the crank (the stroke screw): its radius is a joint.
+    build.joint(joints[FLYWHEEL_JOINT])
     crank_pin = build.link('crank_pin')
     build.pin(crank_pin)
-    build.joint(CRANK_RADIUS_JOINT, 'prismatic', 'flywheel', 'crank_pin',
-                axis=(math.cos(phase), math.sin(phase), 0.0), limits=(0.0, h))
+    build.joint(joints[CRANK_RADIUS_JOINT])
 
-    # Slotted lever along its local +y; its angle is positive toward +x, i.e. clockwise
-    # seen from +z: hence the axis -z.
+    # Slotted lever along its local +y (its joint turns about -z: see urdf_joints).
     lever = build.link('lever')
     build.bar(lever, (0.0, 0.0), (0.0, sizes.lever_length), 2, 'lever_green')
-    build.joint(LEVER_JOINT, 'revolute', BASE_LINK, 'lever', xyz=(0.0, -h, 0.0),
-                axis=(0.0, 0.0, -1.0),
-                limits=(-sizes.max_lever_angle, sizes.max_lever_angle))
+    build.joint(joints[LEVER_JOINT])
 
     # Ram on its line, H above the pivot; the tool hangs from its front (-x) end.
     ram = build.link('ram')
@@ -214,12 +255,10 @@ def urdf_text(geometry: Geometry, mass_properties: Optional['MassProperties'] = 
                  xyz=(0.0, 0.0, 3 * width))
     front = -0.5 * sizes.ram_length
     build.bar(ram, (front, 0.0), (front, -sizes.tool_drop), 3, 'tool_yellow')
-    half_stroke = 0.5 * float(geometry.ram_stroke)
-    build.joint(RAM_JOINT, 'prismatic', BASE_LINK, 'ram', xyz=(0.0, sizes.ram_line_height, 0.0),
-                axis=(1.0, 0.0, 0.0), limits=(-half_stroke, half_stroke))
+    build.joint(joints[RAM_JOINT])
     ram_block = build.link('ram_block')
     build.pin(ram_block)
-    build.joint('ram_block_joint', 'fixed', 'ram', 'ram_block')
+    build.joint(joints['ram_block_joint'])
 
     if mass_properties is not None:
         build.inertial(input_crank, 0.0, mass_properties.input_inertia)

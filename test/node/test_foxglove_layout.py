@@ -13,24 +13,32 @@
 # limitations under the License.
 """
 The Foxglove layout names only topics and fields that exist: in the message types the node
-publishes, and in a recording made by the real node and recorder (the golden logs).
+publishes, and in a recording made by the real node and recorder (the golden logs). It is the
+one generated from the geometry, and its camera frames the machine as the URDF draws it.
 """
 
 import json
+import math
 import os
 import re
 
 from ament_index_python.packages import get_package_share_directory
+import numpy as np
 import pytest
 from rosbags.typesys import get_types_from_msg, get_typestore, Stores
 from rosbags.typesys.base import Nodetype
 
 from qrm_ros.recording.bag_reader import open_run
+from qrm_ros.core import kinematics as kin
 from qrm_ros.core.names import (absolute_topic, DIAGNOSTICS_TOPIC, JOINT_NAMES, JOINT_STATE_TYPE,
                                 JOINT_STATES_TOPIC, LINKAGE_MARKERS_TOPIC, LINKAGE_MARKERS_TYPE,
-                                RAM_TWIST_TOPIC, SIM_NODE_NAME, STROKE_PAIR_STATUS)
-from qrm_ros.recording.urdf_model import BASE_LINK
-from repo_paths import TEST_DATA
+                                MACHINE_NAME, RAM_TWIST_TOPIC, ROBOT_DESCRIPTION_TOPIC,
+                                ROBOT_DESCRIPTION_TYPE, STROKE_PAIR_STATUS)
+from qrm_ros.cli.qrm_urdf import main as qrm_urdf
+from qrm_ros.recording.foxglove_layout import (foxglove_layout_text, machine_view_bounds,
+                                               PANEL_ASPECT)
+from qrm_ros.recording.urdf_model import BASE_LINK, write_urdf
+from repo_paths import REPO_ROOT, TEST_DATA
 
 GOLDEN = os.path.join(TEST_DATA, 'steady_positive_offset.mcap')
 # What the node publishes, by recorded topic name.
@@ -39,6 +47,7 @@ PUBLISHED = {
     absolute_topic(RAM_TWIST_TOPIC): 'geometry_msgs/msg/TwistStamped',
     absolute_topic(DIAGNOSTICS_TOPIC): 'diagnostic_msgs/msg/DiagnosticArray',
     absolute_topic(LINKAGE_MARKERS_TOPIC): LINKAGE_MARKERS_TYPE,
+    ROBOT_DESCRIPTION_TOPIC: ROBOT_DESCRIPTION_TYPE,  # written by the recorder beside them
 }
 _STEP = re.compile(r'\.([A-Za-z_][A-Za-z0-9_]*)(?:\[(\d+)\])?')
 
@@ -91,9 +100,11 @@ def test_layout_panels_present_and_wired_to_our_names():
     assert {'3D', 'Plot', 'DiagnosticSummary', 'DiagnosticStatusPanel'} <= kinds
     (scene,) = _panels('3D').values()
     assert scene['followTf'] == BASE_LINK
-    assert list(scene['topics']) == [absolute_topic(LINKAGE_MARKERS_TOPIC)]
+    assert sorted(scene['topics']) == sorted([absolute_topic(LINKAGE_MARKERS_TOPIC),
+                                              ROBOT_DESCRIPTION_TOPIC])
+    assert all(topic['visible'] for topic in scene['topics'].values())
     (status,) = _panels('DiagnosticStatusPanel').values()
-    assert status['selectedHardwareId'] == SIM_NODE_NAME
+    assert status['selectedHardwareId'] == MACHINE_NAME
     assert status['selectedName'] == STROKE_PAIR_STATUS
     # Every panel named in configById is placed in the layout tree, and vice versa.
     placed = re.findall(r'"([A-Za-z0-9 ]+![A-Za-z0-9]+)"', json.dumps(layout['layout']))
@@ -138,9 +149,9 @@ def test_every_recorded_topic_and_field_exists_in_a_real_recording():
     run = open_run(GOLDEN)
     recorded = run.topics()
     topics, paths = _layout_topics_and_paths()
-    markers = absolute_topic(LINKAGE_MARKERS_TOPIC)
-    if markers not in recorded:
-        topics = topics - {markers}  # the golden logs predate the node's markers
+    # The golden logs predate the node's markers and the recorded URDF.
+    topics = {topic for topic in topics if topic in recorded
+              or topic not in (absolute_topic(LINKAGE_MARKERS_TOPIC), ROBOT_DESCRIPTION_TOPIC)}
     for topic in topics:
         assert recorded.get(topic) == PUBLISHED[topic], topic
     for topic, steps in paths:
@@ -165,3 +176,83 @@ def test_every_recorded_topic_and_field_exists_in_a_real_recording():
 @pytest.mark.parametrize('name', ['shaper.rviz', 'foxglove_layout.json'])
 def test_display_configurations_are_installed(name):
     assert os.path.isfile(os.path.join(get_package_share_directory('qrm_ros'), 'config', name))
+
+
+SHIPPED = os.path.join(REPO_ROOT, 'config', 'foxglove_layout.json')
+
+
+def test_shipped_layout_is_the_generated_one(tmp_path):
+    expected = foxglove_layout_text(kin.Geometry.paper())
+    with open(SHIPPED) as handle:
+        assert handle.read() == expected, ('config/foxglove_layout.json is stale: regenerate '
+                                           'it with qrm_urdf --foxglove-layout '
+                                           'config/foxglove_layout.json')
+    assert _layout() == json.loads(expected)  # the installed one too
+    path = tmp_path / 'layout.json'
+    assert qrm_urdf(['-o', str(tmp_path / 'm.urdf'), '--foxglove-layout', str(path)]) == 0
+    assert path.read_text() == expected
+
+
+def test_every_panel_is_titled_for_foxglove_and_lichtblick():
+    for key, config in _layout()['configById'].items():
+        assert config.get('foxglovePanelTitle'), key
+        assert config.get('lichtblickPanelTitle') == config['foxglovePanelTitle'], key
+
+
+def test_scene_shows_no_frame_labels_or_axes(tmp_path):
+    yourdfpy = pytest.importorskip('yourdfpy')
+    (scene,) = _panels('3D').values()
+    assert scene['scene']['transforms']['showLabel'] is False
+    path = str(tmp_path / 'model.urdf')
+    write_urdf(path, kin.Geometry.paper())
+    links = yourdfpy.URDF.load(path, load_meshes=False).link_map
+    assert scene['transforms'] == {f'frame:{link}': {'visible': False} for link in links}
+
+
+def _urdf_bounds(geometry, tmp_path):
+    """x and y extent of the URDF's visuals over poses across the offset range and a turn."""
+    yourdfpy = pytest.importorskip('yourdfpy')
+    path = str(tmp_path / 'model.urdf')
+    write_urdf(path, geometry)
+    model = yourdfpy.URDF.load(path, build_scene_graph=True, load_meshes=False,
+                               build_collision_scene_graph=False)
+    low, high = np.full(2, np.inf), np.full(2, -np.inf)
+    r1 = geometry.coupling_radius
+    for offset in (-0.9 * r1, 0.0, 0.9 * r1):
+        for angle in np.linspace(0.0, 2 * math.pi, 48, endpoint=False):
+            state = kin.state(geometry, offset, angle, 1.0)
+            model.update_cfg({'input_shaft_joint': float(angle),
+                              'flywheel_joint': float(state.flywheel_angle),
+                              'lever_joint': float(state.lever_angle),
+                              'ram_joint': float(state.ram_position),
+                              'coupling_offset_joint': float(offset)})
+            bounds = model.scene.bounds
+            low, high = np.minimum(low, bounds[0][:2]), np.maximum(high, bounds[1][:2])
+    return low, high
+
+
+GEOMETRIES = [kin.Geometry.paper(),
+              kin.Geometry(0.03, 0.07, 0.16, ram_height=0.35, crank_phase=0.4)]
+
+
+@pytest.mark.parametrize('geometry', GEOMETRIES, ids=['paper', 'phased'])
+def test_camera_frames_the_machine_the_urdf_draws(geometry, tmp_path):
+    """
+    The orthographic view (height = distance, width = distance x the panel's aspect, centred
+    on the target offset in shaper_base) holds the URDF at every pose and is filled by it.
+    """
+    camera = json.loads(foxglove_layout_text(geometry))['configById']['3D!linkage'][
+        'cameraState']
+    assert camera['perspective'] is False and camera['phi'] == 0
+    assert camera['thetaOffset'] == 0 and camera['target'] == [0, 0, 0]
+    centre = np.array(camera['targetOffset'][:2])
+    half = 0.5 * camera['distance'] * np.array([PANEL_ASPECT, 1.0])
+    low, high = _urdf_bounds(geometry, tmp_path)
+    assert np.all(centre - half <= low) and np.all(high <= centre + half)
+    # It fills the view in one direction but for the margin and the room left for the
+    # markers' label above it (and the workpiece below).
+    assert max((high - low) / (2 * half)) > 0.7
+    # The drawn extent the layout frames holds the URDF (and the markers' label above it).
+    bounds = machine_view_bounds(geometry)
+    assert bounds.x_min <= low[0] + 1e-9 and high[0] <= bounds.x_max + 1e-9
+    assert bounds.y_min <= low[1] + 1e-9 and high[1] <= bounds.y_max + 1e-9

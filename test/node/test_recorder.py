@@ -53,6 +53,9 @@ TYPES = {'/joint_states': 'sensor_msgs/msg/JointState',
          '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray',
          '/input_speed_cmd': 'std_msgs/msg/Float64',
          '/parameter_events': 'rcl_interfaces/msg/ParameterEvent'}
+# What the recorder adds once it knows the sim's geometry (only the real sim says it).
+MACHINE_TYPES = {'/robot_description': 'std_msgs/msg/String',
+                 '/tf_static': 'tf2_msgs/msg/TFMessage', '/tf': 'tf2_msgs/msg/TFMessage'}
 QOS_FIELDS = {'history', 'depth', 'reliability', 'durability', 'deadline', 'lifespan',
               'liveliness', 'liveliness_lease_duration', 'avoid_ros_namespace_conventions'}
 GEOMETRY = list(Geometry.field_names())
@@ -398,7 +401,7 @@ def test_times_are_receive_and_source_times_in_order(recording):
     log_times = []
     for topic, schema_name, log_ns, publish_ns, _ in recording.run.messages():
         log_times.append(log_ns)
-        assert schema_name == TYPES[topic]
+        assert schema_name == {**TYPES, **MACHINE_TYPES}[topic]
         assert 0 <= log_ns - publish_ns < 1_000_000_000  # sent, then received, same clock
     assert log_times == sorted(log_times)
 
@@ -427,6 +430,37 @@ def test_independent_readers_decode_the_same_values_as_rclpy(recording, topic):
         expected = _plain(rclpy.serialization.deserialize_message(data, message_class))
         assert _plain(from_mcap) == expected
         assert _plain(from_rosbags) == expected
+
+
+def test_the_machine_is_recorded_from_the_first_joint_state_once_the_geometry_is_known(
+        recording):
+    from rosbags.typesys import get_typestore, Stores
+    from qrm_ros.recording.machine_transforms import moving_transforms
+    from qrm_ros.recording.urdf_model import urdf_text
+    topics = recording.run.topics()
+    if not REAL_SIM:  # the stand-in has no geometry to tell: nothing of the machine
+        assert not set(MACHINE_TYPES) & set(topics)
+        return
+    assert {topic: topics.get(topic) for topic in MACHINE_TYPES} == MACHINE_TYPES
+    store = get_typestore(Stores.ROS2_JAZZY)
+    geometry = Geometry(*recording.geometry)
+    joint_states = recording.ours['/joint_states']
+    (description,) = recording.ours['/robot_description']
+    (static,) = recording.ours['/tf_static']
+    assert description[2] == static[2] == joint_states[0][2]
+    assert store.deserialize_cdr(description[4], 'std_msgs/msg/String').data == urdf_text(
+        geometry)
+    transforms = recording.ours['/tf']
+    assert len(transforms) == len(joint_states)
+    for joint_state, transform in zip(joint_states, transforms):
+        assert transform[2] == joint_state[2]
+        decoded = store.deserialize_cdr(joint_state[4], 'sensor_msgs/msg/JointState')
+        values = dict(zip(decoded.name, decoded.position))
+        tf = store.deserialize_cdr(transform[4], 'tf2_msgs/msg/TFMessage').transforms
+        assert [(t.header.stamp, t.child_frame_id, t.transform.translation.y)
+                for t in tf] == [(decoded.header.stamp, m.child, m.translation[1])
+                                 for m in moving_transforms(geometry, values)]
+    assert 'recording the machine' in recording.log
 
 
 def test_speed_commands_and_the_parameter_change_are_recorded(recording):
@@ -704,7 +738,7 @@ def test_a_full_disk_at_start_leaves_no_file_and_says_what_to_do(tmp_path):
 
 
 def test_full_disk_while_recording_stops_with_one_line_and_keeps_what_was_written(tmp_path):
-    limit = 24_000
+    limit = 96_000  # past the schemas, the metadata and the URDF: the disk fills mid-run
 
     def small_disk():
         # A file size limit makes writes fail like a full disk (EFBIG instead of ENOSPC).

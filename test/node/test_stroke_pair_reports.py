@@ -46,6 +46,9 @@ def test_diagnostics_match_the_closed_form_for_a_steady_offset(harness, offset, 
     for message in h.diagnostics:
         values = pair_values(message)
         assert message.status[0].name == 'shaper_sim: stroke pair'
+        # diagnostic_updater's convention: the node in the name, the machine as hardware_id
+        # (so a viewer's 'hardware_id: name' names the node once).
+        assert message.status[0].hardware_id == 'qrm_shaper'
         assert values['offset_steady'] == 'true' and values['input_speed_steady'] == 'true'
         assert values['coupling_offset'] == offset and values['input_speed'] == speed
         assert values['cutting_time'] + values['return_time'] == pytest.approx(
