@@ -73,7 +73,7 @@ def urdf_joints(geometry: Geometry) -> Dict[str, UrdfJoint]:
     the pins.
     """
     sizes = linkage_sizes(geometry)
-    r1, r = geometry.coupling_radius, geometry.crank_radius
+    r1 = geometry.coupling_radius
     h, phase = geometry.pivot_distance, geometry.crank_phase
     half_stroke = 0.5 * float(geometry.ram_stroke)
     z_axis = (0.0, 0.0, 1.0)
