@@ -39,6 +39,7 @@ setup(
                  'yourdfpy', 'mypy', 'sympy'],
         # MP4 animations (qrm_animate -o OUT.mp4): a bundled ffmpeg
         'video': ['imageio-ffmpeg'],
+        'dask': ['dask[distributed]'],
     },
     zip_safe=False,  # PEP 561: type checkers cannot read a package out of a zipped egg
     maintainer='qrm_ros developers',

@@ -42,17 +42,23 @@ from qrm_ros.node.recorder import COMPRESSIONS, McapRunFile
 JOINTS = list(JOINT_NAMES)
 
 
-def write_synthetic_run(path, seconds, rate=100.0):
-    """Write a run with an offset schedule through the recorder's writer; return messages."""
+def write_synthetic_run(path, seconds, rate=100.0, hold=None, twist=True):
+    """
+    Write a run with an offset schedule through the recorder's writer; return messages.
+
+    hold: s at each offset, cycling through the schedule (None: the run split in seven);
+    twist: write the ram twist beside the joint states.
+    """
     from rosbags.typesys import get_typestore, Stores
     store = get_typestore(Stores.ROS2_JAZZY)
     types = store.types
     geometry = kin.Geometry.paper()
     schedule = np.array([-0.015, -0.01, -0.005, 0.0, 0.005, 0.01, 0.015])
-    hold = seconds / schedule.size
+    hold = seconds / schedule.size if hold is None else hold
     run_file = McapRunFile(str(path), COMPRESSIONS['zstd'], 1_000_000_000)  # the default
     joint_channel = run_file.add_channel('/joint_states', 'sensor_msgs/msg/JointState', [], '')
-    twist_channel = run_file.add_channel('/ram/twist', 'geometry_msgs/msg/TwistStamped', [], '')
+    twist_channel = (run_file.add_channel('/ram/twist', 'geometry_msgs/msg/TwistStamped', [], '')
+                     if twist else None)
     run_file.add_metadata('qrm_ros.geometry', {k: repr(float(v)) for k, v in
                                                geometry.as_dict().items()})
     speed = 2 * math.pi
@@ -61,7 +67,9 @@ def write_synthetic_run(path, seconds, rate=100.0):
     count = int(seconds * rate)
     for first in range(0, count, block):
         t = np.arange(first, min(first + block, count)) / rate
-        offset = schedule[np.minimum((t // hold).astype(int), schedule.size - 1)]
+        offset = schedule[np.minimum((t // hold).astype(int), schedule.size - 1)
+                          if hold * schedule.size >= seconds
+                          else (t // hold).astype(int) % schedule.size]
         state = kin.state(geometry, offset, speed * t, speed)
         angle = np.mod(speed * t + math.pi, 2 * math.pi) - math.pi
         for i, seconds_in in enumerate(t):
@@ -83,10 +91,11 @@ def write_synthetic_run(path, seconds, rate=100.0):
                     angular=vector(x=0.0, y=0.0, z=0.0)))
             run_file.add_message(joint_channel, ns + 200_000, ns, bytes(
                 store.serialize_cdr(joints, 'sensor_msgs/msg/JointState')))
-            run_file.add_message(twist_channel, ns + 210_000, ns, bytes(
-                store.serialize_cdr(twist, 'geometry_msgs/msg/TwistStamped')))
+            if twist_channel is not None:
+                run_file.add_message(twist_channel, ns + 210_000, ns, bytes(
+                    store.serialize_cdr(twist, 'geometry_msgs/msg/TwistStamped')))
     run_file.finish()
-    return 2 * count
+    return (2 if twist_channel is not None else 1) * count
 
 
 def analyse(path):

@@ -19,9 +19,11 @@ A script needs no more than::
     from qrm_ros.analysis import analyse, format_table, read_recording
     print(format_table(analyse(read_recording('run.mcap'))))
 
-The rooms: recorded_run (reading a run: samples, geometry; joint_state_decoding and
-recorded_drive beneath it), segments (steady spans), measurement (per segment, against
-theory), report (table, CSV, JSON), figures and gearbox_figure (matplotlib), animation and
+The rooms: recorded_run (reading a run: samples, geometry; joint_state_decoding,
+sample_checks and recorded_drive beneath it), segments (steady spans), measurement (per
+segment, against theory), streamed_run (a run of any length in bounded memory: what
+qrm_analyze runs), fleet and fleet_figure (many runs, on local cores or a Dask cluster),
+report (table, CSV, JSON), figures and gearbox_figure (matplotlib), animation and
 linkage_figure (GIF, MP4), design_table (qrm_design's tables).
 
 The names below are loaded on first use, from the module that defines them: importing one
@@ -36,6 +38,7 @@ if TYPE_CHECKING:  # the one list of what this package exports (qrm_ros.core.exp
     from qrm_ros.analysis.measurement import analyse, Analysis
     from qrm_ros.analysis.recorded_run import AnalysisError, read_recording, Recording
     from qrm_ros.analysis.report import format_table, incompleteness, to_document, write_outputs
+    from qrm_ros.analysis.streamed_run import analyse_file
 
 EXPORTED_FROM = declared_exports(__file__)  # name -> the module that defines it
 __all__ = sorted(EXPORTED_FROM, key=str.lower)

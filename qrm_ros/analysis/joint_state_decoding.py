@@ -26,7 +26,7 @@ import contextlib
 from dataclasses import replace
 import functools
 import multiprocessing
-from typing import Any, Callable, Dict, List, NamedTuple, Optional, Tuple
+from typing import Any, Callable, Dict, Iterator, List, NamedTuple, Optional, Tuple
 
 import numpy as np
 
@@ -40,6 +40,20 @@ PROGRESS_STEP = 5000
 # Read payloads that repeat a learnt layout with numpy (False: rosbags for every message).
 FAST_DECODING = True
 _BAD_NANOSEC = 'an invalid stamp (nanosec of 10^9 or more)'
+
+
+class DecodedBlock(NamedTuple):
+    """The usable joint states of a block of messages, decoded (arrays as in DecodedPart)."""
+
+    stamps: np.ndarray
+    log_times: np.ndarray
+    positions: np.ndarray
+    velocities: np.ndarray
+    efforts: np.ndarray
+    read: int  # messages in the block, usable or not
+    # The crank radius joint's position and velocity (NaN: a message without it).
+    crank_radius: Optional[np.ndarray] = None
+    crank_radius_rate: Optional[np.ndarray] = None
 
 
 class DecodedPart(NamedTuple):
@@ -189,18 +203,11 @@ class _Decoder:
     with numpy. Any other payload goes through rosbags' deserializer, message by message.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, rejected: Optional[Dict[str, List[int]]] = None) -> None:
         self.deserialize = jazzy_typestore().deserialize_cdr
         self.columns: Dict[Tuple[str, ...], Any] = {}
         self.layouts: Dict[int, Optional[_Layout]] = {}
-        self.rejected: Dict[str, List[int]] = {}
-        self.stamps: List[np.ndarray] = []
-        self.log_times: List[np.ndarray] = []
-        self.positions: List[np.ndarray] = []
-        self.velocities: List[np.ndarray] = []
-        self.efforts: List[np.ndarray] = []
-        self.radii: List[np.ndarray] = []  # the crank radius joint: position, velocity
-        self.radius_rates: List[np.ndarray] = []
+        self.rejected: Dict[str, List[int]] = {} if rejected is None else rejected
 
     def one(self, data: bytes, log_time: int) -> Optional[Tuple[Any, Any]]:
         """Decode one payload with rosbags: (decoded, joint order), or None if rejected."""
@@ -229,8 +236,8 @@ class _Decoder:
             return None
         return decoded, order
 
-    def block(self, log_times: List[int], payloads: List[bytes]) -> None:
-        """Decode a block of payloads (in file order) and keep the usable samples."""
+    def block(self, log_times: List[int], payloads: List[bytes]) -> DecodedBlock:
+        """Decode a block of payloads (in file order); return the usable samples."""
         count = len(payloads)
         width = len(JOINT_NAMES)
         stamps = np.zeros(count, dtype=np.int64)
@@ -289,13 +296,9 @@ class _Decoder:
             if len(decoded.effort):
                 efforts[row] = np.asarray(decoded.effort, dtype=float)[columns]
             usable[row] = True
-        self.stamps.append(stamps[usable])
-        self.log_times.append(times[usable])
-        self.positions.append(positions[usable])
-        self.velocities.append(velocities[usable])
-        self.efforts.append(efforts[usable])
-        self.radii.append(radii[usable])
-        self.radius_rates.append(radius_rates[usable])
+        return DecodedBlock(stamps[usable], times[usable], positions[usable],
+                            velocities[usable], efforts[usable], count,
+                            radii[usable], radius_rates[usable])
 
     def _layout(self, size: int, candidates: List[bytes]) -> Optional[_Layout]:
         if size not in self.layouts:
@@ -318,43 +321,59 @@ class _Decoder:
         return _learn_layout(data, decoded, order)
 
 
-def decode_part(path: str, part: Optional[slice], counter: Any = None,
-                progress: Optional[Callable[[int], None]] = None,
-                run: Optional[Run] = None) -> DecodedPart:
-    """Decode the joint states of one part of the file into arrays; list what is unusable."""
-    counter = counter or _worker_counter
-    decoder = _Decoder()
-    losses: List[Loss] = []
-    run = run or open_run(path)  # a worker process opens the file itself
+def decoded_blocks(run: Run, part: Optional[slice], losses: List[Loss],
+                   rejected: Dict[str, List[int]], counter: Any = None,
+                   progress: Optional[Callable[[int], None]] = None
+                   ) -> Iterator[DecodedBlock]:
+    """
+    Yield the joint states of one part of the file (None: all) block by block, in file order.
+
+    What cannot be read goes to losses, what is read but unusable to rejected (reason ->
+    [count, first log time, last log time]); each block holds at most PROGRESS_STEP messages,
+    so a caller that keeps no block runs in memory independent of the run's length.
+    """
+    counter = counter or MessageCounter()
+    decoder = _Decoder(rejected)
     log_times: List[int] = []
     payloads: List[bytes] = []
-    count = 0
     for count, message in enumerate(run.messages(  # in file order: the order received
             [JOINT_STATES_TOPIC], log_time_order=False, part=part, on_loss=losses.append), 1):
         log_times.append(message.log_time)
         payloads.append(message.data)
         if count % PROGRESS_STEP == 0:
-            decoder.block(log_times, payloads)
+            yield decoder.block(log_times, payloads)
             log_times, payloads = [], []
             with counter.get_lock():
                 counter.value += PROGRESS_STEP
             if progress is not None:
                 progress(counter.value)
     if payloads:
-        decoder.block(log_times, payloads)
+        yield decoder.block(log_times, payloads)
+
+
+def decode_part(path: str, part: Optional[slice], counter: Any = None,
+                progress: Optional[Callable[[int], None]] = None,
+                run: Optional[Run] = None) -> DecodedPart:
+    """Decode the joint states of one part of the file into arrays; list what is unusable."""
+    losses: List[Loss] = []
+    rejected: Dict[str, List[int]] = {}
+    run = run or open_run(path)  # a worker process opens the file itself
+    blocks = list(decoded_blocks(run, part, losses, rejected, counter or _worker_counter,
+                                 progress))
     if progress is not None:
         progress(run.message_count(JOINT_STATES_TOPIC))
     width = len(JOINT_NAMES)
 
     def joined(arrays, dtype, shape):
         return np.concatenate(arrays).astype(dtype) if arrays else np.zeros(shape, dtype)
-    return DecodedPart(joined(decoder.stamps, np.int64, 0),
-                       joined(decoder.log_times, np.int64, 0),
-                       joined(decoder.positions, float, (0, width)),
-                       joined(decoder.velocities, float, (0, width)),
-                       joined(decoder.efforts, float, (0, width)), count, decoder.rejected,
-                       losses, joined(decoder.radii, float, 0),
-                       joined(decoder.radius_rates, float, 0))
+    return DecodedPart(joined([b.stamps for b in blocks], np.int64, 0),
+                       joined([b.log_times for b in blocks], np.int64, 0),
+                       joined([b.positions for b in blocks], float, (0, width)),
+                       joined([b.velocities for b in blocks], float, (0, width)),
+                       joined([b.efforts for b in blocks], float, (0, width)),
+                       sum(b.read for b in blocks), rejected, losses,
+                       joined([b.crank_radius for b in blocks], float, 0),
+                       joined([b.crank_radius_rate for b in blocks], float, 0))
 
 
 def decode_in_parallel(path: str, parts: List[Optional[slice]],

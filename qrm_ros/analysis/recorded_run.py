@@ -29,10 +29,13 @@ from typing import Any, Callable, Dict, List, NamedTuple, Optional, Sequence, Te
 
 import numpy as np
 
-from qrm_ros.analysis.joint_state_decoding import (decode_in_parallel, decode_part, DecodedPart,
-                                                   jazzy_typestore, JOINT_STATES_TOPIC,
-                                                   MessageCounter)
+from qrm_ros.analysis.joint_state_decoding import (decode_in_parallel, decode_part, DecodedBlock,
+                                                   DecodedPart, jazzy_typestore,
+                                                   JOINT_STATES_TOPIC, MessageCounter)
 from qrm_ros.analysis.recorded_drive import Drive, drive_changes, drive_from_metadata, DriveSpan
+# The loss stages and Lost are read from here too (they were defined here first).
+from qrm_ros.analysis.sample_checks import (CheckedBlock, IN_EFFORTS, IN_FILE,  # noqa: F401
+                                            IN_MESSAGE, Lost, merge_counts, SampleChecks)
 from qrm_ros.core import kinematics as kin
 from qrm_ros.core.names import GEOMETRY_METADATA, JOINT_STATE_TYPE, PARAMETERS_METADATA
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
@@ -48,9 +51,6 @@ PROGRESS_MIN_MESSAGES = 20000
 # bench_analysis on 2 cores), so only far longer runs are split. Not measured above 1 h.
 PARALLEL_MIN_MESSAGES = 2_000_000
 MAX_WORKERS = 8
-# The loss stages: not read from the file at all, read but not usable as a sample, or used
-# as a sample without its efforts (the motion kept).
-IN_FILE, IN_MESSAGE, IN_EFFORTS = 'file', 'message', 'efforts'
 
 
 class AnalysisError(Exception):
@@ -82,14 +82,12 @@ class Samples(NamedTuple):
     crank_radius_rate: Optional[np.ndarray] = None
 
 
-class Lost(NamedTuple):
-    """Joint-state messages left out of the analysis, and why (times: s of log time)."""
+class RunExtent(NamedTuple):
+    """The size of a run streamed through (its samples then hold only excerpts)."""
 
-    stage: str  # IN_FILE: never read; IN_MESSAGE: read but not usable; IN_EFFORTS: see above
-    reason: str
-    messages: Optional[int]  # None: unknown
-    start_time: Optional[float]  # from the recording's first message; None: unknown
-    end_time: Optional[float]
+    samples: int  # samples used
+    time_span: float  # s, from the earliest to the latest sample
+    efforts_recorded: bool  # whether any sample carries efforts
 
 
 class Recording(NamedTuple):
@@ -106,6 +104,27 @@ class Recording(NamedTuple):
     # The masses, loads or drive changed mid-run (/parameter_events): what held from when.
     drive_changes: Tuple['DriveSpan', ...] = ()
     time_origin_ns: int = 0  # the stamp of samples.time 0
+    # Set when the run was streamed (qrm_ros.analysis.streamed_run): samples then hold only
+    # what the figures draw, and this tells the whole run's size.
+    extent: Optional[RunExtent] = None
+
+    @property
+    def sample_count(self) -> int:
+        """Samples used from the whole run."""
+        return self.extent.samples if self.extent else int(self.samples.time.size)
+
+    @property
+    def time_span(self) -> float:
+        """Seconds from the earliest to the latest sample of the whole run."""
+        if self.extent:
+            return self.extent.time_span
+        return float(np.ptp(self.samples.time)) if self.samples.time.size else 0.0
+
+    @property
+    def efforts_recorded(self) -> bool:
+        """Whether any sample of the run carries efforts."""
+        return self.extent.efforts_recorded if self.extent else (
+            self.samples.input_torque is not None)
 
     def drive_spans(self) -> Tuple['DriveSpan', ...]:
         """Return what drove the machine, from the start (-inf) through each change."""
@@ -116,7 +135,7 @@ class Recording(NamedTuple):
         return self.problem is None and not self.losses
 
 
-def _progress(stream: TextIO, total: int) -> Callable[[int], None]:
+def progress_bar(stream: TextIO, total: int) -> Callable[[int], None]:
     """Return a callback drawing a progress bar of `total` messages on stream."""
     width = 40
 
@@ -131,9 +150,19 @@ def _progress(stream: TextIO, total: int) -> Callable[[int], None]:
     return update
 
 
-def read_recording(path: str, geometry_overrides: Optional[Dict[str, Optional[float]]] = None,
-                   progress_stream: TextIO = sys.stderr) -> Recording:
-    """Read a run file's geometry and joint states; AnalysisError says what is missing."""
+class OpenedRun(NamedTuple):
+    """A run file opened for analysis: what it holds beside its joint states."""
+
+    run: Run
+    geometry: kin.Geometry
+    stored_parameters: Optional[Dict[str, str]]
+    drive: Optional[Drive]
+    drive_problem: Optional[str]
+
+
+def open_for_analysis(path: str, geometry_overrides: Optional[Dict[str, Optional[float]]] = None
+                      ) -> OpenedRun:
+    """Open a run file, check its joint-state channel, read its geometry and drive."""
     try:
         run = open_run(path)
     except RunFileError as error:
@@ -148,10 +177,17 @@ def read_recording(path: str, geometry_overrides: Optional[Dict[str, Optional[fl
         if run.truncated:  # say why the topic or the metadata may be missing
             raise AnalysisError(f'{error}; note: {run.problem}') from None
         raise
+    return OpenedRun(run, geometry, stored, drive, drive_problem)
+
+
+def read_recording(path: str, geometry_overrides: Optional[Dict[str, Optional[float]]] = None,
+                   progress_stream: TextIO = sys.stderr) -> Recording:
+    """Read a run file's geometry and joint states; AnalysisError says what is missing."""
+    run, geometry, stored, drive, drive_problem = open_for_analysis(path, geometry_overrides)
     total = run.message_count(JOINT_STATES_TOPIC)
     progress = None
     if progress_stream.isatty() and total >= PROGRESS_MIN_MESSAGES:
-        progress = _progress(progress_stream, total)  # a bar only for a person, on long files
+        progress = progress_bar(progress_stream, total)  # a bar for a person, on long files
     workers = min(usable_cores(), MAX_WORKERS) if total >= PARALLEL_MIN_MESSAGES else 1
     file_parts = run.parts(workers)
     if len(file_parts) == 1:
@@ -206,106 +242,55 @@ def _check_joint_states(run: Run, path: str) -> None:
                                 'Jazzy\'s; this analysis decodes the standard one only')
 
 
-def _seconds(log_time: Optional[int], start: Optional[int]) -> Optional[float]:
-    if log_time is None or start is None:
-        return None
-    return (log_time - start) / NANOSECONDS_PER_SECOND
-
-
 def _combine(path: str, run: Run, geometry: kin.Geometry, parts: List[DecodedPart]) -> Recording:
     """Join the parts in file order; exclude what is unusable and list it."""
-    start = run.start_time
-    losses: List[Lost] = []
+    checks = SampleChecks()
+    checked: List[CheckedBlock] = []
     for part in parts:
-        for loss in part.losses:
-            losses.append(Lost(IN_FILE, loss.reason, loss.messages,
-                               _seconds(loss.start_time, start), _seconds(loss.end_time, start)))
-    read = sum(part.read for part in parts)
-    in_file = run.message_count(JOINT_STATES_TOPIC) if run.counted else None
-    if in_file is not None:
-        # The statistics count every message written: the exact toll of the damage, whatever
-        # the damaged chunks' own message indexes said.
-        unread = in_file - read - sum(loss.messages or 0 for loss in losses)
-        if unread or any(loss.messages is None for loss in losses):
-            losses.append(Lost(IN_FILE, f'in all, {in_file - read} of the {in_file} messages '
-                               'the file counts could not be read', unread, None, None))
-    if not run.data_complete:
-        last = max((int(part.log_times.max()) for part in parts if part.log_times.size),
-                   default=None)
-        losses.append(Lost(IN_FILE, 'messages after the last whole record (how many is '
-                           'unknown)', None, _seconds(last, start), None))
-    rejected: Dict[str, List[int]] = {}
-    for part in parts:
+        checks.file_losses += part.losses
         for reason, (count, first, last) in part.rejected.items():
-            entry = rejected.setdefault(reason, [0, first, last])
-            entry[:] = [entry[0] + count, min(entry[1], first), max(entry[2], last)]
-    stamps = np.concatenate([part.stamps for part in parts])
-    log_times = np.concatenate([part.log_times for part in parts])
-    position = np.concatenate([part.positions for part in parts])
-    velocity = np.concatenate([part.velocities for part in parts])
-    effort = np.concatenate([part.efforts for part in parts])
-    radius = np.concatenate([_column(part.crank_radius, part.stamps) for part in parts])
-    radius_rate = np.concatenate([_column(part.crank_radius_rate, part.stamps)
-                                  for part in parts])
-    finite = np.isfinite(position).all(axis=1) & np.isfinite(velocity).all(axis=1)
-    if not finite.all():
-        bad = log_times[~finite]
-        rejected['non-finite positions or velocities'] = [int(bad.size), int(bad.min()),
-                                                          int(bad.max())]
-    stamps, log_times = stamps[finite], log_times[finite]
-    position, velocity, effort = position[finite], velocity[finite], effort[finite]
-    radius, radius_rate = radius[finite], radius_rate[finite]
-    # A recorded effort that is not finite is not a measurement: the sample keeps its motion,
-    # its efforts count as not recorded (NaN), and how many is listed.
-    recorded = ~np.isnan(effort).all(axis=1)
-    unusable = recorded & ~np.isfinite(effort).all(axis=1)
-    if unusable.any():
-        effort[unusable] = np.nan
-        bad = log_times[unusable]
-        losses.append(Lost(IN_EFFORTS, 'non-finite efforts (the motion kept)', int(bad.size),
-                           _seconds(int(bad.min()), start), _seconds(int(bad.max()), start)))
-    # The same stamp as the previous message: an exact repeat counts once; a conflicting
-    # one is excluded (which of the two is right cannot be told).
-    repeat = np.zeros(stamps.size, dtype=bool)
-    repeat[1:] = np.diff(stamps) == 0
-    same = np.zeros_like(repeat)
-    same[1:] = ((position[1:] == position[:-1]).all(axis=1)
-                & (velocity[1:] == velocity[:-1]).all(axis=1)
-                & ((effort[1:] == effort[:-1]) | (np.isnan(effort[1:]) & np.isnan(effort[:-1]))
-                   ).all(axis=1))
-    conflicting = repeat & ~same
-    if conflicting.any():
-        bad = log_times[conflicting]
-        rejected['the stamp of the previous message with other values'] = [
-            int(bad.size), int(bad.min()), int(bad.max())]
-    for reason, (count, first, last) in sorted(rejected.items()):
-        losses.append(Lost(IN_MESSAGE, reason, count, _seconds(first, start),
-                           _seconds(last, start)))
-    keep = ~repeat
-    stamps, position, velocity = stamps[keep], position[keep], velocity[keep]
-    effort = effort[keep]
-    radius, radius_rate = radius[keep], radius_rate[keep]
-    # The crank radius where every sample has it (a recording of this version's node).
-    with_radius = bool(radius.size and np.isfinite(radius).all()
-                       and np.isfinite(radius_rate).all())
-    if stamps.size < MIN_SEGMENT_SAMPLES:
-        raise AnalysisError(f'{path} holds {stamps.size} usable {JOINT_STATES_TOPIC} messages: '
-                            'too few to find any stroke' + _loss_clause(losses, run))
-    time = (stamps - stamps[0]) / NANOSECONDS_PER_SECOND
-    with_efforts = not np.isnan(effort).all()
-    samples = Samples(time, position[:, 0], velocity[:, 0], position[:, 1], velocity[:, 1],
-                      position[:, 3], velocity[:, 3], position[:, 4], velocity[:, 4],
-                      effort[:, 0] if with_efforts else None,
-                      effort[:, -1] if with_efforts else None,
-                      radius if with_radius else None, radius_rate if with_radius else None)
+            merge_counts(checks.rejected, reason, count, first, last)
+        checked.append(checks.check(DecodedBlock(part.stamps, part.log_times, part.positions,
+                                                 part.velocities, part.efforts, part.read,
+                                                 part.crank_radius, part.crank_radius_rate)))
+    losses = checks.losses(run)
+    if checks.used < MIN_SEGMENT_SAMPLES:
+        raise too_few_samples(path, checks.used, losses, run)
+    stamps = np.concatenate([block.stamps for block in checked])
+    samples = samples_of(CheckedBlock(stamps, *(np.concatenate([getattr(block, name)
+                                                                for block in checked])
+                                                for name in CheckedBlock._fields[1:])),
+                         int(stamps[0]), None)
     return Recording(path, geometry, samples, run.problem if run.truncated else None,
-                     tuple(losses), in_file, read, int((repeat & same).sum()),
+                     tuple(losses), checks.messages_in_file(run), checks.read, checks.repeated,
                      time_origin_ns=int(stamps[0]))
 
 
-def _column(values: Optional[np.ndarray], stamps: np.ndarray) -> np.ndarray:
-    """Return a decoded part's crank radius column, NaN where it has none."""
-    return np.full(stamps.shape, np.nan) if values is None else values
+def samples_of(block: CheckedBlock, origin_ns: int, with_efforts: Optional[bool]) -> Samples:
+    """
+    Return checked samples as Samples, time from origin_ns (the run's first sample's stamp).
+
+    with_efforts: whether the run recorded efforts (None: whether this block holds any).
+    """
+    time = (block.stamps - origin_ns) / NANOSECONDS_PER_SECOND
+    position, velocity, effort = block.positions, block.velocities, block.efforts
+    if with_efforts is None:
+        with_efforts = not np.isnan(effort).all()
+    radius, radius_rate = block.crank_radius, block.crank_radius_rate
+    # The crank radius where every sample has it (a recording of a node that publishes it).
+    with_radius = (radius is not None and radius_rate is not None and bool(radius.size)
+                   and bool(np.isfinite(radius).all() and np.isfinite(radius_rate).all()))
+    return Samples(time, position[:, 0], velocity[:, 0], position[:, 1], velocity[:, 1],
+                   position[:, 3], velocity[:, 3], position[:, 4], velocity[:, 4],
+                   effort[:, 0] if with_efforts else None,
+                   effort[:, -1] if with_efforts else None,
+                   radius if with_radius else None, radius_rate if with_radius else None)
+
+
+def too_few_samples(path: str, used: int, losses: Sequence[Lost], run: Run) -> AnalysisError:
+    """Return the refusal of a run with too few usable samples to find a stroke."""
+    return AnalysisError(f'{path} holds {used} usable {JOINT_STATES_TOPIC} messages: '
+                         'too few to find any stroke' + _loss_clause(losses, run))
 
 
 def _loss_clause(losses: Sequence[Lost], run: Run) -> str:

@@ -24,8 +24,6 @@ import json
 import os
 from typing import Any, Dict, List, Optional
 
-import numpy as np
-
 from qrm_ros.analysis.joint_state_decoding import JOINT_STATES_TOPIC
 from qrm_ros.analysis.measurement import Analysis, finite_or_none
 from qrm_ros.analysis.recorded_run import IN_EFFORTS, IN_FILE, IN_MESSAGE, Recording
@@ -45,10 +43,9 @@ def format_table(analysis: Analysis) -> str:
     """Return the per-segment table a person reads, with warnings and transitions."""
     recording = analysis.recording
     geometry = recording.geometry
-    samples = recording.samples
-    span = float(np.ptp(samples.time)) if samples.time.size else 0.0
     lines = [
-        f'{recording.path}: {samples.time.size} joint-state samples over {span:.3f} s',
+        f'{recording.path}: {recording.sample_count} joint-state samples over '
+        f'{recording.time_span:.3f} s',
         f'geometry: r1 = {geometry.coupling_radius * 1e3:g} mm, r = '
         f'{geometry.crank_radius * 1e3:g} mm, h = {geometry.pivot_distance * 1e3:g} mm, '
         f'H = {geometry.ram_height * 1e3:g} mm, crank phase = {geometry.crank_phase:g} rad',
@@ -119,7 +116,7 @@ def _effort_lines(analysis: Analysis) -> List[str]:
         lines.append(f'efforts: theory for the recorded masses and loads, {kind} (cutting '
                      f'{drive.loads.cutting_force:g} N over {drive.loads.cutting_length:g} m, '
                      f'friction {drive.loads.ram_friction:g} N)')
-    if recording.samples.input_torque is None:
+    if not recording.efforts_recorded:
         lines.append('efforts: not recorded in this file (joint states without effort)')
     for row in analysis.rows:
         lines.append(f'  offset {row["offset"] * 1e3:.2f} mm at {row["input_speed"]:.4f} rad/s, '
@@ -165,7 +162,7 @@ def to_document(analysis: Analysis) -> Dict[str, Any]:
         'units': 'SI (m, s, rad, rad/s, m/s); ratios dimensionless',
         'geometry': recording.geometry.as_dict(),
         'messages': {'in_file': recording.messages_in_file, 'read': recording.messages_read,
-                     'used': int(recording.samples.time.size),
+                     'used': recording.sample_count,
                      'repeated': recording.repeated_stamps},
         'losses': [loss._asdict() for loss in recording.losses],
         'segments': analysis.rows,
@@ -173,7 +170,8 @@ def to_document(analysis: Analysis) -> Dict[str, Any]:
     })
 
 
-def _write_csv(analysis: Analysis, path: str) -> None:
+def write_csv_to(analysis: Analysis, path: str) -> None:
+    """Write the per-segment table as CSV to path (a staged name: see write_outputs)."""
     fields = list(analysis.rows[0]) if analysis.rows else ['offset']
     with open(path, 'w', newline='') as handle:
         writer = csv.DictWriter(handle, fieldnames=fields)
@@ -182,7 +180,8 @@ def _write_csv(analysis: Analysis, path: str) -> None:
             writer.writerow({k: ('' if v is None else v) for k, v in row.items()})
 
 
-def _write_json(analysis: Analysis, path: str) -> None:
+def write_json_to(analysis: Analysis, path: str) -> None:
+    """Write the results as JSON to path (a staged name: see write_outputs)."""
     with open(path, 'w') as handle:
         json.dump(to_document(analysis), handle, indent=2, allow_nan=False)
         handle.write('\n')
@@ -191,13 +190,13 @@ def _write_json(analysis: Analysis, path: str) -> None:
 def write_csv(analysis: Analysis, path: str) -> None:
     """Write the per-segment table as CSV, all or nothing."""
     with staged_outputs() as stage:
-        _write_csv(analysis, stage(path))
+        write_csv_to(analysis, stage(path))
 
 
 def write_json(analysis: Analysis, path: str) -> None:
     """Write the results as JSON, all or nothing."""
     with staged_outputs() as stage:
-        _write_json(analysis, stage(path))
+        write_json_to(analysis, stage(path))
 
 
 def write_outputs(analysis: Analysis, csv_path: Optional[str] = None,
@@ -209,9 +208,9 @@ def write_outputs(analysis: Analysis, csv_path: Optional[str] = None,
     try:
         with staged_outputs() as stage:
             if csv_path:
-                _write_csv(analysis, stage(csv_path))
+                write_csv_to(analysis, stage(csv_path))
             if json_path:
-                _write_json(analysis, stage(json_path))
+                write_json_to(analysis, stage(json_path))
             if plot_folder:
                 os.makedirs(plot_folder, exist_ok=True)
                 from qrm_ros.analysis.figures import write_figures

@@ -67,6 +67,76 @@ def setting_speed(samples: Samples, drive: Optional[Drive] = None) -> np.ndarray
     return np.where(limited, np.nan, reference)
 
 
+def setting_speeds(samples: Samples, drives: Sequence[DriveSpan]
+                   ) -> Tuple[np.ndarray, np.ndarray]:
+    """Return each sample's commanded input speed (rad/s) and the index of its drive span."""
+    span = np.searchsorted([d.start_time for d in drives], samples.time, side='right') - 1
+    span = np.maximum(span, 0)
+    speed = np.empty(samples.time.shape)
+    for index, drive in enumerate(drives):
+        chosen = span == index
+        speed[chosen] = setting_speed(samples, drive.drive)[chosen]
+    return speed, span
+
+
+def speed_scale(largest: float) -> float:
+    """Return the scale of the speed tolerance, from the largest finite |speed| (rad/s)."""
+    return max(1.0, largest)
+
+
+def largest_speed(speed: np.ndarray) -> float:
+    """Return the largest finite |speed| (rad/s); 0 when none is finite."""
+    finite = np.abs(speed[np.isfinite(speed)])
+    return float(np.max(finite)) if finite.size else 0.0
+
+
+def setting_changes(time: np.ndarray, offset: np.ndarray, speed: np.ndarray, span: np.ndarray,
+                    steady: np.ndarray, step: float, scale: float
+                    ) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """
+    Return (steps, gap, boundary) between consecutive samples.
+
+    steps: s between stamps; gap: the step is a gap (longer than GAP_PERIODS sample periods
+    of step s, or backwards); boundary: a new run of one setting starts at the later sample.
+    """
+    steps = np.diff(time)
+    gap = (steps > GAP_PERIODS * step) | (steps < 0)
+    changed = ((np.abs(np.diff(offset)) > STEADY_TOLERANCE)
+               | ~(np.abs(np.diff(speed)) <= STEADY_TOLERANCE * scale) | gap
+               | (np.diff(span) != 0))
+    return steps, gap, changed | (steady[1:] != steady[:-1])
+
+
+def transition(before: Segment, after: Segment, start_time: float, end_time: float,
+               largest_jump: Optional[float]) -> Dict[str, Any]:
+    """
+    Describe what lies between two segments (JSON-ready).
+
+    largest_jump: the gap step between them of the largest size (s; < 0: the clock went
+    back), None when none.
+    """
+    changes = []
+    if largest_jump is not None:
+        changes.append(f'a gap of {largest_jump:.3f} s between stamps (a pause, a clock jump '
+                       'or lost messages)' if largest_jump > 0 else
+                       f'the clock jumps back by {-largest_jump:.3f} s')
+    if after.offset != before.offset:
+        changes.append(f'offset {before.offset * 1e3:g} -> {after.offset * 1e3:g} mm')
+    if after.crank_radius != before.crank_radius:
+        changes.append(f'crank radius {(before.crank_radius or 0.0) * 1e3:g} -> '
+                       f'{(after.crank_radius or 0.0) * 1e3:g} mm (a stroke change)')
+    if after.input_speed != before.input_speed:
+        changes.append(f'input speed {before.input_speed:g} -> {after.input_speed:g} rad/s')
+    changes += drive_differences(before.drive, after.drive)
+    return {
+        'kind': 'gap' if largest_jump is not None else 'change',
+        'start_time': start_time,
+        'end_time': end_time,
+        'offset_from': before.offset, 'offset_to': after.offset,
+        'input_speed_from': before.input_speed, 'input_speed_to': after.input_speed,
+        'change': ', '.join(changes) or 'interruption'}
+
+
 def split_segments(samples: Samples, drives: Sequence[DriveSpan] = ()
                    ) -> Tuple[List[Segment], List[Dict[str, Any]]]:
     """
@@ -82,53 +152,25 @@ def split_segments(samples: Samples, drives: Sequence[DriveSpan] = ()
     """
     drives = list(drives) or [DriveSpan(-math.inf, None, None)]
     offset, time = samples.offset, samples.time
-    span = np.searchsorted([d.start_time for d in drives], time, side='right') - 1
-    span = np.maximum(span, 0)
-    speed = np.empty(time.shape)
-    for index, drive in enumerate(drives):
-        chosen = span == index
-        speed[chosen] = setting_speed(samples, drive.drive)[chosen]
-    finite = np.abs(speed[np.isfinite(speed)])
-    scale = max(1.0, float(np.max(finite))) if finite.size else 1.0
-    step = sample_period(samples) or 0.0
-    steps = np.diff(time)
-    gap = (steps > GAP_PERIODS * step) | (steps < 0)
-    changed = ((np.abs(np.diff(offset)) > STEADY_TOLERANCE)
-               | ~(np.abs(np.diff(speed)) <= STEADY_TOLERANCE * scale) | gap
-               | (np.diff(span) != 0))
+    speed, span = setting_speeds(samples, drives)
     steady = samples.offset_rate == 0.0
     radius = samples.crank_radius
     if radius is not None and samples.crank_radius_rate is not None:
-        # A stroke change splits as an offset change does: the screw still, one radius.
-        changed = changed | (np.abs(np.diff(radius)) > STEADY_TOLERANCE)
-        steady = steady & (samples.crank_radius_rate == 0.0)
-    starts = np.flatnonzero(np.concatenate([[True], changed | (steady[1:] != steady[:-1])]))
+        steady = steady & (samples.crank_radius_rate == 0.0)  # the stroke screw still
+    steps, gap, boundary = setting_changes(time, offset, speed, span, steady,
+                                           sample_period(samples) or 0.0,
+                                           speed_scale(largest_speed(speed)))
+    if radius is not None:  # a stroke change splits as an offset change does
+        boundary = boundary | (np.abs(np.diff(radius)) > STEADY_TOLERANCE)
+    starts = np.flatnonzero(np.concatenate([[True], boundary]))
     ends = np.append(starts[1:], offset.size)
     segments = [Segment(int(a), int(b), float(offset[a]), float(speed[a]),
                         drives[span[a]].drive, None if radius is None else float(radius[a]))
                 for a, b in zip(starts, ends) if steady[a] and b - a >= MIN_SEGMENT_SAMPLES]
     transitions = []
     for before, after in zip(segments, segments[1:]):
-        changes = []
         jumps = steps[before.end - 1:after.start][gap[before.end - 1:after.start]]
-        if jumps.size:
-            largest = jumps[np.argmax(np.abs(jumps))]
-            changes.append(f'a gap of {largest:.3f} s between stamps (a pause, a clock jump or '
-                           'lost messages)' if largest > 0 else
-                           f'the clock jumps back by {-largest:.3f} s')
-        if after.offset != before.offset:
-            changes.append(f'offset {before.offset * 1e3:g} -> {after.offset * 1e3:g} mm')
-        if after.crank_radius != before.crank_radius:
-            changes.append(f'crank radius {(before.crank_radius or 0.0) * 1e3:g} -> '
-                           f'{(after.crank_radius or 0.0) * 1e3:g} mm (a stroke change)')
-        if after.input_speed != before.input_speed:
-            changes.append(f'input speed {before.input_speed:g} -> {after.input_speed:g} rad/s')
-        changes += drive_differences(before.drive, after.drive)
-        transitions.append({
-            'kind': 'gap' if jumps.size else 'change',
-            'start_time': float(time[before.end - 1]),
-            'end_time': float(time[after.start]),
-            'offset_from': before.offset, 'offset_to': after.offset,
-            'input_speed_from': before.input_speed, 'input_speed_to': after.input_speed,
-            'change': ', '.join(changes) or 'interruption'})
+        largest = float(jumps[np.argmax(np.abs(jumps))]) if jumps.size else None
+        transitions.append(transition(before, after, float(time[before.end - 1]),
+                                      float(time[after.start]), largest))
     return segments, transitions

@@ -1,0 +1,92 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+Benchmark: a fleet of eight recordings, one process against a local pool and a Dask cluster.
+
+Writes one synthetic 100 Hz run (bench_analysis' writer, an offset held 5 minutes at a time)
+and links it under eight names, then analyses the eight as qrm_analyze's fleet does,
+interleaved, several times: one after the other in one process (--jobs 1), in a pool of two
+local processes (--jobs 2; its start-up counted, as a user waits for it), and on a
+``distributed.LocalCluster`` of two single-threaded worker processes on loopback (started
+once, as a user's cluster already runs). Prints medians and the ratios: the pool's speed-up
+over one process (target >= 1.8x on 2 cores) and the cluster's time against the pool's
+(target <= 1.2x); and checks that the three give the same fleet report.
+
+    python3 dev.py run python bench/bench_fleet.py [--hours 1] [--files 8] [--repeats 3]
+"""
+
+import argparse
+import json
+import os
+import statistics
+import tempfile
+import time
+
+from bench_analysis import write_synthetic_run
+
+from qrm_ros.analysis import fleet
+
+HOLD = 300.0  # s at each offset
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split('\n')[1])
+    parser.add_argument('--hours', type=float, default=1.0, help='length of each run [h]')
+    parser.add_argument('--files', type=int, default=8, help='recordings in the fleet')
+    parser.add_argument('--repeats', type=int, default=3, help='interleaved repeats')
+    args = parser.parse_args()
+    from distributed import LocalCluster
+    with tempfile.TemporaryDirectory() as folder:
+        first = os.path.join(folder, 'run00.mcap')
+        start = time.perf_counter()
+        write_synthetic_run(first, args.hours * 3600.0, hold=HOLD, twist=False)
+        print(f'wrote a {args.hours:g} h run in {time.perf_counter() - start:.0f} s',
+              flush=True)
+        paths = [first]
+        for number in range(1, args.files):
+            paths.append(os.path.join(folder, f'run{number:02d}.mcap'))
+            os.link(first, paths[-1])
+        with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host='127.0.0.1',
+                          dashboard_address=None) as cluster:
+            modes = {
+                'one process': lambda: fleet.run_serially(paths, None),
+                'pool of 2': lambda: fleet.run_in_pool(paths, None, 2),
+                'dask cluster of 2': lambda: fleet.run_on_cluster(paths, None,
+                                                                  cluster.scheduler_address),
+            }
+            times = {mode: [] for mode in modes}
+            reports = {}
+            for repeat in range(args.repeats):
+                order = list(modes) if repeat % 2 == 0 else list(reversed(modes))
+                for mode in order:
+                    start = time.perf_counter()
+                    results = fleet.in_file_order(paths, modes[mode]())
+                    times[mode].append(time.perf_counter() - start)
+                    reports[mode] = json.dumps(fleet.fleet_document(results))
+                    print(f'repeat {repeat + 1}, {mode}: {times[mode][-1]:.2f} s', flush=True)
+    same = len(set(reports.values())) == 1
+    median = {mode: statistics.median(values) for mode, values in times.items()}
+    speedups = [s / p for s, p in zip(times['one process'], times['pool of 2'])]
+    cluster_ratios = [d / p for d, p in zip(times['dask cluster of 2'], times['pool of 2'])]
+    print(f'{args.files} runs of {args.hours:g} h: ' + ', '.join(
+        f'{mode} median {value:.2f} s' for mode, value in median.items()))
+    print(f'pool of 2 speed-up over one process: median {statistics.median(speedups):.2f}x '
+          f'(min {min(speedups):.2f}, max {max(speedups):.2f}; target >= 1.8x)')
+    print(f'dask cluster / pool of 2: median {statistics.median(cluster_ratios):.2f}x '
+          f'(min {min(cluster_ratios):.2f}, max {max(cluster_ratios):.2f}; target <= 1.2x)')
+    print(f'the same fleet report from all three: {same}')
+
+
+if __name__ == '__main__':
+    main()

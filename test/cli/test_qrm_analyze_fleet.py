@@ -1,0 +1,218 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+``qrm_analyze`` on a fleet: several runs and folders, a local pool, a Dask cluster, Ctrl-C.
+
+The fleet report must be the same bit for bit whether the files are analysed one after the
+other, in a pool of local processes or on a real ``distributed.LocalCluster`` (scheduler and
+workers as processes on loopback); each file's results the same as ``--json``/``--csv`` of
+that file alone; a damaged file is reported in its row and sets the exit status without
+stopping the others; Ctrl-C stops every worker.
+"""
+
+import glob
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from qrm_ros.cli import exit_codes
+from qrm_ros.cli import qrm_analyze
+from repo_paths import TEST_DATA
+from synthetic_run import write_truncated_run
+
+GOLDEN = sorted(glob.glob(os.path.join(TEST_DATA, '*.mcap')))
+
+
+def run_main(args, capsys):
+    code = qrm_analyze.main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    assert 'Traceback' not in err
+    return code, out, err
+
+
+@pytest.fixture
+def fleet_folder(tmp_path):
+    """The golden logs in a folder tree, with a file that is not a run and a cut-short run."""
+    folder = tmp_path / 'fleet'
+    (folder / 'machine_b').mkdir(parents=True)
+    for index, path in enumerate(GOLDEN):
+        target = folder / ('machine_b' if index % 2 else '') / os.path.basename(path)
+        shutil.copy(path, target)
+    (folder / 'machine_b' / 'not_a_run.mcap').write_bytes(b'garbage, not MCAP')
+    (folder / 'notes.txt').write_text('not searched')
+    return folder
+
+
+def test_a_fleet_gives_the_same_report_serially_in_a_pool_and_on_a_dask_cluster(
+        fleet_folder, tmp_path, capsys):
+    reports = {}
+    for mode, options in (('serial', ['--jobs', '1']), ('pool', ['--jobs', '2'])):
+        out_dir = tmp_path / mode
+        code, out, err = run_main([fleet_folder, '--output-dir', out_dir, *options], capsys)
+        assert code == exit_codes.EXIT_BAD_INPUT, err  # the worst file: one is not MCAP
+        reports[mode] = out_dir
+    from distributed import LocalCluster
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host='127.0.0.1',
+                      dashboard_address=None) as cluster:
+        out_dir = tmp_path / 'dask'
+        code, out, err = run_main([fleet_folder, '--output-dir', out_dir, '--scheduler',
+                                   cluster.scheduler_address], capsys)
+        assert code == exit_codes.EXIT_BAD_INPUT, err
+        reports['dask'] = out_dir
+    serial = (reports['serial'] / 'fleet.json').read_bytes()
+    for mode in ('pool', 'dask'):
+        assert (reports[mode] / 'fleet.json').read_bytes() == serial, mode
+        assert (reports[mode] / 'fleet.csv').read_bytes() == (
+            reports['serial'] / 'fleet.csv').read_bytes(), mode
+    document = json.loads(serial)
+    rows = {os.path.basename(row['file']): row for row in document['recordings']}
+    assert len(rows) == len(GOLDEN) + 1 and 'notes.txt' not in rows
+    bad = rows['not_a_run.mcap']
+    assert bad['status'] == 'refused' and 'not an MCAP file' in bad['problem']
+    assert bad['segments'] is None
+    for path in GOLDEN:
+        row = rows[os.path.basename(path)]
+        assert row['status'] == 'complete' and row['problem'] is None
+        stem = os.path.basename(path)[:-5]
+        written = json.loads((reports['serial'] / stem / 'results.json').read_text())
+        assert row['segments'] == len(written['segments'])
+        assert row['stroke_pairs'] == sum(s['stroke_pairs'] for s in written['segments'])
+        assert row['crank_radius'] == written['geometry']['crank_radius']
+        errors = [s['time_ratio_relative_error'] for s in written['segments']
+                  if s['time_ratio_relative_error'] is not None]
+        assert row['worst_time_ratio_error'] == max(errors, key=abs)
+    assert (reports['serial'] / 'fleet_time_ratio_error.png').stat().st_size > 0
+    assert document['status'] == {'complete': len(GOLDEN), 'incomplete': 0, 'refused': 1,
+                                  'failed': 0}
+
+
+def test_each_runs_results_are_those_of_the_run_alone(fleet_folder, tmp_path, capsys):
+    out_dir = tmp_path / 'out'
+    run_main([*GOLDEN[:2], '--output-dir', out_dir, '--jobs', '2'], capsys)
+    for path in GOLDEN[:2]:
+        alone = tmp_path / 'alone'
+        code, _, _ = run_main([path, '--json', alone.with_suffix('.json'), '--csv',
+                               alone.with_suffix('.csv')], capsys)
+        assert code == exit_codes.EXIT_OK
+        stem = os.path.basename(path)[:-5]
+        assert (out_dir / stem / 'results.json').read_bytes() == alone.with_suffix(
+            '.json').read_bytes()
+        assert (out_dir / stem / 'results.csv').read_bytes() == alone.with_suffix(
+            '.csv').read_bytes()
+
+
+def test_an_incomplete_run_sets_the_status_without_stopping_the_others(tmp_path, capsys):
+    cut = write_truncated_run(tmp_path)
+    out_dir = tmp_path / 'out'
+    code, out, err = run_main([cut, GOLDEN[1], '--jobs', '2', '--output-dir', out_dir], capsys)
+    assert code == exit_codes.EXIT_INCOMPLETE, err
+    rows = {os.path.basename(row['file']): row for row in json.loads(
+        (out_dir / 'fleet.json').read_text())['recordings']}
+    assert rows['cut.mcap']['status'] == 'incomplete'
+    assert 'was not finished' in rows['cut.mcap']['problem']
+    assert rows['cut.mcap']['segments'] >= 1
+    assert rows[os.path.basename(GOLDEN[1])]['status'] == 'complete'
+    assert 'qrm_analyze: warning: ' in err and 'cut.mcap' in err
+
+
+@pytest.mark.parametrize('options, expected', [
+    (['--csv', 'x.csv'], '--csv take one run'),
+    (['--jobs', '0'], '--jobs must be a whole number of processes >= 1, got 0'),
+    (['--scheduler', 'localhost'], '--scheduler must be a Dask scheduler address'),
+    (['--jobs', '2', '--scheduler', 'tcp://127.0.0.1:1'], '--jobs is for local processes'),
+])
+def test_bad_fleet_options_are_refused_in_one_line(options, expected, tmp_path, capsys):
+    code, out, err = run_main([*GOLDEN[:2], *options], capsys)
+    assert code == exit_codes.EXIT_BAD_INPUT
+    assert err.strip() == f'qrm_analyze: error: {err.strip()[20:]}'
+    assert expected in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_folder_without_runs_is_refused(tmp_path, capsys):
+    code, _, err = run_main([tmp_path, '--jobs', '1'], capsys)
+    assert code == exit_codes.EXIT_BAD_INPUT and 'no .mcap files in' in err
+
+
+def _children(pid):
+    try:
+        with open(f'/proc/{pid}/task/{pid}/children') as handle:
+            return [int(child) for child in handle.read().split()]
+    except FileNotFoundError:
+        return []
+
+
+def _alive(pid):
+    try:
+        with open(f'/proc/{pid}/stat') as handle:
+            return handle.read().split(')')[-1].split()[0] != 'Z'
+    except FileNotFoundError:
+        return False
+
+
+def test_ctrl_c_stops_every_worker(tmp_path):
+    folder = tmp_path / 'many'
+    folder.mkdir()
+    for copy in range(12):
+        shutil.copy(GOLDEN[copy % len(GOLDEN)], folder / f'run{copy:02d}.mcap')
+    command = subprocess.Popen([sys.executable, '-m', 'qrm_ros.cli.qrm_analyze', str(folder),
+                                '--jobs', '2', '--output-dir', str(tmp_path / 'out')],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60.0
+    workers = []
+    while time.monotonic() < deadline and len(workers) < 2:
+        workers = _children(command.pid)
+        time.sleep(0.05)
+    assert len(workers) >= 2, 'the pool never started'
+    command.send_signal(signal.SIGINT)
+    _, err = command.communicate(timeout=60.0)
+    assert command.returncode == exit_codes.EXIT_INTERRUPTED, err
+    assert 'Traceback' not in err and 'interrupted' in err
+    deadline = time.monotonic() + 30.0
+    while time.monotonic() < deadline and any(_alive(pid) for pid in workers):
+        time.sleep(0.05)
+    assert not any(_alive(pid) for pid in workers)
+    assert not (tmp_path / 'out' / 'fleet.json').exists()
+
+
+def test_ctrl_c_cancels_the_fleet_on_a_dask_cluster(tmp_path):
+    from distributed import Client, LocalCluster
+    folder = tmp_path / 'many'
+    folder.mkdir()
+    for copy in range(24):
+        shutil.copy(GOLDEN[copy % len(GOLDEN)], folder / f'run{copy:02d}.mcap')
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host='127.0.0.1',
+                      dashboard_address=None) as cluster, Client(cluster) as observer:
+        command = subprocess.Popen(
+            [sys.executable, '-m', 'qrm_ros.cli.qrm_analyze', str(folder), '--scheduler',
+             cluster.scheduler_address], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+            text=True)
+        deadline = time.monotonic() + 60.0
+        while time.monotonic() < deadline and not any(observer.processing().values()):
+            time.sleep(0.05)
+        assert any(observer.processing().values()), 'no task ever reached a worker'
+        command.send_signal(signal.SIGINT)
+        _, err = command.communicate(timeout=60.0)
+        assert command.returncode == exit_codes.EXIT_INTERRUPTED, err
+        assert 'Traceback' not in err and 'interrupted' in err
+        deadline = time.monotonic() + 30.0
+        while time.monotonic() < deadline and any(observer.processing().values()):
+            time.sleep(0.05)
+        assert not any(observer.processing().values()), 'tasks still running'
+        assert len(observer.scheduler_info()['workers']) == 2  # the cluster itself goes on
