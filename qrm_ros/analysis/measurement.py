@@ -181,8 +181,8 @@ def segment_geometry(geometry: kin.Geometry, segment: Segment) -> kin.Geometry:
     return dataclasses.replace(geometry, crank_radius=radius)
 
 
-def _with_stroke(row: Dict[str, Any], segment: Segment,
-                 geometry: kin.Geometry) -> Dict[str, Any]:
+def with_stroke(row: Dict[str, Any], segment: Segment,
+                geometry: kin.Geometry) -> Dict[str, Any]:
     """Add the segment's crank radius and stroke (recordings with the crank radius joint)."""
     if segment.crank_radius is not None:
         row['crank_radius'] = segment.crank_radius
@@ -202,8 +202,8 @@ def analyse(recording: Recording) -> Analysis:
     """Segment the recording and measure every segment against the closed form."""
     with np.errstate(all='ignore'):  # absurd recorded values give inf/NaN, reported as null
         segments, transitions = split_segments(recording.samples, recording.drive_spans())
-        rows = [_with_stroke(measure_segment(recording.samples, s,
-                                             segment_geometry(recording.geometry, s),
-                                             s.drive), s, recording.geometry)
+        rows = [with_stroke(measure_segment(recording.samples, s,
+                                            segment_geometry(recording.geometry, s),
+                                            s.drive), s, recording.geometry)
                 for s in segments]
     return Analysis(recording, segments, rows, transitions)

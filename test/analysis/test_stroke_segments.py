@@ -25,10 +25,13 @@ import pytest
 from qrm_ros.analysis import recorded_run
 from qrm_ros.analysis.animation import render_frames
 from qrm_ros.analysis.linkage_figure import LinkageFigure
-from qrm_ros.analysis.measurement import measure_segment, segment_geometry
+from qrm_ros.analysis.measurement import analyse, measure_segment, segment_geometry
+from qrm_ros.analysis.recorded_run import read_recording
+from qrm_ros.analysis.streamed_run import analyse_file
 from qrm_ros.analysis.segments import split_segments
 from qrm_ros.core.geometry import crank_radius_for_stroke, Geometry
 from qrm_ros.core.mechanism_state import state
+from qrm_ros.core.names import PUBLISHED_JOINT_NAMES
 from qrm_ros.core.stepping import ShaperStepper
 from qrm_ros.core.stroke_adjustment import StrokeRamp
 from qrm_ros.core.stroke_timing import time_ratio
@@ -98,3 +101,49 @@ def test_the_animation_draws_the_recorded_crank_radius():
             assert drawn['ram_block'][0] == pytest.approx(expected.ram_position, abs=1e-12)
     finally:
         figure.close()
+
+
+def write_six_joint_run(path, samples):
+    """Write samples as the node's six-joint joint states (the crank radius's joint last)."""
+    from mcap.writer import Writer
+    from rosbags.typesys import get_typestore, Stores
+    store = get_typestore(Stores.ROS2_JAZZY)
+    type_name = 'sensor_msgs/msg/JointState'
+    types = store.types
+    with open(path, 'wb') as handle:
+        writer = Writer(handle)
+        writer.start(profile='ros2', library='qrm_ros test stroke segments')
+        schema = writer.register_schema(type_name, 'ros2msg',
+                                        store.generate_msgdef(type_name, ros_version=2)[0]
+                                        .encode())
+        channel = writer.register_channel('/joint_states', 'cdr', schema)
+        writer.add_metadata('qrm_ros.geometry', {k: repr(float(v)) for k, v in
+                                                 PAPER.as_dict().items()})
+        for i, t in enumerate(samples.time):
+            stamp_ns = 1_700_000_000 * 10 ** 9 + int(round(t * 1e9))
+            message = types[type_name](
+                header=types['std_msgs/msg/Header'](stamp=types['builtin_interfaces/msg/Time'](
+                    sec=stamp_ns // 10 ** 9, nanosec=stamp_ns % 10 ** 9), frame_id='shaper_base'),
+                name=list(PUBLISHED_JOINT_NAMES),
+                position=np.array([samples.input_angle[i], samples.flywheel_angle[i], 0.0,
+                                   samples.ram_position[i], samples.offset[i],
+                                   samples.crank_radius[i]]),
+                velocity=np.array([samples.input_speed[i], samples.flywheel_speed[i], 0.0,
+                                   samples.ram_velocity[i], samples.offset_rate[i],
+                                   samples.crank_radius_rate[i]]),
+                effort=np.zeros(0))
+            writer.add_message(channel, log_time=stamp_ns, publish_time=stamp_ns,
+                               data=bytes(store.serialize_cdr(message, type_name)), sequence=i)
+        writer.finish()
+
+
+def test_a_recorded_stroke_change_is_read_and_streamed_alike(tmp_path):
+    """The whole-run reading and qrm_analyze's streamed one find the same two strokes."""
+    path = str(tmp_path / 'stroke.mcap')
+    write_six_joint_run(path, stroke_change_samples())
+    whole = analyse(read_recording(path))
+    streamed = analyse_file(path, {})
+    assert [row['stroke_length'] for row in whole.rows] == [
+        pytest.approx(float(PAPER.ram_stroke), rel=1e-12), pytest.approx(0.06, rel=1e-12)]
+    assert whole.rows == streamed.rows and whole.transitions == streamed.transitions
+    assert 'a stroke change' in whole.transitions[0]['change']
