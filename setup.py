@@ -33,7 +33,7 @@ setup(
         ('share/' + package_name + '/urdf', glob('urdf/*.urdf')),
     ],
     install_requires=['setuptools', 'numpy', 'scipy', 'mcap', 'rosbags', 'matplotlib', 'tqdm',
-                      'numba'],
+                      'numba', 'foxglove-sdk'],
     extras_require={
         'test': ['pytest', 'flake8', 'pydocstyle', 'mcap-ros2-support', 'pyyaml',
                  'yourdfpy', 'mypy', 'sympy'],
@@ -56,6 +56,7 @@ setup(
             'qrm_animate = qrm_ros.cli.entry_points:qrm_animate',
             'qrm_main = qrm_ros.cli.entry_points:qrm_main',
             'qrm_urdf = qrm_ros.cli.entry_points:qrm_urdf',
+            'qrm_bridge = qrm_ros.cli.entry_points:qrm_bridge',
         ],
     },
 )

@@ -28,8 +28,8 @@ from typing import List
 
 from qrm_ros.cli.exit_codes import EXIT_INTERRUPTED
 
-__all__ = ['mcap_recorder', 'qrm_analyze', 'qrm_animate', 'qrm_design', 'qrm_main', 'qrm_urdf',
-           'shaper_sim']
+__all__ = ['mcap_recorder', 'qrm_analyze', 'qrm_animate', 'qrm_bridge', 'qrm_design', 'qrm_main',
+           'qrm_urdf', 'shaper_sim']
 
 
 _STOP_REQUESTS: List[int] = []  # the stop signals received while starting
@@ -88,3 +88,7 @@ def qrm_main():
 
 def qrm_urdf():
     return run_command('qrm_ros.cli.qrm_urdf')
+
+
+def qrm_bridge():
+    return run_command('qrm_ros.cli.qrm_bridge')

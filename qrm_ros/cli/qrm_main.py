@@ -33,6 +33,7 @@ import argparse
 from datetime import datetime
 import math
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -44,9 +45,10 @@ from qrm_ros.cli.exit_codes import (EXIT_FAILURE, EXIT_INCOMPLETE, EXIT_INTERRUP
                                     exit_code_for_signal)
 from qrm_ros.core import kinematics as kin
 from qrm_ros.core.dynamics import DynamicsError, Loads
-from qrm_ros.core.stroke_adjustment import largest_stroke
-from qrm_ros.core.names import (DRIVES, LINKAGE_MARKERS_TOPIC, RECORDER_NODE_NAME,
+from qrm_ros.core.names import (BRIDGE_DEFAULT_PORT, BRIDGE_NODE_NAME, BRIDGE_SERVING_PREFIX,
+                                DRIVES, LINKAGE_MARKERS_TOPIC, RECORDER_NODE_NAME,
                                 SIM_NODE_NAME)
+from qrm_ros.core.stroke_adjustment import largest_stroke
 from qrm_ros.node.main_job_conductor import (Conductor, Interrupted, MainJobError,
                                              START_TIMEOUT)
 from qrm_ros.node.recorder import DEFAULT_TOPICS
@@ -70,11 +72,12 @@ class UsageError(MainJobError):
     """An option outside what the job accepts (exit code 2)."""
 
 
-def start_child(command_name, ros_arguments, log_path, env):
+def start_child(command_name, ros_arguments, log_path, env, arguments=()):
     """Start a package executable as its own process (works in a venv and under colcon)."""
     # Through the console script's entry point, so a stop during start-up is quiet too.
     command = [sys.executable, '-c', 'import sys; from qrm_ros.cli import entry_points; '
-               f'sys.exit(entry_points.{command_name}())', '--ros-args'] + ros_arguments
+               f'sys.exit(entry_points.{command_name}())', *arguments,
+               '--ros-args'] + ros_arguments
     with open(log_path, 'w') as log:  # the child keeps its own copy of the descriptor
         return subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, env=env,
                                 start_new_session=True)
@@ -129,11 +132,19 @@ def _parser():
                         'stroke held by the offset (default: %(default)s; 0: skip it)')
     parser.add_argument('--output-dir', default='runs',
                         help='folder for the run folder (default: runs)')
+    parser.add_argument('--live', action='store_true',
+                        help='serve the run live to the Foxglove app (qrm_bridge beside it, on '
+                             'this machine only); the address to open is printed')
+    parser.add_argument('--live-port', type=int, default=BRIDGE_DEFAULT_PORT,
+                        help='TCP port of the live view (default: '
+                             f'{BRIDGE_DEFAULT_PORT}; 0: any free port)')
     return parser
 
 
 def validate(options):
     """Refuse options the run cannot use, before anything starts (raises UsageError)."""
+    if not 0 <= options.live_port <= 65535:
+        raise UsageError(f'--live-port must be in 0-65535, got {options.live_port}')
     if options.pairs < 1:
         raise UsageError(f'--pairs must be at least 1, got {options.pairs}')
     if options.input_speed == 0.0 or not math.isfinite(options.input_speed):
@@ -175,11 +186,13 @@ def record(options, folder, stop):
         '-p', f'stroke_rate_limit:={STROKE_RATE_LIMIT!r}',
     ], sim_log, env)
     print(f'qrm_main: started shaper_sim (pid {sim.pid})', flush=True)
-    recorder = None
+    recorder = bridge = None
     conductor = Conductor(stop)
     conductor.watch('shaper_sim', sim, sim_log)
     try:
         conductor.wait_for(conductor.sim_ready, START_TIMEOUT, 'shaper_sim to start')
+        if options.live:
+            bridge = start_live_view(options.live_port, folder, env)
         recorder_log = os.path.join(folder, 'mcap_recorder.log')
         # The recorder's topics and the linkage markers: the run then shows the machine
         # in Foxglove's 3D panel (config/foxglove_layout.json).
@@ -203,7 +216,33 @@ def record(options, folder, stop):
             print(f'qrm_main: warning: mcap_recorder exited with {recorder.returncode}; see '
                   f'{folder}/mcap_recorder.log', file=sys.stderr)
         stop_child(sim)
+        if bridge is not None:
+            stop_child(bridge)
     return recording
+
+
+def start_live_view(port, folder, env, timeout=START_TIMEOUT):
+    """
+    Start qrm_bridge beside the run and print the address to open in the Foxglove app.
+
+    A bridge that cannot start (the port is taken) only warns: the run goes on without it.
+    """
+    log_path = os.path.join(folder, BRIDGE_NODE_NAME + '.log')
+    bridge = start_child(BRIDGE_NODE_NAME, [], log_path, env, ['--port', str(port)])
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and bridge.poll() is None:
+        with open(log_path) as log:
+            found = re.search(re.escape(BRIDGE_SERVING_PREFIX) + r'(ws://\S+)', log.read())
+        if found:
+            print(f'qrm_main: live view at {found.group(1)}: in the Foxglove app, Open '
+                  'connection, Foxglove WebSocket, this address (layout: '
+                  'config/foxglove_layout.json)', flush=True)
+            return bridge
+        time.sleep(0.05)
+    stop_child(bridge)
+    print(f'qrm_main: warning: no live view ({BRIDGE_NODE_NAME} did not start; see '
+          f'{log_path})', file=sys.stderr, flush=True)
+    return None
 
 
 def _run_schedule(conductor, options, offsets):

@@ -85,6 +85,12 @@ TF_TOPIC = '/tf'
 TF_STATIC_TOPIC = '/tf_static'
 TF_MESSAGE_TYPE = 'tf2_msgs/msg/TFMessage'
 
+# The Foxglove WebSocket bridge's node name, and what it prints before the ws:// address once
+# it listens (qrm_main --live reads the address from that line).
+__all__ += ['BRIDGE_DEFAULT_PORT', 'BRIDGE_NODE_NAME', 'BRIDGE_SERVING_PREFIX']
+BRIDGE_NODE_NAME = 'qrm_bridge'
+BRIDGE_SERVING_PREFIX = f'{BRIDGE_NODE_NAME}: serving '
+BRIDGE_DEFAULT_PORT = 8765  # the Foxglove app's default for a Foxglove WebSocket connection
 
 # The stroke adjustment (added after the names above; recordings made before it have the
 # five JOINT_NAMES only, and the analysis reads the crank radius's joint when present).

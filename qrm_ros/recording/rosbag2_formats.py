@@ -35,9 +35,10 @@ if TYPE_CHECKING:  # the recorder hands over rclpy's profiles; this module never
     from rclpy.duration import Duration
     from rclpy.qos import QoSProfile
 
-__all__ = ['DEFINITION_DELIMITER', 'find_message_definition', 'offered_qos_profiles_yaml',
-           'publisher_qos_profile_yaml', 'qos_profile_yaml_lines', 'rosbag2_metadata_yaml',
-           'NO_QOS_PROFILES', 'TopicSummary']
+__all__ = ['DEFINITION_DELIMITER', 'complete_definition', 'find_message_definition',
+           'find_service_definitions',
+           'offered_qos_profiles_yaml', 'publisher_qos_profile_yaml', 'qos_profile_yaml_lines',
+           'rosbag2_metadata_yaml', 'NO_QOS_PROFILES', 'TopicSummary']
 
 DEFINITION_DELIMITER = '=' * 80 + '\n'
 NO_QOS_PROFILES = '[]'
@@ -47,6 +48,8 @@ _MAX_NESTING = 50
 # rosbag2's dependency scan of .msg text: a type at the start of a line, then whitespace.
 _MSG_FIELD_TYPE = re.compile(r'(?:^|\n)\s*([a-zA-Z0-9_/]+)(?:\[[^\]]*\])?\s+')
 _TYPE_NAME = re.compile(r'^([a-zA-Z0-9_]+)/(?:msg/)?([a-zA-Z0-9_]+)$')
+_SERVICE_NAME = re.compile(r'^([a-zA-Z0-9_]+)/srv/([a-zA-Z0-9_]+)$')
+_SERVICE_SEPARATOR = re.compile(r'^---[ \t]*\r?\n?', re.MULTILINE)
 _PRIMITIVE_TYPES = {'bool', 'byte', 'char', 'float32', 'float64', 'int8', 'uint8', 'int16',
                     'uint16', 'int32', 'uint32', 'int64', 'uint64', 'string'}
 
@@ -91,23 +94,74 @@ def find_message_definition(
     in sorted order, as rosbag2 does), each after a newline, a line of 80 '=' and
     ``MSG: pkg/Type``.
     """
+    try:
+        package, text = _msg_text(type_name, share_directory)
+        return _with_dependencies(type_name, package, text, share_directory), None
+    except LookupError as error:
+        return None, str(error)
+
+
+def complete_definition(type_name: str, text: str,
+                        share_directory: Callable[[str], str] = get_package_share_directory,
+                        ) -> Tuple[Optional[str], Optional[str]]:
+    """
+    Return a type's own .msg text completed with its nested types as find_message_definition does.
+
+    For a type whose package is not installed but whose nested types are (``tf2_msgs``): the
+    nested texts are then the installed ones, as every other channel of the same types has.
+    """
+    match = _TYPE_NAME.match(type_name)
+    if not match:
+        return None, f'message type name {type_name!r} is not pkg/Type or pkg/msg/Type'
+    try:
+        return _with_dependencies(type_name, match.group(1), text, share_directory), None
+    except (LookupError, OSError) as error:
+        return None, str(error)
+
+
+def _with_dependencies(type_name: str, package: str, text: str,
+                       share_directory: Callable[[str], str]) -> str:
+    """Return the text, then every nested type once, as find_message_definition says."""
     seen: Set[str] = set()
 
-    def append(name: str, depth: int) -> str:
+    def append(package: str, text: str, depth: int) -> str:
         if depth <= 0:
             raise LookupError(f'nesting too deep resolving {type_name!r}')
-        package, text = _msg_text(name, share_directory)
         result = text
         for dependency in _msg_dependencies(text, package):
             if dependency not in seen:
                 seen.add(dependency)
                 result += '\n' + DEFINITION_DELIMITER + 'MSG: ' + dependency + '\n'
-                result += append(dependency, depth - 1)
+                result += append(*_msg_text(dependency, share_directory), depth - 1)
         return result
 
+    return append(package, text, _MAX_NESTING)
+
+
+def find_service_definitions(
+        type_name: str, share_directory: Callable[[str], str] = get_package_share_directory,
+) -> Tuple[Optional[Tuple[str, str]], Optional[str]]:
+    """
+    Full ``ros2msg`` texts of a service's request and response, and None; or None and why.
+
+    ``pkg/srv/Type``'s .srv file split at its ``---`` line, each half completed with its
+    nested types as find_message_definition completes a message.
+    """
+    match = _SERVICE_NAME.match(type_name)
+    if not match:
+        return None, f'service type name {type_name!r} is not pkg/srv/Type'
+    package, name = match.groups()
     try:
-        return append(type_name, _MAX_NESTING), None
-    except LookupError as error:
+        path = os.path.join(share_directory(package), 'srv', name + '.srv')
+        with open(path, encoding='utf-8', newline='') as handle:
+            halves = _SERVICE_SEPARATOR.split(handle.read(), maxsplit=1)
+        if len(halves) != 2:
+            return None, f'{path} has no --- line between request and response'
+        return tuple(_with_dependencies(type_name, package, half, share_directory)
+                     for half in halves), None  # type: ignore[return-value]
+    except PackageNotFoundError:
+        return None, f'package {package!r} of {type_name!r} is not in the ament index'
+    except (OSError, LookupError) as error:
         return None, str(error)
 
 

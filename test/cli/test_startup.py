@@ -33,6 +33,7 @@ from repo_paths import REPO_ROOT
 COMMANDS = {
     'mcap_recorder': ('qrm_ros.cli.mcap_recorder', ['scipy', 'numba', 'matplotlib']),
     'qrm_analyze': ('qrm_ros.cli.qrm_analyze', ['matplotlib']),
+    'qrm_bridge': ('qrm_ros.cli.qrm_bridge', ['scipy', 'numba', 'matplotlib']),
 }
 
 
