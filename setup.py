@@ -23,7 +23,8 @@ setup(
     version='0.1.0',
     packages=find_packages(exclude=['test', 'test.*', 'bench']),
     # PEP 561: the package is typed; type checkers read its hints once it is installed.
-    package_data={package_name: ['py.typed']},
+    package_data={package_name: ['py.typed', 'testing/examples/*.mcap',
+                                 'testing/examples/*.yaml']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -33,7 +34,7 @@ setup(
         ('share/' + package_name + '/urdf', glob('urdf/*.urdf')),
     ],
     install_requires=['setuptools', 'numpy', 'scipy', 'mcap', 'rosbags', 'matplotlib', 'tqdm',
-                      'numba', 'foxglove-sdk'],
+                      'numba', 'pyyaml', 'foxglove-sdk'],
     extras_require={
         'test': ['pytest', 'flake8', 'pydocstyle', 'mcap-ros2-support', 'pyyaml',
                  'yourdfpy', 'mypy', 'sympy'],
@@ -48,6 +49,9 @@ setup(
                 'MCAP recorder and TR/SR analysis.',
     license='Apache-2.0',
     entry_points={
+        # The test kit's fixtures (qrm_ros.testing) in every pytest run of an environment
+        # that has the package.
+        'pytest11': ['qrm_ros = qrm_ros.testing.plugin'],
         'console_scripts': [
             'qrm_design = qrm_ros.cli.entry_points:qrm_design',
             'shaper_sim = qrm_ros.cli.entry_points:shaper_sim',
@@ -56,6 +60,8 @@ setup(
             'qrm_animate = qrm_ros.cli.entry_points:qrm_animate',
             'qrm_main = qrm_ros.cli.entry_points:qrm_main',
             'qrm_urdf = qrm_ros.cli.entry_points:qrm_urdf',
+            'qrm_simulate = qrm_ros.cli.entry_points:qrm_simulate',
+            'mcap_player = qrm_ros.cli.entry_points:mcap_player',
             'qrm_bridge = qrm_ros.cli.entry_points:qrm_bridge',
         ],
     },

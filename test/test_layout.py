@@ -31,6 +31,8 @@ PACKAGE = 'qrm_ros'
 PACKAGE_FOLDER = os.path.join(REPO_ROOT, PACKAGE)
 # The rooms each room may import from (itself included): imports run one way.
 ALLOWED_IMPORTS = {
+    # The test kit for users' suites starts nodes and reads runs, as a user's test would.
+    'testing': {'testing', 'node', 'recording', 'core'},
     'cli': {'cli', 'analysis', 'node', 'recording', 'core'},
     'analysis': {'analysis', 'recording', 'core'},
     'node': {'node', 'recording', 'core'},

@@ -33,7 +33,7 @@ from repo_paths import REPO_ROOT
 
 PACKAGE = 'qrm_ros'
 # The rooms mypy checks, module by module.
-TYPED_ROOMS = ['core', 'recording', 'analysis', 'node', 'cli']
+TYPED_ROOMS = ['core', 'recording', 'analysis', 'node', 'cli', 'testing']
 # The rooms whose public functions and methods must be fully annotated.
 ANNOTATED_ROOMS = ['core', 'recording', 'analysis']
 TYPED_MARKER = 'py.typed'

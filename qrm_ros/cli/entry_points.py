@@ -29,7 +29,7 @@ from typing import List
 from qrm_ros.cli.exit_codes import EXIT_INTERRUPTED
 
 __all__ = ['mcap_recorder', 'qrm_analyze', 'qrm_animate', 'qrm_bridge', 'qrm_design', 'qrm_main',
-           'qrm_urdf', 'shaper_sim']
+           'qrm_urdf', 'shaper_sim', 'qrm_simulate', 'mcap_player']
 
 
 _STOP_REQUESTS: List[int] = []  # the stop signals received while starting
@@ -88,6 +88,14 @@ def qrm_main():
 
 def qrm_urdf():
     return run_command('qrm_ros.cli.qrm_urdf')
+
+
+def qrm_simulate():
+    return run_command('qrm_ros.cli.qrm_simulate')
+
+
+def mcap_player():
+    return run_command('qrm_ros.cli.mcap_player')
 
 
 def qrm_bridge():

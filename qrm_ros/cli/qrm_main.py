@@ -41,6 +41,7 @@ import time
 from typing import List, Optional
 
 from qrm_ros import analysis
+from qrm_ros.cli.main_job_offline import simulate_schedule
 from qrm_ros.cli.exit_codes import (EXIT_FAILURE, EXIT_INCOMPLETE, EXIT_INTERRUPTED, EXIT_OK,
                                     exit_code_for_signal)
 from qrm_ros.core import kinematics as kin
@@ -132,6 +133,9 @@ def _parser():
                         'stroke held by the offset (default: %(default)s; 0: skip it)')
     parser.add_argument('--output-dir', default='runs',
                         help='folder for the run folder (default: runs)')
+    parser.add_argument('--offline', action='store_true',
+                        help='simulate the schedule offline (qrm_simulate), as fast as the CPU '
+                        'allows, instead of running the nodes live over DDS')
     parser.add_argument('--live', action='store_true',
                         help='serve the run live to the Foxglove app (qrm_bridge beside it, on '
                              'this machine only); the address to open is printed')
@@ -145,6 +149,9 @@ def validate(options):
     """Refuse options the run cannot use, before anything starts (raises UsageError)."""
     if not 0 <= options.live_port <= 65535:
         raise UsageError(f'--live-port must be in 0-65535, got {options.live_port}')
+    if options.offline and options.live:
+        raise UsageError('--offline and --live exclude each other: an offline run has no live '
+                         'graph to serve (play its recording with mcap_player beside qrm_bridge)')
     if options.pairs < 1:
         raise UsageError(f'--pairs must be at least 1, got {options.pairs}')
     if options.input_speed == 0.0 or not math.isfinite(options.input_speed):
@@ -343,7 +350,10 @@ def run(options):
     print(f'qrm_main: run folder {folder}', flush=True)
     try:
         with StopRequest() as stop:  # a stop signal ends the schedule; children stop cleanly
-            recording = record(options, folder, stop)
+            if options.offline:
+                recording = simulate_schedule(options, folder, stop)
+            else:
+                recording = record(options, folder, stop)
     except Interrupted as error:
         raise Interrupted(error.signal_number, folder) from None
     missing = report(recording, folder)

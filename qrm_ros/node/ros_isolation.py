@@ -23,8 +23,10 @@ import fcntl
 import os
 from typing import List, TextIO
 
-__all__ = ['claim_ros_domain', 'isolate_ros_traffic']
+__all__ = ['CLAIMED_VARIABLE', 'claim_ros_domain', 'isolate_ros_traffic']
 
+# Set to the claiming process's id in the environment it isolated.
+CLAIMED_VARIABLE = 'QRM_ROS_DOMAIN_CLAIMED_BY'
 _held: List[TextIO] = []  # the lock files of the claimed domains, kept open
 
 
@@ -45,7 +47,15 @@ def claim_ros_domain(domains=range(11, 200)):
 
 
 def isolate_ros_traffic(environ=os.environ, domains=range(11, 200)):
-    """Point environ (default: this process's, inherited by children) at a private domain."""
+    """
+    Point environ (default: this process's, inherited by children) at a private domain.
+
+    Once per environment: a second call (a test kit's plugin beside a suite's own set-up)
+    keeps the domain this process already claimed for it.
+    """
+    if environ.get(CLAIMED_VARIABLE) == str(os.getpid()) and 'ROS_DOMAIN_ID' in environ:
+        return int(environ['ROS_DOMAIN_ID'])
+    environ[CLAIMED_VARIABLE] = str(os.getpid())
     environ['ROS_DOMAIN_ID'] = str(claim_ros_domain(domains))
     environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     environ.pop('ROS_STATIC_PEERS', None)

@@ -74,6 +74,9 @@ class StrokePairReports:
         # (stepper, mass, loads, motor, offset, speed).
         self._setting: Any = None
         self._setting_since_ns = 0
+        # s a report waits for its effort theory; None: not at all (the live node never
+        # waits; an offline run does, so that its reports do not depend on the CPU's speed).
+        self.theory_timeout: Optional[float] = None
 
     @property
     def published(self) -> int:
@@ -165,9 +168,10 @@ class StrokePairReports:
         if report.pair_start * NANOSECONDS_PER_SECOND < setting_since_ns:
             return [], 'none: the setting changed during the pair'
         stepper, mass, loads, motor, offset, speed, geometry = setting
-        theory, problem = self._theory.lookup(Setting(
-            geometry, mass, loads, motor if isinstance(stepper, MotorStepper) else None,
-            offset, speed))
+        wanted = Setting(geometry, mass, loads,
+                         motor if isinstance(stepper, MotorStepper) else None, offset, speed)
+        theory, problem = (self._theory.lookup(wanted) if self.theory_timeout is None
+                           else self._theory.wait(wanted, self.theory_timeout))
         if problem:
             return [], f'unavailable: {problem}'
         if theory is None:

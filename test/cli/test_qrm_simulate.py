@@ -1,0 +1,100 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+qrm_simulate as a user runs it: its file read by the analysis and by rosbags, its refusals.
+
+The content itself is checked against a live recording in test/node/test_offline_sim.py.
+"""
+
+import math
+from pathlib import Path
+import subprocess
+
+import pytest
+from rosbags.highlevel import AnyReader
+
+from qrm_ros.analysis.measurement import analyse
+from qrm_ros.analysis.recorded_run import read_recording
+from qrm_ros.cli import exit_codes
+from qrm_ros.core import kinematics as kin
+from ros_probe import installed_executable
+
+
+def _simulate(*args):
+    result = subprocess.run([installed_executable('qrm_simulate'), *map(str, args)],
+                            capture_output=True, text=True, timeout=300)
+    assert 'Traceback' not in result.stderr
+    return result
+
+
+def test_options_alone_make_a_run_the_analysis_measures(tmp_path):
+    path = tmp_path / 'run.mcap'
+    result = _simulate('--duration', 8, '-p', 'coupling_offset:=0.01', '-p',
+                       'input_speed:=9.0', '--start-time', 100, '--markers', '-o', path)
+    assert result.returncode == exit_codes.EXIT_OK, result.stderr
+    assert 'wrote' in result.stdout and '800 ticks' in result.stdout
+    rows = analyse(read_recording(str(path), {})).rows
+    assert len(rows) == 1
+    row = rows[0]
+    assert row['offset'] == pytest.approx(0.01) and row['input_speed'] == pytest.approx(9.0)
+    assert row['time_ratio_measured'] == pytest.approx(
+        kin.time_ratio(kin.Geometry.paper(), 0.01), rel=1e-4)
+    with AnyReader([Path(path)]) as reader:  # rosbag2's own layout, as rosbags reads it
+        counts = {c.topic: c.msgcount for c in reader.connections}
+        assert counts['/joint_states'] == 800 and counts['/linkage_markers'] > 0
+        first = next(reader.messages(connections=[
+            c for c in reader.connections if c.topic == '/joint_states']))
+        message = reader.deserialize(first[2], first[0].msgtype)
+    assert message.header.stamp.sec == 100 and message.header.stamp.nanosec == 10_000_000
+    assert math.isclose(message.position[4], 0.01)
+
+
+def test_a_scenario_file_with_an_event(tmp_path):
+    scenario = tmp_path / 'change.yaml'
+    scenario.write_text('parameters: {coupling_offset: -0.01, offset_rate_limit: 0.02}\n'
+                        'duration: 20\n'
+                        'events:\n  - {at: 8, set: {coupling_offset: 0.005}}\n')
+    path = tmp_path / 'run.mcap'
+    result = _simulate(scenario, '-o', path)
+    assert result.returncode == exit_codes.EXIT_OK, result.stderr
+    offsets = [row['offset'] for row in analyse(read_recording(str(path), {})).rows]
+    assert offsets == [pytest.approx(-0.01), pytest.approx(0.005)]
+
+
+@pytest.mark.parametrize('args, message', [
+    (['--duration', 1, '-p', 'coupling_offset:=0.05'],
+     'coupling_offset = 0.05 refused: outside the allowed range [-0.0225, 0.0225] m'),
+    (['--duration', 1, '-p', 'coupling_offset:=0.0', '-p', 'pivot_distance:=0.01'],
+     'pivot_distance'),
+    (['--duration', 1, '-p', 'drive:=diesel'], "drive = 'diesel' refused"),
+    (['--duration', 1, '-p', 'coupling_offst:=0.0'], 'did you mean coupling_offset?'),
+    (['--duration', 1, '-p', 'coupling_offset'], 'write NAME:=VALUE'),
+    (['-p', 'coupling_offset:=0.0'], 'no duration'),
+    (['--duration', -1], 'duration = -1.0 s'),
+])
+def test_bad_input_is_refused_in_one_line_and_leaves_no_file(tmp_path, args, message):
+    path = tmp_path / 'run.mcap'
+    result = _simulate(*args, '-o', path)
+    assert result.returncode == exit_codes.EXIT_BAD_INPUT
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], result.stderr
+    assert not path.exists()
+
+
+def test_an_existing_output_is_kept(tmp_path):
+    path = tmp_path / 'run.mcap'
+    path.write_bytes(b'mine')
+    result = _simulate('--duration', 1, '-o', path)
+    assert result.returncode == exit_codes.EXIT_BAD_INPUT
+    assert 'already exists' in result.stderr and path.read_bytes() == b'mine'
