@@ -37,7 +37,7 @@ setup(
                       'numba', 'pyyaml', 'foxglove-sdk'],
     extras_require={
         'test': ['pytest', 'flake8', 'pydocstyle', 'mcap-ros2-support', 'pyyaml',
-                 'yourdfpy', 'mypy'],
+                 'yourdfpy', 'mypy', 'sympy'],
         # MP4 animations (qrm_animate -o OUT.mp4): a bundled ffmpeg
         'video': ['imageio-ffmpeg'],
         'dask': ['dask[distributed]'],

@@ -174,7 +174,9 @@ def render_frames(figure: LinkageFigure, samples: Samples, indices: Iterable[int
         yield index, figure.draw(samples.input_angle[index], offset, time,
                                  samples.ram_velocity[index],
                                  ratio_text(row_at(time)),
-                                 None if efforts is None else efforts[index])
+                                 None if efforts is None else efforts[index],
+                                 None if samples.crank_radius is None
+                                 else float(samples.crank_radius[index]))
 
 
 def read_efforts(path: str, samples: Samples) -> Optional[np.ndarray]:
@@ -371,9 +373,11 @@ def offset_tour_samples(result: Analysis, offsets: int = 4, fps: float = 20.0,
     """
     samples = result.recording.samples
     chosen: Dict[float, Tuple[Any, Dict[str, Any]]] = {}
+    # The tour draws the recording's geometry: segments at another stroke are left out.
+    radius = result.recording.geometry.crank_radius
     for segment, row in zip(result.segments, result.rows):
         held = chosen.get(segment.offset)
-        if segment.input_speed != 0.0 and (
+        if segment.input_speed != 0.0 and segment.crank_radius in (None, radius) and (
                 held is None or row['stroke_pairs'] >= held[1]['stroke_pairs']):
             chosen[segment.offset] = (segment, row)
     segments = sorted((segment for segment, _ in chosen.values()), key=lambda s: s.start)

@@ -19,6 +19,7 @@ gid 'theory' so tests can compare them with the core); measured points come from
 Every axis is labelled with its unit so a figure reads without the table.
 """
 
+import dataclasses
 import math
 import os
 from typing import Callable, cast, Dict, List, Optional
@@ -30,6 +31,7 @@ from qrm_ros.analysis.measurement import Analysis
 from qrm_ros.analysis.plotting import plt
 from qrm_ros.analysis.theory import flywheel_speed_swing, input_torque_parts
 from qrm_ros.core import kinematics as kin
+from qrm_ros.core.geometry import crank_radius_for_stroke
 from qrm_ros.core.speed_drive import pair_efforts
 
 THEORY = 'theory'
@@ -56,6 +58,50 @@ def _measured(analysis, key):
     return x, y, spread
 
 
+def _row_strokes(analysis: Analysis, key: str) -> np.ndarray:
+    """Crank radius of each measured row (the recording's where it recorded none)."""
+    radius = analysis.recording.geometry.crank_radius
+    return np.array([r.get('crank_radius', radius) for r in analysis.rows
+                     if r[f'{key}_measured'] is not None])
+
+
+def time_ratio_stroke_figure(analysis: Analysis) -> Figure:
+    """TR against the ram stroke: offset 0 (the quick return lost) and the measured points."""
+    geometry = analysis.recording.geometry
+    h, height = geometry.pivot_distance, geometry.ram_height
+    figure, axes = plt.subplots(figsize=(8, 5.5))
+    strokes = np.linspace(0.01, 2.0 * float(geometry.ram_stroke), CURVE_POINTS)
+    radii = np.asarray(crank_radius_for_stroke(strokes, h, height))
+    half = np.arcsin(radii / h)
+    axes.plot(strokes * 1e3, (np.pi + 2 * half) / (np.pi - 2 * half), color='C0', gid=THEORY,
+              label='theory at offset 0 (eq. 28): a short stroke loses its quick return')
+    rows = [r for r in analysis.rows if r['time_ratio_measured'] is not None]
+    # Rows at another stroke than the recording's, with an offset: the time-ratio hold's.
+    held_rows = [r for r in rows if r['offset'] != 0.0
+                 and r.get('crank_radius', geometry.crank_radius) != geometry.crank_radius]
+    for index, offset in enumerate(sorted({r['offset'] for r in held_rows})):
+        ratios = [float(kin.time_ratio(dataclasses.replace(geometry, crank_radius=float(r)),
+                                       offset)) for r in radii]
+        axes.plot(strokes * 1e3, ratios, color=f'C{1 + index}', gid=THEORY, linestyle='--',
+                  label=f'theory at offset {offset * 1e3:.3g} mm (the hold\'s)')
+    for chosen, marker, colour, words in (
+            ([r for r in rows if r['offset'] == 0.0], 'o', 'C3', 'measured, offset 0'),
+            (held_rows, 's', 'C2', 'measured, the time ratio held by the offset')):
+        if chosen:
+            stroke = [r.get('stroke_length', float(geometry.ram_stroke)) * 1e3 for r in chosen]
+            axes.errorbar(stroke, [r['time_ratio_measured'] for r in chosen],
+                          yerr=[r['time_ratio_measured_std'] for r in chosen], fmt=marker,
+                          color=colour, capsize=3, label=words)
+    axes.axhline(1.0, color='0.6', linewidth=0.8)
+    axes.set_xlabel('ram stroke S [mm]')
+    axes.set_ylabel('time ratio TR = cutting time / return time [-]')
+    axes.set_title(f'Time ratio against stroke, with and without the offset; h = {h * 1e3:g} '
+                   f'mm, H = {height * 1e3:g} mm')
+    axes.grid(True, alpha=0.3)
+    axes.legend(fontsize='small')
+    return figure
+
+
 def time_ratio_figure(analysis: Analysis) -> Figure:
     """TR against δ/h: the closed form (and other crank radii) and the measured means."""
     geometry = analysis.recording.geometry
@@ -80,8 +126,20 @@ def time_ratio_figure(analysis: Analysis) -> Figure:
             axes.annotate(f'r = {crank_radius * 1e3:g} mm', (x[-1], y[-1]), fontsize='small',
                           color='0.4', xytext=(3, 0), textcoords='offset points', va='center')
     x, y, spread = _measured(analysis, 'time_ratio')
-    axes.errorbar(x, y, yerr=spread, fmt='o', color='C3', capsize=3,
-                  label='measured (mean ± s.d. over stroke pairs)')
+    strokes = _row_strokes(analysis, 'time_ratio')
+    recorded = geometry.crank_radius
+    for index, radius in enumerate(sorted(set(strokes), reverse=True)):
+        chosen = strokes == radius
+        if radius != recorded:  # another stroke in the run: its own theory curve
+            other = dataclasses.replace(geometry, crank_radius=radius)
+            axes.plot(offsets / geometry.pivot_distance, kin.time_ratio(other, offsets),
+                      color=f'C{4 + index}', gid=THEORY,
+                      label=f'theory (closed form), r = {radius * 1e3:.4g} mm')
+        axes.errorbar(x[chosen], y[chosen], yerr=spread[chosen], fmt='o',
+                      color='C3' if radius == recorded else f'C{4 + index}', capsize=3,
+                      label='measured (mean ± s.d. over stroke pairs)' + (
+                          f', stroke {float(other.ram_stroke) * 1e3:.4g} mm'
+                          if radius != recorded else ''))
     axes.axhline(1.0, color='0.6', linewidth=0.8)
     axes.set_xlabel('offset / pivot distance, δ/h [-]')
     axes.set_ylabel('time ratio TR = cutting time / return time [-]')
@@ -317,6 +375,7 @@ def offset_cost_figure(analysis: Analysis) -> Figure:
 
 FIGURES: Dict[str, Callable[[Analysis], Figure]] = {
     'fig10_time_ratio.png': time_ratio_figure,
+    'fig_time_ratio_stroke.png': time_ratio_stroke_figure,
     'fig11_speed_ratio.png': speed_ratio_figure,
     'fig12_flywheel_speed.png': flywheel_speed_figure,
     'ram_motion.png': ram_motion_figure,

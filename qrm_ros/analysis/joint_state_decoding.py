@@ -31,7 +31,7 @@ from typing import Any, Callable, Dict, Iterator, List, NamedTuple, Optional, Tu
 import numpy as np
 
 from qrm_ros.core import names
-from qrm_ros.core.names import absolute_topic, JOINT_NAMES, JOINT_STATE_TYPE
+from qrm_ros.core.names import absolute_topic, CRANK_RADIUS_JOINT, JOINT_NAMES, JOINT_STATE_TYPE
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
 from qrm_ros.recording.bag_reader import Loss, open_run, Run
 
@@ -51,6 +51,9 @@ class DecodedBlock(NamedTuple):
     velocities: np.ndarray
     efforts: np.ndarray
     read: int  # messages in the block, usable or not
+    # The crank radius joint's position and velocity (NaN: a message without it).
+    crank_radius: Optional[np.ndarray] = None
+    crank_radius_rate: Optional[np.ndarray] = None
 
 
 class DecodedPart(NamedTuple):
@@ -64,6 +67,9 @@ class DecodedPart(NamedTuple):
     read: int
     rejected: Dict[str, List[int]]  # reason -> [count, first log time, last log time]
     losses: List[Loss]
+    # The crank radius joint's position and velocity (NaN: a message without it).
+    crank_radius: Optional[np.ndarray] = None
+    crank_radius_rate: Optional[np.ndarray] = None
 
 
 @functools.lru_cache(maxsize=None)
@@ -81,6 +87,11 @@ def _joint_columns(joint_names: Tuple[str, ...]):
     if missing:
         return f'the joints {", ".join(missing)} are missing'
     return np.array([joint_names.index(joint) for joint in JOINT_NAMES])
+
+
+def _crank_column(joint_names: Tuple[str, ...]) -> Optional[int]:
+    """Column of the crank radius joint in a message's arrays, None without it."""
+    return joint_names.index(CRANK_RADIUS_JOINT) if CRANK_RADIUS_JOINT in joint_names else None
 
 
 def _reject(rejected: Dict[str, List[int]], reason: str, log_time: int) -> None:
@@ -119,6 +130,7 @@ class _Layout(NamedTuple):
     velocity: slice
     effort: Optional[slice]  # None: the payloads have no efforts
     order: Any  # joint columns (None: in JOINT_NAMES order)
+    crank_column: Optional[int] = None  # the crank radius joint's (None: not there)
 
 
 def _flipped(array: np.ndarray) -> np.ndarray:
@@ -178,7 +190,8 @@ def _learn_layout(data: bytes, decoded: Any, order: Any) -> Optional[_Layout]:
     for region in regions.values():
         fixed[region] = False
     return _Layout(original, np.flatnonzero(fixed), regions['sec'], regions['nanosec'],
-                   regions['position'], regions['velocity'], regions.get('effort'), order)
+                   regions['position'], regions['velocity'], regions.get('effort'), order,
+                   _crank_column(tuple(decoded.name)))
 
 
 class _Decoder:
@@ -231,6 +244,8 @@ class _Decoder:
         positions = np.zeros((count, width))
         velocities = np.zeros((count, width))
         efforts = np.full((count, width), np.nan)
+        radii = np.full(count, np.nan)
+        radius_rates = np.full(count, np.nan)
         usable = np.zeros(count, dtype=bool)
         sizes = np.fromiter(map(len, payloads), dtype=np.int64, count=count)
         times = np.array(log_times, dtype=np.int64)
@@ -250,8 +265,13 @@ class _Decoder:
                 sec = block[:, layout.sec].copy().view('<i4')[:, 0].astype(np.int64)
                 nanosec = block[:, layout.nanosec].copy().view('<u4')[:, 0].astype(np.int64)
                 columns = slice(None) if layout.order is None else layout.order
-                positions[rows] = block[:, layout.position].copy().view('<f8')[:, columns]
-                velocities[rows] = block[:, layout.velocity].copy().view('<f8')[:, columns]
+                position = block[:, layout.position].copy().view('<f8')
+                velocity = block[:, layout.velocity].copy().view('<f8')
+                positions[rows] = position[:, columns]
+                velocities[rows] = velocity[:, columns]
+                if layout.crank_column is not None:
+                    radii[rows] = position[:, layout.crank_column]
+                    radius_rates[rows] = velocity[:, layout.crank_column]
                 if layout.effort is not None:
                     efforts[rows] = block[:, layout.effort].copy().view('<f8')[:, columns]
                 stamps[rows] = sec * NANOSECONDS_PER_SECOND + nanosec
@@ -269,11 +289,16 @@ class _Decoder:
             stamps[row] = stamp.sec * NANOSECONDS_PER_SECOND + stamp.nanosec
             positions[row] = np.asarray(decoded.position, dtype=float)[columns]
             velocities[row] = np.asarray(decoded.velocity, dtype=float)[columns]
+            crank_column = _crank_column(tuple(decoded.name))
+            if crank_column is not None:
+                radii[row] = float(decoded.position[crank_column])
+                radius_rates[row] = float(decoded.velocity[crank_column])
             if len(decoded.effort):
                 efforts[row] = np.asarray(decoded.effort, dtype=float)[columns]
             usable[row] = True
         return DecodedBlock(stamps[usable], times[usable], positions[usable],
-                            velocities[usable], efforts[usable], count)
+                            velocities[usable], efforts[usable], count,
+                            radii[usable], radius_rates[usable])
 
     def _layout(self, size: int, candidates: List[bytes]) -> Optional[_Layout]:
         if size not in self.layouts:
@@ -346,7 +371,9 @@ def decode_part(path: str, part: Optional[slice], counter: Any = None,
                        joined([b.positions for b in blocks], float, (0, width)),
                        joined([b.velocities for b in blocks], float, (0, width)),
                        joined([b.efforts for b in blocks], float, (0, width)),
-                       sum(b.read for b in blocks), rejected, losses)
+                       sum(b.read for b in blocks), rejected, losses,
+                       joined([b.crank_radius for b in blocks], float, 0),
+                       joined([b.crank_radius_rate for b in blocks], float, 0))
 
 
 def decode_in_parallel(path: str, parts: List[Optional[slice]],

@@ -19,6 +19,7 @@ offset. The figure draws on its own Agg canvas (no pyplot, no display): only the
 artists are redrawn per frame, and ``drawn_points`` reads back what they show.
 """
 
+import dataclasses
 from typing import Any, Dict, Optional
 
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -135,24 +136,32 @@ class LinkageFigure:
                                          markersize=5)
 
     def draw(self, input_angle: float, offset: float, time: float, ram_velocity: float,
-             ratios: str, effort: Optional[float] = None) -> np.ndarray:
-        """Draw one state (ratios: ``ratio_text``); return it as (height, width, 3) uint8."""
+             ratios: str, effort: Optional[float] = None,
+             crank_radius: Optional[float] = None) -> np.ndarray:
+        """
+        Draw one state (ratios: ``ratio_text``); return it as (height, width, 3) uint8.
+
+        crank_radius (m): the recorded one, when the stroke moved (None: the geometry's).
+        """
         ratios = '\n\n' + ratios  # below the clock and the offset
         if ratios != self.ratios.get_text():
             self.ratios.set_text(ratios)
             self.canvas.restore_region(self.bare)
             self.axes.draw_artist(self.ratios)
             self.background = self.canvas.copy_from_bbox(self.figure.bbox)
-        self.update(input_angle, offset, time, ram_velocity, effort)
+        self.update(input_angle, offset, time, ram_velocity, effort, crank_radius)
         self.canvas.restore_region(self.background)
         for axes, artist in self.moving:
             axes.draw_artist(artist)
         return np.asarray(self.canvas.buffer_rgba())[:, :, :3].copy()
 
     def update(self, input_angle: float, offset: float, time: float, ram_velocity: float,
-               effort: Optional[float] = None) -> None:
+               effort: Optional[float] = None, crank_radius: Optional[float] = None) -> None:
         """Move the moving artists to one state, without drawing them."""
-        points = linkage_points(self.geometry, offset, input_angle, sizes=self.sizes)
+        geometry = self.geometry
+        if crank_radius is not None and crank_radius != geometry.crank_radius:
+            geometry = dataclasses.replace(geometry, crank_radius=crank_radius)
+        points = linkage_points(geometry, offset, input_angle, sizes=self.sizes)
         self.slot.set_data(*zip(points.flywheel_centre, points.slot_end))
         self.crank.set_data(*zip(points.flywheel_centre, points.crank_pin))
         self.input_crank.set_data(*zip(points.input_centre, points.coupling_pin))

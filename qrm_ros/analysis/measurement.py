@@ -22,6 +22,7 @@ recorded geometry and drive, with the relative error.
 """
 
 import contextlib
+import dataclasses
 import math
 from typing import Any, Dict, List, NamedTuple, Optional, Tuple
 
@@ -174,6 +175,25 @@ def _measure_efforts(row: Dict[str, Any], samples: Samples, span: slice, pairs: 
     _measured_and_theory(row, 'flywheel_speed_swing', swing, swing_theory)
 
 
+def segment_geometry(geometry: kin.Geometry, segment: Segment) -> kin.Geometry:
+    """Return the recording's geometry with the segment's recorded crank radius, if any."""
+    radius = segment.crank_radius
+    if radius is None or radius == geometry.crank_radius or not (
+            0.0 < radius < geometry.pivot_distance):
+        return geometry
+    return dataclasses.replace(geometry, crank_radius=radius)
+
+
+def with_stroke(row: Dict[str, Any], segment: Segment,
+                geometry: kin.Geometry) -> Dict[str, Any]:
+    """Add the segment's crank radius and stroke (recordings with the crank radius joint)."""
+    if segment.crank_radius is not None:
+        row['crank_radius'] = segment.crank_radius
+        row['stroke_length'] = finite_or_none(
+            float(segment_geometry(geometry, segment).ram_stroke))
+    return row
+
+
 class Analysis(NamedTuple):
     recording: Recording
     segments: List[Segment]
@@ -185,6 +205,8 @@ def analyse(recording: Recording) -> Analysis:
     """Segment the recording and measure every segment against the closed form."""
     with np.errstate(all='ignore'):  # absurd recorded values give inf/NaN, reported as null
         segments, transitions = split_segments(recording.samples, recording.drive_spans())
-        rows = [measure_segment(recording.samples, s, recording.geometry, s.drive)
+        rows = [with_stroke(measure_segment(recording.samples, s,
+                                            segment_geometry(recording.geometry, s),
+                                            s.drive), s, recording.geometry)
                 for s in segments]
     return Analysis(recording, segments, rows, transitions)

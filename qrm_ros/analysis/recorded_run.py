@@ -78,6 +78,10 @@ class Samples(NamedTuple):
     offset_rate: np.ndarray
     input_torque: Optional[np.ndarray] = None
     offset_force: Optional[np.ndarray] = None
+    # The crank radius joint (m, m/s); None in recordings made before the node published it
+    # (their crank radius is the geometry's, from the metadata).
+    crank_radius: Optional[np.ndarray] = None
+    crank_radius_rate: Optional[np.ndarray] = None
 
 
 class RunExtent(NamedTuple):
@@ -259,7 +263,8 @@ def _combine(path: str, run: Run, geometry: kin.Geometry, parts: List[DecodedPar
         for reason, (count, first, last) in part.rejected.items():
             merge_counts(checks.rejected, reason, count, first, last)
         checked.append(checks.check(DecodedBlock(part.stamps, part.log_times, part.positions,
-                                                 part.velocities, part.efforts, part.read)))
+                                                 part.velocities, part.efforts, part.read,
+                                                 part.crank_radius, part.crank_radius_rate)))
     losses = checks.losses(run)
     foreign = foreign_geometry_problem(path, geometry, checks.inconsistent, checks.used)
     if foreign:
@@ -286,10 +291,15 @@ def samples_of(block: CheckedBlock, origin_ns: int, with_efforts: Optional[bool]
     position, velocity, effort = block.positions, block.velocities, block.efforts
     if with_efforts is None:
         with_efforts = not np.isnan(effort).all()
+    radius, radius_rate = block.crank_radius, block.crank_radius_rate
+    # The crank radius where every sample has it (a recording of a node that publishes it).
+    with_radius = (radius is not None and radius_rate is not None and bool(radius.size)
+                   and bool(np.isfinite(radius).all() and np.isfinite(radius_rate).all()))
     return Samples(time, position[:, 0], velocity[:, 0], position[:, 1], velocity[:, 1],
                    position[:, 3], velocity[:, 3], position[:, 4], velocity[:, 4],
                    effort[:, 0] if with_efforts else None,
-                   effort[:, -1] if with_efforts else None)
+                   effort[:, -1] if with_efforts else None,
+                   radius if with_radius else None, radius_rate if with_radius else None)
 
 
 def too_few_samples(path: str, used: int, losses: Sequence[Lost], run: Run) -> AnalysisError:

@@ -66,6 +66,10 @@ def format_table(analysis: Analysis) -> str:
         lines.append(''.join(parts)[:-2])
     if not analysis.rows:
         lines.append('  (no segment of steady offset and input speed)')
+    for number, row in enumerate(analysis.rows, 1):
+        if row.get('stroke_length') is not None:  # recorded with the crank radius joint
+            lines.append(f'segment {number}: stroke {row["stroke_length"] * 1e3:.3f} mm, crank '
+                         f'radius {row["crank_radius"] * 1e3:.4f} mm')
     lines += _effort_lines(analysis)
     for row in analysis.rows:
         per_turn = row['samples_per_revolution']

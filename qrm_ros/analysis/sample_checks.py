@@ -55,6 +55,8 @@ class CheckedBlock(NamedTuple):
     positions: np.ndarray
     velocities: np.ndarray
     efforts: np.ndarray  # NaN rows: no (usable) efforts
+    crank_radius: Optional[np.ndarray] = None  # the crank radius joint (NaN: not recorded)
+    crank_radius_rate: Optional[np.ndarray] = None
 
 
 def merge_counts(counts: Dict[str, List[int]], reason: str, count: int, first: int,
@@ -104,11 +106,22 @@ class SampleChecks:
         finite = np.isfinite(position).all(axis=1) & np.isfinite(velocity).all(axis=1)
         if not finite.all():
             _merge_times(self.rejected, NON_FINITE_MOTION, log_times[~finite])
+        count = block.stamps.size
         if self.geometry is not None:
-            for reason, caught in contradicted(self.geometry, position, velocity, finite):
+            # A stroke changed mid-run (its crank radius recorded) is not the geometry's:
+            # those samples are not judged.
+            radius_all = (np.full(count, np.nan) if block.crank_radius is None
+                          else np.asarray(block.crank_radius, dtype=float))
+            judged = finite & ~(np.isfinite(radius_all)
+                                & (radius_all != self.geometry.crank_radius))
+            for reason, caught in contradicted(self.geometry, position, velocity, judged):
                 self.inconsistent += int(caught.sum())
                 _merge_times(self.rejected, reason, log_times[caught])
                 finite &= ~caught
+        radius = (np.full(count, np.nan) if block.crank_radius is None
+                  else block.crank_radius)[finite]
+        radius_rate = (np.full(count, np.nan) if block.crank_radius_rate is None
+                       else block.crank_radius_rate)[finite]
         stamps, log_times = block.stamps[finite], log_times[finite]
         position, velocity, effort = position[finite], velocity[finite], block.efforts[finite]
         # A recorded effort that is not finite is not a measurement: the sample keeps its
@@ -119,7 +132,7 @@ class SampleChecks:
             effort[unusable] = np.nan
             _merge_times(self._efforts_lost, IN_EFFORTS, log_times[unusable])
         if not stamps.size:
-            return CheckedBlock(stamps, position, velocity, effort)
+            return CheckedBlock(stamps, position, velocity, effort, radius, radius_rate)
         # The same stamp as the previous message: an exact repeat counts once; a conflicting
         # one is excluded (which of the two is right cannot be told).
         carried = self._previous is not None
@@ -144,7 +157,8 @@ class SampleChecks:
         self.repeated += int((repeat & same).sum())
         keep = ~repeat
         self.used += int(keep.sum())
-        return CheckedBlock(stamps[keep], position[keep], velocity[keep], effort[keep])
+        return CheckedBlock(stamps[keep], position[keep], velocity[keep], effort[keep],
+                            radius[keep], radius_rate[keep])
 
     def messages_in_file(self, run: Run) -> Optional[int]:
         """Return the file's own count of joint-state messages; None: unknown."""

@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 """
-The steady spans of a run: one offset, one commanded input speed, one drive, no gap.
+The steady spans of a run: one offset, one stroke, one commanded input speed, one drive, no gap.
 
 Only whole stroke pairs inside such a span are measured; what lies between two spans (a
 ramp of the offset, a speed change, a load change, a pause or a clock jump) is a transition,
@@ -40,6 +40,7 @@ class Segment(NamedTuple):
     offset: float
     input_speed: float  # rad/s, commanded (setting_speed)
     drive: Optional[Drive] = None  # what drove it (None: no theory of the efforts)
+    crank_radius: Optional[float] = None  # m, recorded (None: the metadata's geometry's)
 
 
 def sample_period(samples: Samples) -> Optional[float]:
@@ -121,6 +122,9 @@ def transition(before: Segment, after: Segment, start_time: float, end_time: flo
                        f'the clock jumps back by {-largest_jump:.3f} s')
     if after.offset != before.offset:
         changes.append(f'offset {before.offset * 1e3:g} -> {after.offset * 1e3:g} mm')
+    if after.crank_radius != before.crank_radius:
+        changes.append(f'crank radius {(before.crank_radius or 0.0) * 1e3:g} -> '
+                       f'{(after.crank_radius or 0.0) * 1e3:g} mm (a stroke change)')
     if after.input_speed != before.input_speed:
         changes.append(f'input speed {before.input_speed:g} -> {after.input_speed:g} rad/s')
     changes += drive_differences(before.drive, after.drive)
@@ -150,13 +154,18 @@ def split_segments(samples: Samples, drives: Sequence[DriveSpan] = ()
     offset, time = samples.offset, samples.time
     speed, span = setting_speeds(samples, drives)
     steady = samples.offset_rate == 0.0
+    radius = samples.crank_radius
+    if radius is not None and samples.crank_radius_rate is not None:
+        steady = steady & (samples.crank_radius_rate == 0.0)  # the stroke screw still
     steps, gap, boundary = setting_changes(time, offset, speed, span, steady,
                                            sample_period(samples) or 0.0,
                                            speed_scale(largest_speed(speed)))
+    if radius is not None:  # a stroke change splits as an offset change does
+        boundary = boundary | (np.abs(np.diff(radius)) > STEADY_TOLERANCE)
     starts = np.flatnonzero(np.concatenate([[True], boundary]))
     ends = np.append(starts[1:], offset.size)
     segments = [Segment(int(a), int(b), float(offset[a]), float(speed[a]),
-                        drives[span[a]].drive)
+                        drives[span[a]].drive, None if radius is None else float(radius[a]))
                 for a, b in zip(starts, ends) if steady[a] and b - a >= MIN_SEGMENT_SAMPLES]
     transitions = []
     for before, after in zip(segments, segments[1:]):

@@ -32,7 +32,8 @@ from typing import Any, Callable, Dict, Iterator, List, Optional, TextIO, Tuple
 import numpy as np
 
 from qrm_ros.analysis.joint_state_decoding import decoded_blocks, MessageCounter
-from qrm_ros.analysis.measurement import Analysis, measure_segment
+from qrm_ros.analysis.measurement import (Analysis, measure_segment, segment_geometry,
+                                          with_stroke)
 from qrm_ros.analysis.recorded_drive import drive_changes, DriveSpan
 from qrm_ros.analysis.recorded_run import (AnalysisError, JOINT_STATES_TOPIC,
                                            MIN_SEGMENT_SAMPLES, open_for_analysis, OpenedRun,
@@ -42,7 +43,7 @@ from qrm_ros.analysis.recorded_run import (AnalysisError, JOINT_STATES_TOPIC,
 from qrm_ros.analysis.sample_checks import CheckedBlock, SampleChecks
 from qrm_ros.analysis.sample_consistency import foreign_geometry_problem
 from qrm_ros.analysis.segments import (largest_speed, Segment, setting_changes, setting_speeds,
-                                       speed_scale, transition)
+                                       speed_scale, STEADY_TOLERANCE, transition)
 
 # The figures draw each segment's first input revolution; a segment standing still (input
 # speed 0) never completes one, so its excerpt stops at this many samples.
@@ -116,7 +117,7 @@ class SegmentStream:
         self.transitions: List[Dict[str, Any]] = []
         self.excerpts: List[Samples] = []  # each segment's first revolution
         self._count = 0  # samples seen
-        self._last: Optional[Tuple[float, float, float, int, bool]] = None
+        self._last: Optional[Tuple[float, float, float, int, bool, float]] = None
         self._run: Optional[Dict[str, Any]] = None  # the open run of one setting
         self._largest_jump: Optional[float] = None  # since the last segment ended
         self._last_segment_end_time = 0.0
@@ -129,26 +130,33 @@ class SegmentStream:
         samples = samples_of(checked, cast_int(survey.origin_ns), survey.efforts_recorded)
         speed, span = setting_speeds(samples, survey.drives)
         steady = samples.offset_rate == 0.0
+        # The crank radius joint, where recorded: a stroke change splits as in split_segments.
+        radius = (np.full(samples.time.shape, np.nan) if samples.crank_radius is None
+                  else samples.crank_radius)
+        if samples.crank_radius_rate is not None:
+            steady = steady & (samples.crank_radius_rate == 0.0)
         base = self._count
         if self._last is None:  # the run's first sample opens the first run
-            self._open(0, samples, 0, speed, span, steady)
+            self._open(0, samples, 0, speed, span, steady, radius)
             columns: Tuple[np.ndarray, ...] = (samples.time, samples.offset, speed, span,
-                                               steady)
+                                               steady, radius)
             carried = 0
         else:
             columns = tuple(np.concatenate([[before], now]) for before, now in zip(
-                self._last, (samples.time, samples.offset, speed, span, steady)))
+                self._last, (samples.time, samples.offset, speed, span, steady, radius)))
             carried = 1
-        time, offset, speeds, spans, steadies = columns
+        time, offset, speeds, spans, steadies, radii = columns
         steps, gap, boundary = setting_changes(time, offset, speeds, spans, steadies, self.step,
                                                self.scale)
+        with np.errstate(invalid='ignore'):  # NaN: no crank radius recorded, no split
+            boundary = boundary | (np.abs(np.diff(radii)) > STEADY_TOLERANCE)
         position = 0
         for step in np.flatnonzero(boundary):
             self._track(steps[position:step], gap[position:step])
             local = int(step) + 1 - carried  # the block's sample that starts the next run
             self._close(base + local, samples, local)
             self._track(steps[step:step + 1], gap[step:step + 1])
-            self._open(base + local, samples, local, speed, span, steady)
+            self._open(base + local, samples, local, speed, span, steady, radius)
             position = int(step) + 1
         self._track(steps[position:], gap[position:])
         if self._run is not None and self._run['pieces'] is not None:
@@ -156,7 +164,7 @@ class SegmentStream:
             self._run['from'] = 0
         self._count += samples.time.size
         self._last = (float(samples.time[-1]), float(samples.offset[-1]), float(speed[-1]),
-                      int(span[-1]), bool(steady[-1]))
+                      int(span[-1]), bool(steady[-1]), float(radius[-1]))
 
     def finish(self) -> None:
         """Close the last run."""
@@ -172,8 +180,10 @@ class SegmentStream:
                 self._largest_jump = largest
 
     def _open(self, start: int, samples: Samples, local: int, speed: np.ndarray,
-              span: np.ndarray, steady: np.ndarray) -> None:
+              span: np.ndarray, steady: np.ndarray, radius: np.ndarray) -> None:
+        recorded = float(radius[local])
         self._run = {'start': start, 'offset': float(samples.offset[local]),
+                     'radius': recorded if math.isfinite(recorded) else None,
                      'speed': float(speed[local]), 'span': int(span[local]),
                      'pieces': [] if steady[local] else None, 'from': local,
                      'jump': self._largest_jump}
@@ -188,10 +198,12 @@ class SegmentStream:
             run['pieces'].append(_piece(samples, run['from'], local))
         held = _joined(run['pieces'])
         drive = self.survey.drives[run['span']].drive
-        segment = Segment(run['start'], end, run['offset'], run['speed'], drive)
+        segment = Segment(run['start'], end, run['offset'], run['speed'], drive, run['radius'])
         with np.errstate(all='ignore'):  # absurd recorded values give inf/NaN: null
             local_segment = segment._replace(start=0, end=end - run['start'])
-            self.rows.append(measure_segment(held, local_segment, self.geometry, drive))
+            self.rows.append(with_stroke(measure_segment(
+                held, local_segment, segment_geometry(self.geometry, segment), drive), segment,
+                self.geometry))
         if self.segments:
             self.transitions.append(transition(self.segments[-1], segment,
                                                self._last_segment_end_time,
@@ -210,7 +222,7 @@ class SegmentStream:
         if not self.excerpts:
             empty = np.zeros(0)
             efforts = empty if self.survey.efforts_recorded else None
-            return Samples._make([empty] * 9 + [efforts, efforts]), segments
+            return Samples._make([empty] * 9 + [efforts, efforts, None, None]), segments
         return _joined(self.excerpts), segments
 
 
@@ -227,7 +239,7 @@ def _piece(samples: Samples, start: int, end: Optional[int]) -> Samples:
 def _joined(pieces: List[Samples]) -> Samples:
     if len(pieces) == 1:
         return pieces[0]
-    return Samples._make(None if pieces[0][index] is None else
+    return Samples._make(None if any(piece[index] is None for piece in pieces) else
                          np.concatenate([piece[index] for piece in pieces])
                          for index in range(len(Samples._fields)))
 

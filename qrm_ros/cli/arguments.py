@@ -24,7 +24,7 @@ import math
 from typing import Any, Dict, Optional, Tuple
 
 from qrm_ros.core import dynamics as dyn
-from qrm_ros.core.geometry import Geometry, KinematicsError
+from qrm_ros.core.geometry import crank_radius_for_stroke, Geometry, KinematicsError
 from qrm_ros.core.physical_ranges import (MAX_INPUT_SPEED, MIN_INPUT_SPEED,
                                           motor_speed_band_problem, motor_time_constant_problem)
 
@@ -42,16 +42,34 @@ def add_geometry_arguments(parser: Any, defaults: bool = True) -> None:
         shown = ' (default: %(default)s)' if defaults else ''
         parser.add_argument('--' + name.replace('_', '-'), type=float, default=default,
                             help=f'{name.replace("_", " ")} [{unit}]{shown}')
+    if defaults:  # a whole geometry (not overrides of a recorded one)
+        parser.add_argument('--stroke-length', type=float, default=None,
+                            help='ram stroke [m], instead of --crank-radius: the crank radius '
+                                 'that gives it, r = S h / sqrt(4 H^2 + S^2)')
 
 
 def geometry_from_arguments(args: argparse.Namespace) -> Geometry:
-    """Return the Geometry of add_geometry_arguments' options (KinematicsError if unusable)."""
+    """
+    Return the Geometry of add_geometry_arguments' options (KinematicsError if unusable).
+
+    --stroke-length, where given, sets the crank radius instead (r = S h / sqrt(4 H^2 +
+    S^2)); with --crank-radius too it is refused.
+    """
     phase = args.crank_phase
     if phase is not None and not -math.pi <= phase <= math.pi:  # as the node's crank_phase
         raise KinematicsError(f'--crank-phase = {phase!r} rad is out of range: allowed '
                               f'[{-math.pi:.6g}, {math.pi:.6g}] rad')
-    return Geometry(args.coupling_radius, args.crank_radius, args.pivot_distance,
-                    args.ram_height, args.crank_phase)
+    radius = args.crank_radius
+    stroke = getattr(args, 'stroke_length', None)
+    if stroke is not None:
+        if radius is not None and radius != Geometry.paper().crank_radius:
+            raise KinematicsError('give --stroke-length or --crank-radius, not both')
+        if not (math.isfinite(stroke) and stroke > 0.0):
+            raise KinematicsError(f'--stroke-length {stroke!r} m is out of range: allowed a '
+                                  'finite value > 0')
+        radius = float(crank_radius_for_stroke(stroke, args.pivot_distance, args.ram_height))
+    return Geometry(args.coupling_radius, radius, args.pivot_distance, args.ram_height,
+                    args.crank_phase)
 
 
 # The parameter sets a drive needs, as (kind, option prefix, group title); the options carry

@@ -32,6 +32,7 @@ import numpy as np
 from qrm_ros.analysis.design_table import (DEFAULT_OFFSETS_MM, design_table_data, flywheel_data,
                                            format_design_table, format_flywheel,
                                            format_gearbox_plan)
+from qrm_ros.analysis.stroke_table import format_stroke_table, stroke_table_data
 from qrm_ros.cli.arguments import (add_drive_arguments, add_geometry_arguments,
                                    drive_from_arguments, geometry_from_arguments,
                                    input_speed_problem, motor_problem)
@@ -133,10 +134,41 @@ def flywheel_main(argv: Sequence[str]) -> int:
     return EXIT_OK
 
 
+def stroke_main(argv: Sequence[str]) -> int:
+    """Run ``qrm_design stroke``; return the exit status."""
+    parser = _subcommand_parser(
+        'stroke',
+        'Print, for a range of ram strokes, the time ratio with no offset (a short stroke '
+        'loses its quick return) and the offset that restores a wanted time ratio, with the '
+        'flywheel speed swing that offset costs. Forward running.')
+    parser.add_argument('--time-ratio', type=float, default=None,
+                        help='wanted time ratio [-] (default: the time ratio at offset 0 of '
+                             'the stroke of --crank-radius)')
+    parser.add_argument('--strokes-mm', type=float, nargs='+', default=None,
+                        help='ram strokes to tabulate [mm] (default: 40 to 300 in 20 mm steps)')
+    add_geometry_arguments(parser)
+    parser.add_argument('--json', action='store_true',
+                        help='print the table as JSON (SI units) instead of text')
+    args = parser.parse_args(argv)
+    try:
+        geometry = geometry_from_arguments(args)
+        target = (float(kin.time_ratio(geometry, 0.0)) if args.time_ratio is None
+                  else args.time_ratio)
+        strokes = (np.asarray(args.strokes_mm) if args.strokes_mm
+                   else np.arange(40.0, 300.0 + 1e-9, 20.0)) / 1e3
+        data = stroke_table_data(geometry, strokes, target)
+    except kin.KinematicsError as error:
+        print(f'qrm_design stroke: {error}', file=sys.stderr)
+        return EXIT_BAD_INPUT
+    print(json.dumps(data, indent=2) if args.json else format_stroke_table(data))
+    return EXIT_OK
+
+
 # Subcommands of qrm_design: name -> main(argv) returning the exit code.
 SUBCOMMANDS: Dict[str, Callable[[Sequence[str]], int]] = {
     'gearbox': gearbox_main,
     'flywheel': flywheel_main,
+    'stroke': stroke_main,
 }
 
 

@@ -49,6 +49,7 @@ from qrm_ros.core.dynamics import DynamicsError, Loads
 from qrm_ros.core.names import (BRIDGE_DEFAULT_PORT, BRIDGE_NODE_NAME, BRIDGE_SERVING_PREFIX,
                                 DRIVES, LINKAGE_MARKERS_TOPIC, RECORDER_NODE_NAME,
                                 SIM_NODE_NAME)
+from qrm_ros.core.stroke_adjustment import largest_stroke
 from qrm_ros.node.main_job_conductor import (Conductor, Interrupted, MainJobError,
                                              START_TIMEOUT)
 from qrm_ros.node.recorder import DEFAULT_TOPICS
@@ -62,6 +63,10 @@ RECORDER_SETTLE_TIME = 0.5
 CHILD_STOP_TIMEOUT = 15.0  # s, after SIGINT, before SIGKILL
 # Beside the figures: one input revolution at each of a few offsets (qrm_ros.analysis.animation).
 TOUR_FILE = 'offset_tour.gif'
+SHORT_STROKE_MM = 60.0  # the paper's short stroke, where offset 0 loses the quick return
+SHORT_STROKE_SLOT = 0.07  # m: shaper_sim's default max_crank_radius
+SHORT_WORKPIECE_SHARE = 0.8  # the workpiece at the short stroke, as a share of it
+STROKE_RATE_LIMIT = 0.1  # m/s: the stroke screw, fast enough for a short job
 
 
 class UsageError(MainJobError):
@@ -122,6 +127,10 @@ def _parser():
                         help="'speed': an ideal speed source (the ratios then match theory "
                         "exactly); 'motor': the small shaper's motor, whose speed fluctuates "
                         'with the load (default: speed)')
+    parser.add_argument('--short-stroke-mm', type=float, default=SHORT_STROKE_MM,
+                        help='after the offset schedule, the paper\'s short-stroke experiment '
+                        'at this ram stroke [mm]: offset 0, then the time ratio of the long '
+                        'stroke held by the offset (default: %(default)s; 0: skip it)')
     parser.add_argument('--output-dir', default='runs',
                         help='folder for the run folder (default: runs)')
     parser.add_argument('--offline', action='store_true',
@@ -154,6 +163,8 @@ def validate(options):
               options.cutting_length).check_against(geometry.ram_stroke)
     except DynamicsError as error:
         raise UsageError(f'loads: {error}') from None
+    if options.short_stroke_mm:
+        _short_stroke_plan(options)  # refuses a stroke the node would not take
     for offset_mm in options.offsets_mm:
         try:
             kin.check_offset(geometry, offset_mm / 1e3, geometry.max_safe_offset)
@@ -179,6 +190,7 @@ def record(options, folder, stop):
         '-p', f'ram_friction:={float(options.ram_friction)!r}',
         '-p', f'cutting_length:={float(options.cutting_length)!r}',
         '-p', f'drive:={options.drive}',
+        '-p', f'stroke_rate_limit:={STROKE_RATE_LIMIT!r}',
     ], sim_log, env)
     print(f'qrm_main: started shaper_sim (pid {sim.pid})', flush=True)
     recorder = bridge = None
@@ -252,6 +264,43 @@ def _run_schedule(conductor, options, offsets):
                            (options.pairs + 3) * period + 20.0,
                            f'{options.pairs} steady stroke pairs at offset {offset} m')
         print(f'qrm_main: offset {offset * 1e3:+7.2f} mm: {options.pairs} steady stroke '
+              f'pairs in {time.monotonic() - started:.1f} s', flush=True)
+    if options.short_stroke_mm and options.drive == 'motor':
+        print('qrm_main: the short-stroke experiment needs drive speed (the motor drive holds '
+              'the stroke): skipped', flush=True)
+    elif options.short_stroke_mm:
+        _run_short_stroke(conductor, options, period, recording_since)
+
+
+def _short_stroke_plan(options):
+    """Return (stroke m, workpiece m, time ratio to hold) of the short-stroke experiment."""
+    geometry = kin.Geometry.paper()
+    stroke = options.short_stroke_mm / 1e3
+    largest = largest_stroke(geometry, SHORT_STROKE_SLOT)
+    if not (math.isfinite(stroke) and 0.0 < stroke <= largest):
+        raise UsageError(f'--short-stroke-mm must be in (0, {largest * 1e3:.6g}] mm (the '
+                         f"slot of shaper_sim's max_crank_radius) or 0, got "
+                         f'{options.short_stroke_mm:g}')
+    # The workpiece shortened to fit the stroke; the long stroke's time ratio at offset 0.
+    return (stroke, min(options.cutting_length, SHORT_WORKPIECE_SHARE * stroke),
+            float(kin.time_ratio(geometry, 0.0)))
+
+
+def _run_short_stroke(conductor, options, period, since):
+    """Run the paper's short stroke: offset 0 (TR falls toward 1), then the long TR held."""
+    stroke, workpiece, ratio = _short_stroke_plan(options)
+    timeout = (options.pairs + 3) * period + 20.0
+    for what, settings, held in (
+            ('offset 0', dict(coupling_offset=0.0, cutting_length=workpiece,
+                              stroke_length=stroke), False),
+            (f'time ratio {ratio:.4f} held', dict(time_ratio_target=ratio), True)):
+        started = time.monotonic()
+        conductor.set_parameters(**settings)
+        conductor.wait_for(lambda: conductor.steady_pairs_at(
+            None if held else 0.0, since, stroke_length=stroke,
+            time_ratio_held=held) >= options.pairs, timeout,
+            f'{options.pairs} steady stroke pairs at stroke {stroke} m, {what}')
+        print(f'qrm_main: stroke {stroke * 1e3:.1f} mm, {what}: {options.pairs} steady stroke '
               f'pairs in {time.monotonic() - started:.1f} s', flush=True)
 
 

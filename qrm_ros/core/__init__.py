@@ -34,8 +34,9 @@ if TYPE_CHECKING:
     from qrm_ros.core.flywheel_design import FlywheelSizing, size_flywheel
     from qrm_ros.core.gearbox import (conventional_gearbox, GearboxPlan, GearStep,
                                       plan_gearbox)
-    from qrm_ros.core.geometry import (check_offset, Geometry, KinematicsError, MechanismState,
-                                       SAFE_OFFSET_FRACTION)
+    from qrm_ros.core.geometry import (check_offset, crank_radius_for_stroke, Geometry,
+                                       KinematicsError, MechanismState, SAFE_OFFSET_FRACTION,
+                                       stroke_for_crank_radius)
     from qrm_ros.core.linkage import linkage_points, linkage_sizes, LinkagePoints, LinkageSizes
     from qrm_ros.core.mechanism_state import (input_angle_for_flywheel_angle,
                                               reversal_flywheel_angles, state)
@@ -50,6 +51,8 @@ if TYPE_CHECKING:
                                              speed_fluctuation, SpeedFluctuation)
     from qrm_ros.core.stepper import Stepper
     from qrm_ros.core.stepping import ShaperStepper
+    from qrm_ros.core.stroke_adjustment import check_stroke, StrokeRamp
+    from qrm_ros.core.stroke_efforts import efforts_with_stroke_screw
     from qrm_ros.core.stroke_monitor import PairReport, StrokeMonitor
     from qrm_ros.core.stroke_timing import (speed_ratio, speed_ratio_eq25, stroke_times,
                                             time_ratio, time_ratio_rk4)

@@ -283,6 +283,7 @@ class Chain(NamedTuple):
     generalized_inertia: Any
     ram_lever_arm: Any  # dx/d(theta) at a fixed offset, m/rad: F_ext's torque arm
     offset_coupling_inertia: Any  # d^2 T / d(theta_dot) d(offset_rate), kg m
+    crank_radius_force: Any = 0.0  # the stroke screw's force on the crank pin, N along +r
 
 
 def evaluate_chain(ops: SimpleNamespace, coupling_radius: FloatOrArray,
@@ -291,7 +292,8 @@ def evaluate_chain(ops: SimpleNamespace, coupling_radius: FloatOrArray,
                    mass: Dict[str, Any], offset: FloatOrArray, input_angle: FloatOrArray,
                    input_speed: FloatOrArray, input_acceleration: FloatOrArray,
                    offset_rate: FloatOrArray, offset_acceleration: FloatOrArray,
-                   external_ram_force: FloatOrArray) -> Chain:
+                   external_ram_force: FloatOrArray, crank_radius_rate: FloatOrArray = 0.0,
+                   crank_radius_acceleration: FloatOrArray = 0.0) -> Chain:
     """
     Evaluate the whole chain through its velocity coefficients; ``mass`` is a dict.
 
@@ -299,7 +301,9 @@ def evaluate_chain(ops: SimpleNamespace, coupling_radius: FloatOrArray,
     fields are geometry_fields' order.
 
     Coupling: n = |pin - O2|^2, phi_t = d(phi)/d(theta), phi_d = d(phi)/d(offset), and their
-    derivatives; lever: m = |pin - O3|^2, psi_p = d(psi)/d(phi); ram: x = H tan(psi).
+    derivatives; lever: m = |pin - O3|^2, psi_p = d(psi)/d(phi), psi_r = d(psi)/d(r) (the
+    crank pin moved along the crank by the stroke screw: crank_radius_rate and
+    crank_radius_acceleration, m/s and m/s^2, zero by default); ram: x = H tan(psi).
     """
     r1, r, h = coupling_radius, crank_radius, pivot_distance
     sin_t, cos_t = ops.sin(input_angle), ops.cos(input_angle)
@@ -329,6 +333,16 @@ def evaluate_chain(ops: SimpleNamespace, coupling_radius: FloatOrArray,
                     + phi_dd * offset_rate * offset_rate)
     lever_speed = psi_p * flywheel_speed
     lever_acc = psi_p * flywheel_acc + psi_pp * flywheel_speed * flywheel_speed
+    psi_r = h * cos_c / m
+    if not (type(crank_radius_rate) is float and type(crank_radius_acceleration) is float
+            and crank_radius_rate == 0.0 and crank_radius_acceleration == 0.0):
+        # The stroke screw moves the crank pin: psi(phi, r) gains its terms in r' and r''.
+        psi_pr = -h * (sin_c * (r * r + h * h) + 2.0 * r * h) / (m * m)
+        psi_rr = -2.0 * h * cos_c * (r + h * sin_c) / (m * m)
+        lever_speed = lever_speed + psi_r * crank_radius_rate
+        lever_acc = (lever_acc + psi_r * crank_radius_acceleration
+                     + 2.0 * psi_pr * flywheel_speed * crank_radius_rate
+                     + psi_rr * crank_radius_rate * crank_radius_rate)
     ram_velocity = x_p * lever_speed
     ram_acc = x_p * lever_acc + x_pp * lever_speed * lever_speed
 
@@ -346,7 +360,8 @@ def evaluate_chain(ops: SimpleNamespace, coupling_radius: FloatOrArray,
     return Chain(flywheel_angle, flywheel_speed, flywheel_acc, ops.atan2(r * cos_c, below),
                  lever_speed, lever_acc, ram_height * tan_l, ram_velocity, ram_acc,
                  Efforts(input_torque, flywheel_torque, lever_torque, ram_force,
-                         offset_force), inertia, ram_lever_arm, phi_t * phi_d * downstream)
+                         offset_force), inertia, ram_lever_arm, phi_t * phi_d * downstream,
+                 lever_torque * psi_r)
 
 
 def speed_drive_torque_of(sin_c: Any, cos_c: Any, r1: Any, r: Any, h: Any, height: Any,

@@ -30,7 +30,8 @@ from qrm_ros.core.checks import as_float, KinematicsError
 # KinematicsError is checks' (the error every input check raises), named here too: the
 # geometry's callers catch it.
 __all__ = ['ArrayLike', 'FloatOrArray', 'Geometry', 'KinematicsError', 'MechanismState',
-           'SAFE_OFFSET_FRACTION', 'TWO_PI', 'check_offset', 'float_or_array']
+           'SAFE_OFFSET_FRACTION', 'TWO_PI', 'check_offset', 'crank_radius_for_stroke',
+           'float_or_array', 'stroke_for_crank_radius']
 
 TWO_PI = 2.0 * math.pi
 # Fraction of the coupling radius an offset may use in operation: at |offset| = r1 the pin
@@ -95,8 +96,7 @@ class Geometry:
     @property
     def ram_stroke(self) -> FloatOrArray:
         """Distance between the ram's two reversal points (independent of the offset)."""
-        r, h = self.crank_radius, self.pivot_distance
-        return 2.0 * self.ram_height * r / np.sqrt(h * h - r * r)
+        return stroke_for_crank_radius(self.crank_radius, self.pivot_distance, self.ram_height)
 
     @classmethod
     def field_names(cls) -> Tuple[str, ...]:
@@ -105,6 +105,24 @@ class Geometry:
 
     def as_dict(self) -> Dict[str, FloatOrArray]:
         return {name: getattr(self, name) for name in self.field_names()}
+
+
+def stroke_for_crank_radius(crank_radius: ArrayLike, pivot_distance: ArrayLike,
+                            ram_height: ArrayLike) -> FloatOrArray:
+    """
+    Ram stroke (m) of a crank radius: 2 H r / sqrt(h^2 - r^2), for 0 < r < h.
+
+    The ram reverses where the lever is tangent to the crank circle, tan(psi) = +-r /
+    sqrt(h^2 - r^2), and x = H tan(psi). The offset does not change it.
+    """
+    r, h = crank_radius, pivot_distance
+    return 2.0 * ram_height * r / np.sqrt(h * h - r * r)
+
+
+def crank_radius_for_stroke(stroke: ArrayLike, pivot_distance: ArrayLike,
+                            ram_height: ArrayLike) -> FloatOrArray:
+    """Crank radius (m) that gives a ram stroke S (m): S h / sqrt(4 H^2 + S^2), always < h."""
+    return stroke * pivot_distance / np.sqrt(4.0 * ram_height * ram_height + stroke * stroke)
 
 
 class MechanismState(NamedTuple):

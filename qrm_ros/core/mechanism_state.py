@@ -43,14 +43,20 @@ class _ScalarMath:
     arctan2 = staticmethod(math.atan2)
 
 
+def _plain_zero(value):
+    """Say whether value is a plain number equal to zero (arrays are taken as non-zero)."""
+    return type(value) in (float, int) and value == 0
+
+
 def _slot_rates(crank_radius, centre_distance, crank_angle, crank_speed, crank_acceleration,
-                centre_rate=0.0, xp=np):
+                centre_rate=0.0, xp=np, radius_rate=0.0, radius_acceleration=0.0):
     """
     Angular rate and acceleration of the line from a slot's centre to a crank pin.
 
     The pin is at crank_radius (cos a, sin a) from the crank's centre, which sits
-    centre_distance above the slot's centre (which may move at centre_rate). This is the
-    inverted slider-crank of both stages; rates follow from the pin's relative position
+    centre_distance above the slot's centre (which may move at centre_rate). The pin may
+    slide along the crank (radius_rate, radius_acceleration: the stroke adjustment). This is
+    the inverted slider-crank of both stages; rates follow from the pin's relative position
     p, velocity and acceleration: beta' = (p x p') / |p|^2.
     """
     cos_a, sin_a = xp.cos(crank_angle), xp.sin(crank_angle)
@@ -60,6 +66,12 @@ def _slot_rates(crank_radius, centre_distance, crank_angle, crank_speed, crank_a
     vy = crank_radius * cos_a * crank_speed + centre_rate
     ax = -px * crank_speed ** 2 - crank_radius * sin_a * crank_acceleration
     ay = -crank_radius * sin_a * crank_speed ** 2 + px * crank_acceleration
+    if not (_plain_zero(radius_rate) and _plain_zero(radius_acceleration)):
+        # The pin slides along the crank: its radial and Coriolis terms.
+        vx = vx + radius_rate * cos_a
+        vy = vy + radius_rate * sin_a
+        ax = ax + radius_acceleration * cos_a - 2.0 * radius_rate * sin_a * crank_speed
+        ay = ay + radius_acceleration * sin_a + 2.0 * radius_rate * cos_a * crank_speed
     norm2 = px * px + py * py
     cross_v = px * vy - py * vx
     rate = cross_v / norm2
@@ -69,19 +81,25 @@ def _slot_rates(crank_radius, centre_distance, crank_angle, crank_speed, crank_a
 
 def state(geometry: Geometry, offset: ArrayLike, input_angle: ArrayLike,
           input_speed: ArrayLike, input_acceleration: ArrayLike = 0.0,
-          offset_rate: ArrayLike = 0.0) -> MechanismState:
+          offset_rate: ArrayLike = 0.0, crank_radius_rate: ArrayLike = 0.0,
+          crank_radius_acceleration: ArrayLike = 0.0) -> MechanismState:
     """
     Exact state of every joint for an input shaft angle, speed and acceleration.
 
     offset_rate (m/s) adds the flywheel motion caused by a moving offset, so velocities are
     the true time derivatives of the positions while the offset actuator runs (its own
     acceleration is taken as zero: it moves at a constant rate or not at all).
+    crank_radius_rate (m/s) and crank_radius_acceleration (m/s^2) add the lever's and the
+    ram's motion caused by the stroke screw moving the crank pin along the crank; the crank
+    radius in force is the geometry's.
     """
     r1, r, h = geometry.coupling_radius, geometry.crank_radius, geometry.pivot_distance
     # One sample of scalars (the node, every tick) takes math's functions, not numpy's.
     scalar = all(type(value) is float for value in (
         offset, input_angle, input_speed, input_acceleration, offset_rate, r1, r, h,
-        geometry.ram_height, geometry.crank_phase))
+        geometry.ram_height, geometry.crank_phase)) and all(
+            type(value) in (float, int) for value in (crank_radius_rate,
+                                                      crank_radius_acceleration))
     xp: Any
     if scalar and math.isfinite(offset) and abs(offset) < r1:  # type: ignore
         xp, theta = _ScalarMath, input_angle
@@ -95,7 +113,8 @@ def state(geometry: Geometry, offset: ArrayLike, input_angle: ArrayLike,
     crank_angle = flywheel_angle + geometry.crank_phase
     cos_c, sin_c = xp.cos(crank_angle), xp.sin(crank_angle)
     lever_angle = xp.arctan2(r * cos_c, h + r * sin_c)
-    slot_rate, slot_acc = _slot_rates(r, h, crank_angle, flywheel_speed, flywheel_acc, 0.0, xp)
+    slot_rate, slot_acc = _slot_rates(r, h, crank_angle, flywheel_speed, flywheel_acc, 0.0, xp,
+                                      crank_radius_rate, crank_radius_acceleration)
     # The lever angle is measured from the vertical toward +x: the slot's angle, mirrored.
     lever_speed, lever_acc = -slot_rate, -slot_acc
     tan_lever = r * cos_c / (h + r * sin_c)

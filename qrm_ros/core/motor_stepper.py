@@ -49,6 +49,7 @@ from qrm_ros.core.motor_kernel_loading import COMPILED_MOTOR_KERNEL
 from qrm_ros.core.motor_segment import (Segment, segment_functions, SegmentFunctions,
                                         SegmentPlan)
 from qrm_ros.core.stepping import checked_limits, wrap_angle
+from qrm_ros.core.stroke_adjustment import fixed_stroke, HeldStroke, StrokeRamp
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
 
 __all__ = ['MAX_PIECES_PER_STAMP', 'MotorStepper', 'PlanViews', 'Simulation', 'simulate']
@@ -118,7 +119,7 @@ class PlanViews:
         return self._plan.offset_rate_limit
 
 
-class MotorStepper(PlanViews):
+class MotorStepper(HeldStroke, PlanViews):
     """
     The mechanism under a motor drive: the input speed is a state of the equation of motion.
 
@@ -126,13 +127,14 @@ class MotorStepper(PlanViews):
     from the present stamp, time resets, wrapped angle); the speed command ramps into the
     motor's speed reference. An offset-rate jump is an impulse on the offset only: the
     input's generalised momentum is kept, its speed jumps. Integration and the stall rule:
-    the module's docstring. motor=None runs the shaft free (no motor torque).
+    the module's docstring. motor=None runs the shaft free (no motor torque). Stroke: held.
     """
 
     def __init__(self, geometry: Geometry, mass: dyn.MassProperties, loads: dyn.Loads,
                  motor: Optional[dyn.MotorDrive], input_speed: float, offset: float,
-                 input_acceleration_limit: float, offset_rate_limit: float) -> None:
-        self._geometry = geometry
+                 input_acceleration_limit: float, offset_rate_limit: float,
+                 stroke: Optional[StrokeRamp] = None) -> None:
+        self._geometry = geometry = self._take_stroke(stroke or fixed_stroke(geometry))
         self._plan = SegmentPlan(
             positive('input_acceleration_limit', input_acceleration_limit, 'rad/s^2'),
             positive('offset_rate_limit', offset_rate_limit, 'm/s'))
@@ -191,8 +193,10 @@ class MotorStepper(PlanViews):
             plan.acceleration_limit, plan.offset_rate_limit = limits
         self._changed(change)
 
-    def reset(self, input_speed: float, offset: float) -> None:
+    def reset(self, input_speed: float, offset: float, *,
+              stroke_length: Optional[float] = None) -> None:
         """Input angle to zero; speed, reference and offset set at once; new time base next."""
+        self._held_stroke(stroke_length)
         input_speed = finite('input_speed', input_speed, 'rad/s')
         offset = float(check_offset(self._geometry, offset))
         self._plan.reset(input_speed, offset)
@@ -206,7 +210,8 @@ class MotorStepper(PlanViews):
         self._acceleration_now = None
 
     def restore(self, stamp_ns: int, input_angle: float, input_speed: float, offset: float,
-                speed_reference: Optional[float] = None) -> None:
+                speed_reference: Optional[float] = None, *,
+                stroke_length: Optional[float] = None) -> None:
         """
         Take a recorded state as the present one, at its stamp (to replay a logged run).
 
@@ -216,7 +221,7 @@ class MotorStepper(PlanViews):
         input_angle = finite('input_angle', input_angle, 'rad')
         reference = input_speed if speed_reference is None else speed_reference
         reference = finite('speed_reference', reference, 'rad/s')
-        self.reset(input_speed, offset)
+        self.reset(input_speed, offset, stroke_length=stroke_length)
         self._plan.reference = self._plan.speed_command = reference
         self._angle = wrap_angle(input_angle)
         self._new_base(int(stamp_ns))
@@ -364,10 +369,6 @@ class MotorStepper(PlanViews):
         return Segment(self._plan, self._functions, self._equation)
 
     # State --------------------------------------------------------------------------------
-
-    @property
-    def geometry(self) -> Geometry:
-        return self._geometry
 
     @property
     def stamp_ns(self) -> Optional[int]:

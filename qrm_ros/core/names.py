@@ -34,7 +34,8 @@ SIM_NODE_NAME = 'shaper_sim'
 MACHINE_NAME = 'qrm_shaper'
 RECORDER_NODE_NAME = 'mcap_recorder'
 
-# Order of the joints in every JointState the node publishes (and the URDF's joint names).
+# Order of the joints in every JointState the node publishes (and the URDF's joint names);
+# the node publishes the crank radius's joint after them (PUBLISHED_JOINT_NAMES, below).
 JOINT_NAMES = ('input_shaft_joint', 'flywheel_joint', 'lever_joint', 'ram_joint',
                'coupling_offset_joint')
 
@@ -90,3 +91,11 @@ __all__ += ['BRIDGE_DEFAULT_PORT', 'BRIDGE_NODE_NAME', 'BRIDGE_SERVING_PREFIX']
 BRIDGE_NODE_NAME = 'qrm_bridge'
 BRIDGE_SERVING_PREFIX = f'{BRIDGE_NODE_NAME}: serving '
 BRIDGE_DEFAULT_PORT = 8765  # the Foxglove app's default for a Foxglove WebSocket connection
+
+# The stroke adjustment (added after the names above; recordings made before it have the
+# five JOINT_NAMES only, and the analysis reads the crank radius's joint when present).
+CRANK_RADIUS_JOINT = 'crank_radius_joint'
+PUBLISHED_JOINT_NAMES = JOINT_NAMES + (CRANK_RADIUS_JOINT,)  # joint_states' order
+# DiagnosticStatus name of the time-ratio hold (time_ratio_target).
+TIME_RATIO_STATUS = f'{SIM_NODE_NAME}: time ratio'
+__all__ += ['CRANK_RADIUS_JOINT', 'PUBLISHED_JOINT_NAMES', 'TIME_RATIO_STATUS']

@@ -24,6 +24,7 @@ motor torque), which the node asks of it by name.
 from typing import Optional, Protocol, runtime_checkable
 
 from qrm_ros.core.geometry import Geometry, MechanismState
+from qrm_ros.core.stroke_adjustment import StrokeRamp
 
 __all__ = ['Stepper']
 
@@ -49,15 +50,19 @@ class Stepper(Protocol):
     def set_offset_command(self, offset: float) -> None:
         """Command the coupling offset (m, |offset| < coupling_radius)."""
 
+    def set_stroke_command(self, stroke_length: float) -> None:
+        """Command the ram stroke (m); the crank radius follows at the stroke's rate limit."""
+
     def set_limits(self, input_acceleration_limit: Optional[float] = None,
                    offset_rate_limit: Optional[float] = None) -> None:
         """Change either limit (rad/s^2, m/s; > 0); None keeps the present value."""
 
-    def reset(self, input_speed: float, offset: float) -> None:
-        """Input angle to zero, speed and offset set at once; a new time base next."""
+    def reset(self, input_speed: float, offset: float, *,
+              stroke_length: Optional[float] = None) -> None:
+        """Input angle to zero, speed, offset and stroke set at once; a new time base next."""
 
     def restore(self, stamp_ns: int, input_angle: float, input_speed: float,
-                offset: float) -> None:
+                offset: float, *, stroke_length: Optional[float] = None) -> None:
         """Take a recorded state as the present one, at its stamp (to replay a logged run)."""
 
     def resync(self) -> None:
@@ -74,7 +79,11 @@ class Stepper(Protocol):
 
     @property
     def geometry(self) -> Geometry:
-        """The mechanism's geometry."""
+        """The mechanism's geometry, with the crank radius in force."""
+
+    @property
+    def stroke(self) -> StrokeRamp:
+        """The ram stroke in force, its command and rate limit, the crank radius."""
 
     @property
     def stamp_ns(self) -> Optional[int]:

@@ -12,11 +12,12 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 """
-Deterministic time stepping of the mechanism's two driven states (no ROS).
+Deterministic time stepping of the mechanism's driven states (no ROS).
 
-Only two quantities are integrated: the input shaft angle (the integral of a speed that
-ramps toward its command at a limited acceleration) and the coupling offset (which moves
-toward its command at a limited rate). Both profiles are piecewise linear in time, so each
+Only three quantities are integrated: the input shaft angle (the integral of a speed that
+ramps toward its command at a limited acceleration), the coupling offset and the ram stroke
+(each moving toward its command at a limited rate; the crank radius follows the stroke in
+closed form, core.stroke_adjustment). The profiles are piecewise linear in time, so each
 step integrates them exactly (a ramp's integral is its trapezoid; an interval in which a ramp
 reaches its command is split there). Everything else is the kinematics core's closed form at
 the stamp, so the state is exact at every stamp whatever the spacing of the stamps.
@@ -42,9 +43,11 @@ from typing import Optional, Tuple
 from qrm_ros.core.checks import finite, positive
 from qrm_ros.core.geometry import check_offset, Geometry, MechanismState
 from qrm_ros.core.mechanism_state import state
+from qrm_ros.core.ramps import ramp
+from qrm_ros.core.stroke_adjustment import fixed_stroke, StrokeRamp
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
 
-__all__ = ['checked_limits', 'ramp', 'ShaperStepper', 'wrap_angle']
+__all__ = ['checked_limits', 'ramp', 'ShaperStepper', 'wrap_angle']  # ramp: from core.ramps
 
 # 2 pi split into the nearest double and the remainder. Measured, it makes no difference to
 # long-run precision (bench/bench_angle_precision.py: ~2.5e-16 rad per revolution either
@@ -85,31 +88,12 @@ def checked_limits(acceleration_limit: float, offset_rate_limit: float,
     return acceleration_limit, offset_rate_limit
 
 
-def ramp(value: float, target: float, rate_limit: float,
-         duration: float) -> Tuple[float, float]:
-    """
-    Move value toward target at rate_limit for duration seconds.
-
-    Returns (value at the end, exact integral of the value over the interval).
-    """
-    gap = target - value
-    reach = rate_limit * duration
-    if abs(gap) <= reach:
-        # The ramp reaches the target inside the interval and holds it afterwards.
-        reach_time = abs(gap) / rate_limit
-        return target, 0.5 * (value + target) * reach_time + target * (duration - reach_time)
-    end = value + math.copysign(reach, gap)
-    if (target - end) * gap <= 0.0:
-        end = target  # rounding carried the value onto or past the target
-    return end, 0.5 * (value + end) * duration
-
-
 class ShaperStepper:
     """
-    Input angle, input speed and offset of the mechanism, stepped exactly between stamps.
+    Input angle, input speed, offset and stroke of the mechanism, stepped exactly.
 
-    Rates reported at a stamp (input_acceleration, offset_rate) are the ones that apply
-    from that stamp on, given the commands known then.
+    Rates reported at a stamp (input_acceleration, offset_rate, the stroke's) are the ones
+    that apply from that stamp on, given the commands known then.
 
     Time going backwards (a simulated clock restarted) integrates nothing: the held state
     is returned at the new stamp, which becomes the new time base, and time_resets counts
@@ -117,8 +101,11 @@ class ShaperStepper:
     """
 
     def __init__(self, geometry: Geometry, input_speed: float, offset: float,
-                 input_acceleration_limit: float, offset_rate_limit: float) -> None:
+                 input_acceleration_limit: float, offset_rate_limit: float,
+                 stroke: Optional[StrokeRamp] = None) -> None:
         self._geometry = geometry
+        # The ram stroke (the crank radius in force); without one, geometry's, held.
+        self._stroke = stroke or fixed_stroke(geometry)
         self._acceleration_limit = positive('input_acceleration_limit',
                                             input_acceleration_limit, 'rad/s^2')
         self._offset_rate_limit = positive('offset_rate_limit', offset_rate_limit, 'm/s')
@@ -136,6 +123,10 @@ class ShaperStepper:
         """Command the coupling offset (m, |offset| < coupling_radius); moved at the limit."""
         self._offset_command = float(check_offset(self._geometry, offset))
 
+    def set_stroke_command(self, stroke_length: float) -> None:
+        """Command the ram stroke (m); the crank radius follows at the stroke's rate limit."""
+        self._stroke.set_command(stroke_length)
+
     def set_limits(self, input_acceleration_limit: Optional[float] = None,
                    offset_rate_limit: Optional[float] = None) -> None:
         """Change either limit (rad/s^2, m/s; > 0); None keeps the present value."""
@@ -143,21 +134,24 @@ class ShaperStepper:
             self._acceleration_limit, self._offset_rate_limit, input_acceleration_limit,
             offset_rate_limit)
 
-    def reset(self, input_speed: float, offset: float) -> None:
+    def reset(self, input_speed: float, offset: float, *,
+              stroke_length: Optional[float] = None) -> None:
         """
-        Input angle to zero; speed and offset (state and command) set at once, no ramp.
+        Input angle to zero; speed, offset and stroke (state and command) set at once.
 
-        The next step starts a new time base (it returns this state at its stamp).
+        No ramp; stroke_length None: the stroke left as it is. The next step starts a new
+        time base (it returns this state at its stamp).
         """
         input_speed = finite('input_speed', input_speed, 'rad/s')
         offset = float(check_offset(self._geometry, offset))
+        self._stroke.reset(stroke_length)
         self._input_angle = 0.0
         self._input_speed = self._speed_command = input_speed
         self._offset = self._offset_command = offset
         self._stamp_ns: Optional[int] = None
 
     def restore(self, stamp_ns: int, input_angle: float, input_speed: float,
-                offset: float) -> None:
+                offset: float, *, stroke_length: Optional[float] = None) -> None:
         """
         Take a recorded state as the present one, at its stamp (to replay a logged run).
 
@@ -165,7 +159,7 @@ class ShaperStepper:
         the stepper that produced the state did, given the same commands at the same stamps.
         """
         input_angle = finite('input_angle', input_angle, 'rad')
-        self.reset(input_speed, offset)
+        self.reset(input_speed, offset, stroke_length=stroke_length)
         self._input_angle = wrap_angle(input_angle)
         self._stamp_ns = int(stamp_ns)
 
@@ -192,12 +186,14 @@ class ShaperStepper:
                          duration)
         self._input_speed = speed
         self._offset = offset
+        self._stroke.advance(duration)
         self._input_angle = wrap_angle(self._input_angle + angle_change)
 
     def mechanism_state(self) -> MechanismState:
         """Return the kinematics core's exact state (MechanismState) at the present stamp."""
-        return state(self._geometry, self._offset, self._input_angle, self._input_speed,
-                     self.input_acceleration, self.offset_rate)
+        return state(self._stroke.geometry, self._offset, self._input_angle,
+                     self._input_speed, self.input_acceleration, self.offset_rate,
+                     *self._stroke.crank_radius_rates())
 
     def advance_to(self, stamp_ns: int) -> MechanismState:
         """Step to stamp_ns (int nanoseconds) and return the mechanism's state there."""
@@ -208,7 +204,13 @@ class ShaperStepper:
 
     @property
     def geometry(self) -> Geometry:
-        return self._geometry
+        """The geometry with the crank radius in force."""
+        return self._stroke.geometry
+
+    @property
+    def stroke(self) -> StrokeRamp:
+        """The ram stroke in force, its command and rate limit, the crank radius."""
+        return self._stroke
 
     @property
     def stamp_ns(self) -> Optional[int]:

@@ -26,6 +26,7 @@ of them, with no Python loop over the samples: a 4000-sample pair takes 0.6 ms i
 """
 
 from array import array
+import dataclasses
 import math
 from typing import Dict, List, NamedTuple, Optional
 
@@ -38,7 +39,7 @@ from qrm_ros.core.strokes import (pair_effort_steps, PairEffortsMeasured, run_st
                                   stroke_pair_steps)
 
 __all__ = ['BUFFER_LIMIT', 'CompletedSamples', 'MEASURED_FIGURES', 'PairReport', 'SAMPLE_FIELDS',
-           'StrokeMonitor']
+           'STROKE_SAMPLE_FIELDS', 'StrokeMonitor']
 
 # At most this many samples wait for a stroke pair to end (at 100 Hz, 43 minutes; a shaft
 # slower than one turn in that time gets no reports).
@@ -50,6 +51,8 @@ MEASURED_FIGURES = ('cutting_time', 'return_time', 'time_ratio', 'peak_cutting_s
                     ) + PairEffortsMeasured._fields
 SAMPLE_FIELDS = ('ram_position', 'ram_velocity', 'offset', 'offset_rate', 'input_speed',
                  'input_torque', 'offset_force')
+# Kept beside them: the crank radius in force and its rate (the stroke adjustment).
+STROKE_SAMPLE_FIELDS = ('crank_radius', 'crank_radius_rate')
 _THEORY_CACHE_LIMIT = 64
 
 
@@ -73,16 +76,20 @@ class PairReport(NamedTuple):
     input_speed_steady: bool
     measured: Dict[str, float]
     theory: Dict[str, float]  # empty at zero speed; keys end in '_theory'
+    crank_radius: float = math.nan  # m, in force at the pair's end
+    stroke_length: float = math.nan  # m, the ram stroke of that crank radius
+    stroke_steady: bool = True  # the crank radius did not move during the pair
 
     @property
     def steady(self) -> bool:
-        return self.offset_steady and self.input_speed_steady
+        return self.offset_steady and self.input_speed_steady and self.stroke_steady
 
     def values(self) -> Dict[str, float]:
         """Every figure as name -> float, in publishing order."""
         values = dict(self.measured)
         values.update(pair_start=self.pair_start, pair_end=self.pair_end,
-                      coupling_offset=self.coupling_offset, input_speed=self.input_speed)
+                      coupling_offset=self.coupling_offset, input_speed=self.input_speed,
+                      stroke_length=self.stroke_length, crank_radius=self.crank_radius)
         values.update(self.theory)
         return values
 
@@ -107,13 +114,14 @@ class StrokeMonitor:
 
     def __init__(self, geometry: Geometry):
         self._geometry = geometry
+        self._moved: Optional[Geometry] = None  # the latest other crank radius's geometry
         self._theory_cache: Dict[tuple, SteadyTheory] = {}
         self.clear()
 
     def clear(self) -> None:
         """Forget the samples (after a reset, a pause or a clock jump: no pair spans it)."""
         self._stamp_ns = array('q')
-        self._columns = {name: array('d') for name in SAMPLE_FIELDS}
+        self._columns = {name: array('d') for name in SAMPLE_FIELDS + STROKE_SAMPLE_FIELDS}
         self._last_velocity_positive: Optional[bool] = None
 
     def __len__(self):
@@ -129,12 +137,19 @@ class StrokeMonitor:
 
     def collect(self, stamp_ns: int, ram_position: float, ram_velocity: float, offset: float,
                 offset_rate: float, input_speed: float, input_torque: float,
-                offset_force: float) -> Optional[CompletedSamples]:
-        """Take one sample; return the samples of the pairs it completed, to ``measure``."""
+                offset_force: float, crank_radius: Optional[float] = None,
+                crank_radius_rate: float = 0.0) -> Optional[CompletedSamples]:
+        """
+        Take one sample; return the samples of the pairs it completed, to ``measure``.
+
+        crank_radius (m; None: the geometry's) and its rate (m/s): the stroke in force.
+        """
         self._stamp_ns.append(stamp_ns)
-        for name, value in zip(SAMPLE_FIELDS, (ram_position, ram_velocity, offset,
-                                               offset_rate, input_speed, input_torque,
-                                               offset_force)):
+        if crank_radius is None:
+            crank_radius = float(self._geometry.crank_radius)
+        for name, value in zip(SAMPLE_FIELDS + STROKE_SAMPLE_FIELDS, (
+                ram_position, ram_velocity, offset, offset_rate, input_speed, input_torque,
+                offset_force, crank_radius, crank_radius_rate)):
             self._columns[name].append(value)
         if len(self._stamp_ns) > BUFFER_LIMIT:
             self._keep_from(len(self._stamp_ns) - BUFFER_LIMIT // 2)
@@ -194,6 +209,13 @@ class StrokeMonitor:
         offsets = columns['offset'][first:last + 1]
         speeds = columns['input_speed'][first:last + 1]
         offset, speed = float(offsets[-1]), float(speeds[-1])
+        radii = columns.get('crank_radius')
+        radius = (float(self._geometry.crank_radius) if radii is None
+                  else float(radii[last]))
+        geometry = self._geometry_of(radius)
+        stroke_steady = radii is None or bool(
+            radii[first:last + 1].min() == radii[first:last + 1].max()
+            and not columns['crank_radius_rate'][first:last].any())
         origin_seconds = float(origin) / NANOSECONDS_PER_SECOND
         return PairReport(
             stamp_ns=stamp_ns,
@@ -204,14 +226,26 @@ class StrokeMonitor:
                                and not columns['offset_rate'][first:last].any()),
             input_speed_steady=bool(speeds.min() == speeds.max()),
             measured={name: float(figures[name][index]) for name in MEASURED_FIGURES},
-            theory=self.theory(offset, speed) if speed != 0.0 else {})
+            theory=self.theory(offset, speed, geometry) if speed != 0.0 else {},
+            crank_radius=radius, stroke_length=float(geometry.ram_stroke),
+            stroke_steady=stroke_steady)
 
-    def theory(self, offset: float, input_speed: float) -> Dict[str, float]:
-        """Theory figures at a steady offset and speed (cached per offset and direction)."""
-        key = (offset, input_speed > 0.0)
+    def _geometry_of(self, crank_radius: float) -> Geometry:
+        """Return the geometry with this crank radius (the same object while it holds)."""
+        if crank_radius == self._geometry.crank_radius:
+            return self._geometry
+        if self._moved is None or self._moved.crank_radius != crank_radius:
+            self._moved = dataclasses.replace(self._geometry, crank_radius=crank_radius)
+        return self._moved
+
+    def theory(self, offset: float, input_speed: float,
+               geometry: Optional[Geometry] = None) -> Dict[str, float]:
+        """Theory figures at a steady offset, speed and crank radius (geometry: the monitor's)."""
+        geometry = geometry or self._geometry
+        key = (offset, input_speed > 0.0, float(geometry.crank_radius))
         if key not in self._theory_cache:
             if len(self._theory_cache) > _THEORY_CACHE_LIMIT:
                 self._theory_cache.clear()
-            self._theory_cache[key] = steady_theory(self._geometry, offset,
+            self._theory_cache[key] = steady_theory(geometry, offset,
                                                     math.copysign(1.0, input_speed))
         return theory_figures(self._theory_cache[key], input_speed)

@@ -130,15 +130,26 @@ class Conductor:
                 raise MainJobError(f'{SIM_NODE} refused {name} = {values[name]}: '
                                    f'{result.reason}')
 
-    def steady_pairs_at(self, offset: float, since: float,
-                        input_speed: Optional[float] = None) -> int:
-        """Count steady stroke pairs at an offset (and speed) that began after `since` (s)."""
+    def steady_pairs_at(self, offset: Optional[float], since: float,
+                        input_speed: Optional[float] = None,
+                        stroke_length: Optional[float] = None,
+                        time_ratio_held: bool = False) -> int:
+        """
+        Count steady stroke pairs at an offset (and speed) that began after `since` (s).
+
+        offset None: any; stroke_length (m): within 1e-9 m of it; time_ratio_held: only
+        pairs measured while a time ratio was held.
+        """
         return sum(1 for pair in self.pairs
                    if pair.get('offset_steady') == 'true'
                    and pair.get('input_speed_steady') == 'true'
-                   and float(pair.get('coupling_offset', 'nan')) == offset
+                   and pair.get('stroke_steady') != 'false'
+                   and (offset is None or float(pair.get('coupling_offset', 'nan')) == offset)
                    and (input_speed is None
                         or float(pair.get('input_speed', 'nan')) == input_speed)
+                   and (stroke_length is None
+                        or abs(float(pair.get('stroke_length', 'nan')) - stroke_length) < 1e-9)
+                   and (not time_ratio_held or 'time_ratio_target' in pair)
                    and float(pair.get('pair_start', '-inf')) >= since)
 
     def close(self) -> None:

@@ -48,6 +48,7 @@ class MarkerScene(NamedTuple):
     input_speed: float  # rad/s
     frame_id: str
     loads: Loads
+    geometry: Optional[Geometry] = None  # with the crank radius in force (None: the schedule's)
 
 
 class LinkageMarkerSchedule:
@@ -139,14 +140,16 @@ class LinkageMarkerSchedule:
             frame.append(delete_all_marker_array(scene.stamp_ns, scene.frame_id))
             self._clear = False
             self._still = None
-        still = (scene.offset, scene.input_speed < 0.0, scene.frame_id, scene.loads)
+        geometry = scene.geometry or self._geometry
+        still = (scene.offset, scene.input_speed < 0.0, scene.frame_id, scene.loads,
+                 geometry.crank_radius)
         now = time.monotonic()
         moving_only = (still == self._still
                        and now - self._still_sent < MARKER_REFRESH_PERIOD)
         if not moving_only:
             self._still, self._still_sent = still, now
         frame.append(linkage_marker_array(
-            self._geometry, scene.offset, scene.input_angle, scene.stamp_ns, scene.frame_id,
+            geometry, scene.offset, scene.input_angle, scene.stamp_ns, scene.frame_id,
             input_speed=scene.input_speed, mechanism_state=sample, loads=scene.loads,
             moving_only=moving_only))
         return frame

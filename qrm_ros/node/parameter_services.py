@@ -222,6 +222,16 @@ class ShaperParameterNode(Node):
         """The input speed command in force (the subclass's to say)."""
         raise NotImplementedError
 
+    @property
+    def stroke_in_force(self) -> float:
+        """The ram stroke in force, m (0.0: the start-up one; the subclass says)."""
+        return 0.0
+
+    @property
+    def stroke_moving(self) -> bool:
+        """Whether the stroke is still moving toward its command (the subclass says)."""
+        return False
+
     def set_parameters_atomically(self, parameter_list):
         """Check our parameters first, so every refusal gets this node's full reason."""
         parameter_list = coerce_integers_to_doubles(parameter_list)
@@ -238,7 +248,8 @@ class ShaperParameterNode(Node):
     def _refusal(self, parameters):
         """Return the first refusal of a change, judged as a whole (all values after it)."""
         return change_refusal({p.name: p.value for p in parameters}, self._values,
-                              self._geometry, self.speed_command)
+                              self._geometry, self.speed_command, self.stroke_in_force,
+                              self.stroke_moving)
 
     def _check_parameters(self, parameters):
         reason = self._refusal(parameters)

@@ -26,14 +26,16 @@ from typing import List, Mapping, Optional
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from qrm_ros.core.cutting_speed_hold import CUTTING_SPEED_FIGURES, HoldAnswer
+from qrm_ros.core.geometry import Geometry
 from qrm_ros.core.names import (CUTTING_SPEED_STATUS, DRIVE_STATUS, MACHINE_NAME,
-                                STROKE_PAIR_STATUS)
+                                STROKE_PAIR_STATUS, TIME_RATIO_STATUS)
 from qrm_ros.core.stroke_monitor import PairReport
 from qrm_ros.node.linkage_markers import stamp_message
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.publisher import Publisher
 
-__all__ = ['DriveStatusReport', 'STALL_REPEAT_NS', 'cutting_speed_status', 'stroke_pair_status']
+__all__ = ['DriveStatusReport', 'STALL_REPEAT_NS', 'cutting_speed_status', 'stroke_pair_status',
+           'time_ratio_status']
 
 STALL_REPEAT_NS = 1_000_000_000  # a stall's ERROR status is repeated this often
 
@@ -51,18 +53,26 @@ def _shown_figure(value: float) -> str:
 
 def stroke_pair_status(report: PairReport, effort_theory: List[KeyValue],
                        effort_theory_state: str, target: float,
-                       definition: str) -> DiagnosticArray:
+                       definition: str, time_ratio_target: float = 0.0) -> DiagnosticArray:
     """
     Return a stroke pair's report as the DiagnosticArray to publish.
 
     effort_theory: the pair's effort theory as key-values, effort_theory_state a word on where
-    it stands; target: the cutting speed held (0: none), in its definition.
+    it stands; target: the cutting speed held (0: none), in its definition;
+    time_ratio_target: the time ratio held (0: none).
     """
     key_values = [KeyValue(key=key, value=repr(value))
                   for key, value in report.values().items() if math.isfinite(value)]
     key_values.append(KeyValue(key='offset_steady', value=str(report.offset_steady).lower()))
     key_values.append(KeyValue(key='input_speed_steady',
                                value=str(report.input_speed_steady).lower()))
+    key_values.append(KeyValue(key='stroke_steady', value=str(report.stroke_steady).lower()))
+    if time_ratio_target:
+        measured_ratio = report.measured['time_ratio']
+        key_values += [
+            KeyValue(key='time_ratio_target', value=repr(time_ratio_target)),
+            KeyValue(key='time_ratio_error', value=repr(measured_ratio / time_ratio_target
+                                                        - 1.0))]
     key_values += effort_theory
     key_values.append(KeyValue(key='effort_theory', value=effort_theory_state))
     if target:
@@ -81,8 +91,8 @@ def stroke_pair_status(report: PairReport, effort_theory: List[KeyValue],
         message=(f'TR {_shown_figure(measured["time_ratio"])}, SR '
                  f'{_shown_figure(measured["speed_ratio"])} (peak '
                  f'{_shown_figure(measured["peak_speed_ratio"])}) at offset '
-                 f'{report.coupling_offset:.6g} m, {report.input_speed:.6g} rad/s, '
-                 f'{steady}'),
+                 f'{report.coupling_offset:.6g} m, {report.input_speed:.6g} rad/s, stroke '
+                 f'{report.stroke_length:.6g} m, {steady}'),
         values=key_values)
     return _array(status, stamp_message(report.stamp_ns))
 
@@ -101,6 +111,26 @@ def cutting_speed_status(values: Mapping[str, object], answer: HoldAnswer,
         KeyValue(key='reachable_min', value=repr(answer.reachable[0])),
         KeyValue(key='reachable_max', value=repr(answer.reachable[1]))]
     status = DiagnosticStatus(level=level, name=CUTTING_SPEED_STATUS,
+                              hardware_id=MACHINE_NAME, message=text, values=key_values)
+    return _array(status, stamp)
+
+
+def time_ratio_status(values: Mapping[str, object], answer: HoldAnswer, geometry: Geometry,
+                      stamp: Time) -> DiagnosticArray:
+    """Return the time-ratio hold's state: OK when exact, else WARN (values: parameters)."""
+    level = DiagnosticStatus.WARN if answer.problem else DiagnosticStatus.OK
+    target = values['time_ratio_target']
+    text = answer.problem or (
+        f'holding time ratio {target:.6g} with offset {answer.offset:.6g} m at stroke '
+        f'{geometry.ram_stroke:.6g} m')
+    key_values = [
+        KeyValue(key='time_ratio_target', value=repr(target)),
+        KeyValue(key='offset_command', value=repr(answer.offset)),
+        KeyValue(key='stroke_length', value=repr(float(geometry.ram_stroke))),
+        KeyValue(key='crank_radius', value=repr(float(geometry.crank_radius))),
+        KeyValue(key='reachable_min', value=repr(answer.reachable[0])),
+        KeyValue(key='reachable_max', value=repr(answer.reachable[1]))]
+    status = DiagnosticStatus(level=level, name=TIME_RATIO_STATUS,
                               hardware_id=MACHINE_NAME, message=text, values=key_values)
     return _array(status, stamp)
 

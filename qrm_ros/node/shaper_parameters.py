@@ -29,6 +29,11 @@ from qrm_ros.core.geometry import Geometry, KinematicsError
 from qrm_ros.core.names import DRIVES, MOTOR_PREFIX
 from qrm_ros.core.physical_ranges import (MAX_INPUT_SPEED, MAX_MAGNITUDES, MIN_INPUT_SPEED,
                                           motor_speed_band_problem, motor_time_constant_problem)
+from qrm_ros.node.stroke_rules import (commanded_geometry, commanded_stroke,
+                                       drive_waits_for_stroke, one_hold_at_a_time,
+                                       slot_holds_crank, stroke_held_by_motor,
+                                       stroke_holds_workpiece, StrokeLengthRange,
+                                       time_ratio_reachable)
 
 __all__ = ['AtLeast', 'DoubleRange', 'DRIVES', 'GEOMETRY_NAMES', 'MARKER_SLICING_RATE',
            'MOTOR_PREFIX', 'NonEmptyText', 'OffOrRange', 'OneOf', 'ParameterSpec', 'PARAMETERS',
@@ -60,6 +65,8 @@ class View(NamedTuple):
     values: dict
     geometry: Geometry
     speed_command: float  # the input speed command in force after the change
+    stroke_in_force: float = 0.0  # m (0: the start-up stroke, crank_radius's)
+    stroke_moving: bool = False  # the stroke has not reached stroke_length yet
 
 
 def _with_unit(unit):
@@ -260,7 +267,7 @@ def _target_reachable(value, view):
     target = view.values['cutting_speed_target']
     if target == 0.0:
         return None
-    return unreachable_reason(view.geometry, view.speed_command, target,
+    return unreachable_reason(commanded_geometry(view), view.speed_command, target,
                               view.values['cutting_speed_definition'])
 
 
@@ -271,6 +278,15 @@ def _offset_by_hand(value, view):
     return (f'the offset is commanded by cutting_speed_target = {shown(target)} m/s; set '
             'cutting_speed_target to 0 to command coupling_offset by hand (or set both in '
             'one atomic call)')
+
+
+def _offset_by_time_ratio(value, view):
+    target = view.values['time_ratio_target']
+    if target == 0.0:
+        return None
+    return (f'the offset is commanded by time_ratio_target = {shown(target)}; set '
+            'time_ratio_target to 0 to command coupling_offset by hand (or set both in one '
+            'atomic call)')
 
 
 def _stepper_limit(name, default, unit, what, rule):
@@ -284,8 +300,9 @@ PARAMETERS = {
         _PAPER.coupling_radius, 'm', 'Coupling crank radius r1: radius of the input pin in '
         f'the yoke coupling. > 0. {_STRUCTURAL}', True, PositiveLength()),
     'crank_radius': ParameterSpec(
-        _PAPER.crank_radius, 'm', 'Crank radius r on the flywheel (sets the ram stroke). '
-        f'0 < crank_radius < pivot_distance. {_STRUCTURAL}', True,
+        _PAPER.crank_radius, 'm', 'Crank radius r on the flywheel at start-up (sets the ram '
+        'stroke until stroke_length commands another). 0 < crank_radius < pivot_distance. '
+        f'{_STRUCTURAL}', True,
         PositiveLength(' and < pivot_distance')),
     'pivot_distance': ParameterSpec(
         _PAPER.pivot_distance, 'm', 'Distance h from the flywheel centre down to the lever '
@@ -304,7 +321,8 @@ PARAMETERS = {
             lambda view: float(view.geometry.max_safe_offset),
             lambda view: ('|offset| <= max_safe_offset = 0.9 x coupling_radius '
                           f'{shown(view.geometry.coupling_radius)} m'), True),
-        (_offset_by_hand,), apply=lambda node, value: node.command_offset()),
+        (_offset_by_hand, _offset_by_time_ratio),
+        apply=lambda node, value: node.command_offset()),
     'cutting_speed_target': ParameterSpec(
         0.0, 'm/s', 'Cutting speed to hold (0: off, the offset follows coupling_offset). While '
         'it is set the node commands the offset (at offset_rate_limit) that gives this '
@@ -312,7 +330,7 @@ PARAMETERS = {
         'changes; a target out of reach within the offset safety limit is refused, and if a '
         'later speed change puts it out of reach the nearest reachable offset is held (WARN '
         'on /diagnostics).', False, AtLeast(0.0, False, MAX_CUTTING_SPEED_TARGET),
-        (_target_reachable,),
+        (_target_reachable, one_hold_at_a_time),
         apply=lambda node, value: node.command_offset()),
     'cutting_speed_definition': ParameterSpec(
         CUTTING_SPEED_DEFINITIONS[0], '', "What cutting_speed_target means: 'mean', the cutting "
@@ -379,7 +397,7 @@ _LOAD_MEANINGS = {
 
 
 def _cutting_length_within_stroke(value, view):
-    stroke = float(view.geometry.ram_stroke)
+    stroke = commanded_stroke(view)
     if value > stroke:
         return f'longer than the ram stroke, {shown(stroke)} m'
     return None
@@ -435,7 +453,37 @@ PARAMETERS['drive'] = ParameterSpec(
     "it must supply); 'motor', a motor whose torque follows its speed error "
     "(motor_speed_stiffness, up to motor_max_torque), so the input speed follows the "
     'equation of motion and fluctuates with the load. Live: the switch keeps the state.',
-    False, OneOf(DRIVES), apply=lambda node, value: node.set_drive(value))
+    False, OneOf(DRIVES), (drive_waits_for_stroke,),
+    apply=lambda node, value: node.set_drive(value))
+PARAMETERS.update({
+    'max_crank_radius': ParameterSpec(
+        0.07, 'm', "Largest crank radius the bull gear's slot allows (the stroke screw's "
+        'travel): bounds stroke_length. crank_radius <= max_crank_radius < pivot_distance. '
+        f'{_STRUCTURAL}', True, PositiveLength(' and crank_radius <= it < pivot_distance'),
+        (slot_holds_crank,)),
+    'stroke_length': ParameterSpec(
+        0.0, 'm', 'Commanded ram stroke (the stroke-adjust screw). The crank radius in force '
+        'moves toward the one that gives it, r = S h / sqrt(4 H^2 + S^2), at '
+        'stroke_rate_limit; 0 means the stroke of crank_radius (which only sets the radius '
+        'at start-up: from there this is the one command). Not below cutting_length; under '
+        'drive motor the stroke is held. The time-ratio and cutting-speed holds follow it.',
+        False,
+        StrokeLengthRange(), (stroke_holds_workpiece, stroke_held_by_motor),
+        apply=lambda node, value: node.command_stroke()),
+    'stroke_rate_limit': ParameterSpec(
+        0.01, 'm/s', 'Speed at which the stroke screw moves the ram stroke toward '
+        'stroke_length.', False, DoubleRange(1e-6, 1.0),
+        apply=lambda node, value: node.stepper.stroke.set_rate_limit(value)),
+    'time_ratio_target': ParameterSpec(
+        0.0, '', 'Time ratio to hold (0: off), forward running. While it is set the node '
+        'commands the offset (at offset_rate_limit) that gives this ratio at the stroke '
+        'commanded, recomputed when the stroke changes; a ratio out of reach within the '
+        'offset safety limit is refused, and if a later stroke change puts it out of reach '
+        'the nearest reachable offset is held (WARN on /diagnostics). Not together with '
+        'cutting_speed_target.', False, AtLeast(0.0),
+        (time_ratio_reachable, one_hold_at_a_time),
+        apply=lambda node, value: node.command_offset()),
+})
 
 
 def default_values():
@@ -470,7 +518,8 @@ def refusal_reason(name, value, view, starting=False):
     return None
 
 
-def change_refusal(changed, values, geometry, speed_command):
+def change_refusal(changed, values, geometry, speed_command, stroke_in_force=0.0,
+                   stroke_moving=False):
     """
     Return the first refusal of a change, judged as a whole (all values after it), or None.
 
@@ -485,7 +534,7 @@ def change_refusal(changed, values, geometry, speed_command):
                      if not PARAMETERS[name].read_only)
     if 'input_speed' in changed:
         speed_command = candidate['input_speed']
-    view = View(candidate, geometry, speed_command)
+    view = View(candidate, geometry, speed_command, stroke_in_force, stroke_moving)
     for name, value in changed.items():
         reason = refusal_reason(name, value, view)
         if reason:

@@ -15,8 +15,9 @@
 The shaper_sim node: the mechanism stepped in time, published as joint states.
 
 A thin adapter: ShaperStepper (qrm_ros.core.stepping) integrates the input angle and moves the
-offset; the kinematics core gives every other state in closed form. The rest has a module of
-its own: the parameters, their rules and effects are data (shaper_parameters) that
+offset and the stroke; the kinematics core gives every other state in closed form. The rest
+has a module of its own: what the parameters command (the stroke, the offset and its holds:
+held_figures), the parameters, their rules and effects are data (shaper_parameters) that
 parameter_services declares and guards through rclpy; the stroke-pair reports are measured
 a step at a time after the ticks (stroke_pair_reports); what goes on /diagnostics is built in
 shaper_diagnostics; marker_schedule says when the linkage markers go out. This module only
@@ -31,17 +32,19 @@ import time
 from typing import Optional
 
 from diagnostic_msgs.msg import DiagnosticArray
-from qrm_ros.core.cutting_speed_hold import hold_offset
-from qrm_ros.core.dynamics import (efforts, Loads, MassProperties, MotorDrive, parameter_names,
+from qrm_ros.core.dynamics import (Loads, MassProperties, MotorDrive, parameter_names,
                                    ram_load_force)
 from qrm_ros.core.motor_stepper import MotorStepper
 from qrm_ros.core.stepper import Stepper
 from qrm_ros.core.names import (DIAGNOSTICS_TOPIC, LINKAGE_MARKERS_TOPIC, SIM_NODE_NAME,
                                 SPEED_COMMAND_TOPIC)
 from qrm_ros.core.stepping import ShaperStepper, wrap_angle
+from qrm_ros.core.stroke_adjustment import StrokeRamp
+from qrm_ros.core.stroke_efforts import efforts_with_stroke_screw, lever_radius_coefficient
+from qrm_ros.node.held_figures import HeldFigures
 from qrm_ros.node.marker_schedule import LinkageMarkerSchedule, MarkerScene
 from qrm_ros.node.parameter_services import ShaperParameterNode, WARNING_PERIOD
-from qrm_ros.node.shaper_diagnostics import cutting_speed_status, DriveStatusReport
+from qrm_ros.node.shaper_diagnostics import DriveStatusReport
 from qrm_ros.node.shaper_parameters import shown
 from qrm_ros.node.state_publishers import MechanismStatePublishers, MIN_PUBLISHER_DEPTH
 from qrm_ros.node.stroke_pair_reports import StrokePairReports
@@ -60,7 +63,7 @@ GIL_SWITCH_INTERVAL = 1e-4
 SERVICE_QOS = qos_profile_parameters
 
 
-class ShaperSimNode(ShaperParameterNode):
+class ShaperSimNode(HeldFigures, ShaperParameterNode):
     """Steps the mechanism on a timer and publishes it; see the module docstring."""
 
     def __init__(self, **node_options):
@@ -79,6 +82,10 @@ class ShaperSimNode(ShaperParameterNode):
         values = self._values
         self._stepper: Optional[Stepper] = None  # made below, from the dynamics in force
         self.update_dynamics()
+        # The stroke: from crank_radius's at start-up toward stroke_length (0: that one).
+        self._stroke = StrokeRamp(self._geometry, values['max_crank_radius'],
+                                  float(self._geometry.ram_stroke), values['stroke_rate_limit'])
+        self._stroke.set_command(self.stroke_command)
         self._stepper = self._new_stepper(values['drive'])
         self._hold = None
         self._paused = False
@@ -100,7 +107,7 @@ class ShaperSimNode(ShaperParameterNode):
         self.create_service(SetBool, '~/pause', self.on_pause, qos_profile=SERVICE_QOS)
         self.judge_parameter_changes()
         self._timer = self.create_timer(1.0 / rate, self.on_timer)
-        if values['cutting_speed_target']:
+        if values['cutting_speed_target'] or values['time_ratio_target']:
             self.command_offset()
         self.get_logger().info(
             f'running: offset {values["coupling_offset"]} m, input speed '
@@ -128,8 +135,9 @@ class ShaperSimNode(ShaperParameterNode):
         arguments = (values['input_speed'], values['coupling_offset'],
                      values['input_acceleration_limit'], values['offset_rate_limit'])
         if drive == 'motor':
-            return MotorStepper(self._geometry, self._mass, self._loads, self._motor, *arguments)
-        return ShaperStepper(self._geometry, *arguments)
+            return MotorStepper(self._geometry, self._mass, self._loads, self._motor, *arguments,
+                                stroke=self._stroke)
+        return ShaperStepper(self._geometry, *arguments, stroke=self._stroke)
 
     def set_drive(self, drive):
         """Switch between the ideal speed source and the motor, keeping the state."""
@@ -161,41 +169,19 @@ class ShaperSimNode(ShaperParameterNode):
         if self._values['cutting_speed_target']:
             self.command_offset()
 
-    def command_offset(self):
-        """
-        Command the offset: coupling_offset by hand, or the cutting speed's.
-
-        While cutting_speed_target is set, the offset that gives it at the speed command in
-        force (the nearest reachable one, with a WARN, when a speed change has put the
-        target out of reach).
-        """
-        values = self._values
-        target = values['cutting_speed_target']
-        if not target:
-            self._hold = None
-            self._stepper.set_offset_command(values['coupling_offset'])
-            return
-        answer = hold_offset(self._geometry, self._stepper.speed_command, target,
-                             values['cutting_speed_definition'])
-        self._stepper.set_offset_command(answer.offset)
-        if answer.problem and (self._hold is None or self._hold.problem != answer.problem):
-            self.get_logger().warning(answer.problem)
-        self._hold = answer
-        self._diagnostics_publisher.publish(
-            cutting_speed_status(values, answer, self.get_clock().now().to_msg()))
-
     def on_reset(self, request, response):
-        """Serve ~/reset: back to angle 0 at the input_speed and coupling_offset parameters."""
+        """Serve ~/reset: angle 0 at the input_speed, coupling_offset and stroke parameters."""
         del request
         speed, offset = self._values['input_speed'], self._values['coupling_offset']
-        self._stepper.reset(speed, offset)
-        if self._values['cutting_speed_target']:
-            self.command_offset()  # from the reset state, toward the held cutting speed
+        stroke = self.stroke_command
+        self._stepper.reset(speed, offset, stroke_length=stroke)
+        if self._values['cutting_speed_target'] or self._values['time_ratio_target']:
+            self.command_offset()  # from the reset state, toward the held figure
         self._pair_reports.clear()
         self._markers.clear()  # DELETEALL before the next markers
         response.success = True
         response.message = (f'reset: input angle 0 rad, input speed {speed!r} rad/s, '
-                            f'offset {offset!r} m')
+                            f'offset {offset!r} m, stroke {stroke!r} m')
         self.get_logger().info(response.message)
         return response
 
@@ -281,23 +267,32 @@ class ShaperSimNode(ShaperParameterNode):
                 'node clock went back (simulated time restarted?): holding the state and '
                 'continuing from the new time', throttle_duration_sec=WARNING_PERIOD)
             self._pair_reports.clear()
+        stroke = stepper.stroke
+        radius_rate, radius_acceleration = stroke.crank_radius_rates()
         positions = array('d', (stepper.input_angle, wrap_angle(sample.flywheel_angle),
-                                sample.lever_angle, sample.ram_position, stepper.offset))
+                                sample.lever_angle, sample.ram_position, stepper.offset,
+                                stroke.crank_radius))
         velocities = array('d', (stepper.input_speed, sample.flywheel_speed,
-                                 sample.lever_speed, sample.ram_velocity, stepper.offset_rate))
+                                 sample.lever_speed, sample.ram_velocity, stepper.offset_rate,
+                                 radius_rate))
         # What drives each joint (N m, N), exact at the stamp. The speed drive supplies the
         # input torque the prescribed motion needs against inertia, gravity and the loads;
         # the motor stepper integrates the motion from the motor's torque and knows them.
+        # The stroke screw's force is the lever torque's share through d(psi)/d(r).
         if isinstance(stepper, MotorStepper):
             joint_efforts = array('d', stepper.efforts())
+            joint_efforts.append(joint_efforts[2] * lever_radius_coefficient(
+                stepper.geometry, sample.flywheel_angle))
             self._drive_status.update(stepper, stamp_ns)
         else:
+            # The workpiece fits the longer of the strokes in force and commanded (rules).
             ram_force = ram_load_force(self._loads, sample.ram_position, sample.ram_velocity,
-                                       self._geometry.ram_stroke)
-            joint_efforts = array('d', efforts(
-                self._geometry, self._mass, stepper.offset, stepper.input_angle,
+                                       max(stroke.stroke, stroke.command))
+            chain_efforts, screw_force = efforts_with_stroke_screw(
+                stepper.geometry, self._mass, stepper.offset, stepper.input_angle,
                 stepper.input_speed, stepper.input_acceleration, stepper.offset_rate, 0.0,
-                ram_force))
+                ram_force, radius_rate, radius_acceleration)
+            joint_efforts = array('d', (*chain_efforts, screw_force))
         if not all(map(math.isfinite, positions + velocities + joint_efforts)):
             self.get_logger().error(
                 f'non-finite state at {stamp_ns} ns not published: positions {positions}, '
@@ -316,11 +311,12 @@ class ShaperSimNode(ShaperParameterNode):
         completed = reports.monitor.collect(stamp_ns, sample.ram_position, sample.ram_velocity,
                                             stepper.offset, stepper.offset_rate,
                                             stepper.input_speed, joint_efforts[0],
-                                            joint_efforts[-1])
+                                            joint_efforts[4], stroke.crank_radius, radius_rate)
         if completed is not None:
             # What the report depends on is taken now, as it stands at the pair's end.
             reports.queue(completed, self._values['cutting_speed_target'],
-                          self._values['cutting_speed_definition'])
+                          self._values['cutting_speed_definition'],
+                          self._values['time_ratio_target'])
         reports.run_steps(started_ns)
         return True
 
@@ -355,4 +351,4 @@ class ShaperSimNode(ShaperParameterNode):
             return None
         stepper = self._stepper
         return MarkerScene(stamp_ns, stepper.offset, stepper.input_angle, stepper.input_speed,
-                           self._values['frame_id'], self._loads)
+                           self._values['frame_id'], self._loads, stepper.geometry)

@@ -15,14 +15,15 @@
 What the shaper_sim node publishes every tick: the joint states and the ram's twist.
 
 The messages are built once; each tick only fills in its values (the joints in
-qrm_ros.core.names.JOINT_NAMES order).
+qrm_ros.core.names.PUBLISHED_JOINT_NAMES order).
 """
 
 from array import array
 import math
 
 from geometry_msgs.msg import TwistStamped
-from qrm_ros.core.names import JOINT_NAMES, JOINT_STATES_TOPIC, RAM_TWIST_TOPIC
+from qrm_ros.core.names import (JOINT_STATES_TOPIC, PUBLISHED_JOINT_NAMES,
+                                RAM_TWIST_TOPIC)
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
@@ -41,7 +42,7 @@ class MechanismStatePublishers:
 
     def __init__(self, node: Node, publish_rate: float):
         depth = max(MIN_PUBLISHER_DEPTH, math.ceil(PUBLISHER_HISTORY_SECONDS * publish_rate))
-        self._joint_state = JointState(name=list(JOINT_NAMES))
+        self._joint_state = JointState(name=list(PUBLISHED_JOINT_NAMES))
         self._twist = TwistStamped()
         self._joint_state_publisher = node.create_publisher(JointState, JOINT_STATES_TOPIC,
                                                             depth)

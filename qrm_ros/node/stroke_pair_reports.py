@@ -91,14 +91,16 @@ class StrokePairReports:
                      stamp_ns: int) -> None:
         """Note the setting in force at stamp_ns (a change starts a new steady span)."""
         # The parameter sets compare by identity: any change of them makes new ones.
-        setting = (stepper, mass, loads, motor, stepper.offset, _setting_speed(stepper))
+        setting = (stepper, mass, loads, motor, stepper.offset, _setting_speed(stepper),
+                   stepper.geometry)
         if setting != self._setting:
             self._setting, self._setting_since_ns = setting, stamp_ns
 
-    def queue(self, completed: CompletedSamples, target: float, definition: str) -> None:
+    def queue(self, completed: CompletedSamples, target: float, definition: str,
+              time_ratio_target: float = 0.0) -> None:
         """Queue completed samples' pairs; what a report depends on is taken as it stands."""
         self._jobs.append(self._report(completed, self._setting, self._setting_since_ns,
-                                       target, definition))
+                                       target, definition, time_ratio_target))
 
     def run_steps(self, started_ns: int) -> None:
         """
@@ -144,14 +146,15 @@ class StrokePairReports:
         self._theory.close()
 
     def _report(self, completed: CompletedSamples, setting: Any,
-                setting_since_ns: int, target: float, definition: str) -> Generator:
+                setting_since_ns: int, target: float, definition: str,
+                time_ratio_target: float) -> Generator:
         """Measure and publish completed stroke pairs, a step per next() (run_steps)."""
         try:
             for report in (yield from self.monitor.measure_steps(completed)):
                 yield
                 message = stroke_pair_status(
                     report, *self._effort_theory(report, setting, setting_since_ns), target,
-                    definition)
+                    definition, time_ratio_target)
                 yield
                 self._publisher.publish(message)
                 self._published += 1
@@ -164,8 +167,8 @@ class StrokePairReports:
         """Return the pair's effort theory as key-values, and a word on where it stands."""
         if report.pair_start * NANOSECONDS_PER_SECOND < setting_since_ns:
             return [], 'none: the setting changed during the pair'
-        stepper, mass, loads, motor, offset, speed = setting
-        wanted = Setting(self._geometry, mass, loads,
+        stepper, mass, loads, motor, offset, speed, geometry = setting
+        wanted = Setting(geometry, mass, loads,
                          motor if isinstance(stepper, MotorStepper) else None, offset, speed)
         theory, problem = (self._theory.lookup(wanted) if self.theory_timeout is None
                            else self._theory.wait(wanted, self.theory_timeout))

@@ -32,8 +32,8 @@ import threading
 from typing import Any, List, Mapping, NamedTuple, Optional, Sequence, Tuple
 
 from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.names import (JOINT_NAMES, JOINT_STATE_TYPE, ROBOT_DESCRIPTION_TYPE,
-                                TF_MESSAGE_TYPE)
+from qrm_ros.core.names import (CRANK_RADIUS_JOINT, JOINT_STATE_TYPE, PUBLISHED_JOINT_NAMES,
+                                ROBOT_DESCRIPTION_TYPE, TF_MESSAGE_TYPE)
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
 from qrm_ros.recording.urdf_model import urdf_joints, urdf_text, UrdfJoint
 
@@ -72,7 +72,14 @@ def fixed_transforms(geometry: Geometry) -> List[LinkTransform]:
 
 def moving_transforms(geometry: Geometry,
                       positions: Mapping[str, float]) -> List[LinkTransform]:
-    """Return the moving joints' transforms for joint values by name (every one needed)."""
+    """
+    Return the moving joints' transforms for joint values by name (every one needed).
+
+    The crank radius's joint may be missing (a publisher made before the stroke could move):
+    it is then the geometry's crank radius.
+    """
+    positions = dict(positions)
+    positions.setdefault(CRANK_RADIUS_JOINT, float(geometry.crank_radius))
     return [joint_transform(joint, positions[joint.name])
             for joint in urdf_joints(geometry).values() if joint.kind != 'fixed']
 
@@ -108,9 +115,9 @@ class MachineMessages:
         self.geometry = geometry
         self._joints = [j for j in urdf_joints(geometry).values() if j.kind != 'fixed']
         moving = {joint.name for joint in self._joints}
-        if moving != set(JOINT_NAMES):
+        if moving != set(PUBLISHED_JOINT_NAMES):
             raise ValueError(f'the URDF\'s moving joints {sorted(moving)} are not the '
-                             f'published ones {sorted(JOINT_NAMES)}')
+                             f'published ones {sorted(PUBLISHED_JOINT_NAMES)}')
         self._store = _jazzy_typestore()
         types = self._store.types
         self._time = types['builtin_interfaces/msg/Time']
@@ -171,6 +178,9 @@ class MachineMessages:
         try:
             message = self._store.deserialize_cdr(joint_state, JOINT_STATE_TYPE)
             positions = dict(zip(message.name, (float(p) for p in message.position)))
+            # A publisher without the crank radius's joint (made before the stroke could
+            # move) has the geometry's crank radius.
+            positions.setdefault(CRANK_RADIUS_JOINT, float(self.geometry.crank_radius))
             values = [positions[joint.name] for joint in self._joints]
         except Exception:  # rosbags' errors on odd bytes; KeyError for a missing joint
             return None

@@ -17,7 +17,8 @@ URDF model of the shaper, generated from a geometry (``qrm_urdf``; no ROS needed
 The real chain is closed; a URDF is a tree. Every moving joint hangs from ``shaper_base``
 and takes the value the node publishes under the same name, so with published joint values
 the pins meet: ``coupling_pin`` lies on the flywheel's slot (its local x axis),
-``crank_pin`` and ``ram_block`` on the lever's slot (its local y axis). The shipped
+``crank_pin`` (at the published crank radius along the crank) and ``ram_block`` on the
+lever's slot (its local y axis). The shipped
 ``urdf/qrm_shaper.urdf`` is this module's output for the default geometry (a test keeps the
 two equal); regenerate it with ``qrm_urdf -o urdf/qrm_shaper.urdf``.
 
@@ -33,7 +34,7 @@ import xml.etree.ElementTree as ET
 
 from qrm_ros.core.geometry import Geometry
 from qrm_ros.core.linkage import COLOURS, linkage_sizes
-from qrm_ros.core.names import JOINT_NAMES, MACHINE_NAME
+from qrm_ros.core.names import CRANK_RADIUS_JOINT, JOINT_NAMES, MACHINE_NAME
 
 if TYPE_CHECKING:  # the fields it reads; any object with them will do
     from qrm_ros.core.dynamics import MassProperties
@@ -72,7 +73,7 @@ def urdf_joints(geometry: Geometry) -> Dict[str, UrdfJoint]:
     the pins.
     """
     sizes = linkage_sizes(geometry)
-    r1, r = geometry.coupling_radius, geometry.crank_radius
+    r1 = geometry.coupling_radius
     h, phase = geometry.pivot_distance, geometry.crank_phase
     half_stroke = 0.5 * float(geometry.ram_stroke)
     z_axis = (0.0, 0.0, 1.0)
@@ -83,8 +84,9 @@ def urdf_joints(geometry: Geometry) -> Dict[str, UrdfJoint]:
                   (0.0, 0.0, 0.0), z_axis),
         UrdfJoint('coupling_pin_joint', 'fixed', 'input_crank', 'coupling_pin', (r1, 0.0, 0.0)),
         UrdfJoint(FLYWHEEL_JOINT, 'continuous', BASE_LINK, 'flywheel', (0.0, 0.0, 0.0), z_axis),
-        UrdfJoint('crank_pin_joint', 'fixed', 'flywheel', 'crank_pin',
-                  (r * math.cos(phase), r * math.sin(phase), 0.0)),
+        # The crank pin slides along the crank (the stroke screw): its radius is a joint.
+        UrdfJoint(CRANK_RADIUS_JOINT, 'prismatic', 'flywheel', 'crank_pin', (0.0, 0.0, 0.0),
+                  (math.cos(phase), math.sin(phase), 0.0), (0.0, h)),
         # The lever's angle is positive toward +x, i.e. clockwise seen from +z: axis -z.
         UrdfJoint(LEVER_JOINT, 'revolute', BASE_LINK, 'lever', (0.0, -h, 0.0),
                   (0.0, 0.0, -1.0), (-sizes.max_lever_angle, sizes.max_lever_angle)),
@@ -240,7 +242,7 @@ def urdf_text(geometry: Geometry, mass_properties: Optional['MassProperties'] = 
     build.joint(joints[FLYWHEEL_JOINT])
     crank_pin = build.link('crank_pin')
     build.pin(crank_pin)
-    build.joint(joints['crank_pin_joint'])
+    build.joint(joints[CRANK_RADIUS_JOINT])
 
     # Slotted lever along its local +y (its joint turns about -z: see urdf_joints).
     lever = build.link('lever')

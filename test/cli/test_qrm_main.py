@@ -13,6 +13,7 @@
 # limitations under the License.
 """The main job end to end, with a short schedule: real processes, real DDS, real files."""
 
+import dataclasses
 import json
 import math
 import os
@@ -45,7 +46,8 @@ def test_main_job_runs_a_short_schedule_end_to_end(tmp_path, capsys):
         assert (folder / name).is_file(), name
     assert sorted(os.listdir(folder / 'figures')) == sorted(
         ['fig10_time_ratio.png', 'fig11_speed_ratio.png', 'fig12_flywheel_speed.png',
-         'ram_motion.png', 'fig_input_torque.png', 'fig_offset_cost.png', qrm_main.TOUR_FILE])
+         'ram_motion.png', 'fig_input_torque.png', 'fig_offset_cost.png',
+         'fig_time_ratio_stroke.png', qrm_main.TOUR_FILE])
     # the last input revolution (0.5 s) of each offset at 20 frames per second, both ends
     with Image.open(folder / 'figures' / qrm_main.TOUR_FILE) as tour:
         assert (tour.n_frames, tour.size) == (2 * 11, linkage_figure.FRAME_SIZE)
@@ -53,10 +55,29 @@ def test_main_job_runs_a_short_schedule_end_to_end(tmp_path, capsys):
     assert str(folder / 'run.mcap') in out
     document = json.loads((folder / 'results.json').read_text())
     segments = document['segments']
-    assert [s['offset'] for s in segments] == [-0.006, 0.008]  # exactly what was commanded
+    # The short-stroke experiment after the schedule: 60 mm at offset 0 (the quick return
+    # lost), then the long stroke's time ratio held by the offset.
+    short = [s for s in segments if abs(s['stroke_length'] - 0.06) < 1e-9]
+    assert [s['offset'] for s in segments if s not in short] == [-0.006, 0.008]  # commanded
     geometry = kin.Geometry.paper()
     tolerance = (speed * 0.01) ** 3  # the stroke finder's bound at 100 Hz
+    short_geometry = dataclasses.replace(geometry,
+                                         crank_radius=0.06 * 0.113 / math.sqrt(0.16 + 0.0036))
+    at_zero = [s for s in short if s['offset'] == 0.0 and s['stroke_pairs']]
+    held = [s for s in short if s['offset'] > 0.0 and s['stroke_pairs']]
+    assert at_zero and held
+    for segment in at_zero:
+        assert segment['time_ratio_measured'] == pytest.approx(
+            kin.time_ratio_rk4(short_geometry, 0.0), rel=tolerance)
+        assert segment['time_ratio_measured'] < 1.25
+    for segment in held:
+        assert segment['crank_radius'] == at_zero[0]['crank_radius']
+        assert segment['time_ratio_measured'] == pytest.approx(kin.time_ratio(geometry, 0.0),
+                                                               rel=tolerance)
+    assert 'stroke 60.0 mm, time ratio 1.8367 held' in out
     for segment in segments:
+        if segment in short:
+            continue
         assert segment['stroke_pairs'] >= 2
         assert segment['input_speed'] == pytest.approx(speed, rel=1e-15)
         assert segment['time_ratio_measured'] == pytest.approx(

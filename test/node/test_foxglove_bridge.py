@@ -26,7 +26,7 @@ import subprocess
 
 from ament_index_python.packages import get_package_share_directory
 import pytest
-from qrm_ros.core.names import JOINT_NAMES
+from qrm_ros.core.names import PUBLISHED_JOINT_NAMES
 from qrm_ros.node.foxglove_bridge import package_asset
 from qrm_ros.recording.rosbag2_formats import DEFINITION_DELIMITER, find_message_definition
 from rcl_interfaces.srv import GetParameters, SetParameters
@@ -340,7 +340,7 @@ def test_the_machine_is_served_for_the_3d_panel_without_robot_state_publisher(ru
     fixed = viewer.wait_event('message', topic='/tf_static')['message']['transforms']
     moving = viewer.wait_event('message', topic='/tf')['message']['transforms']
     assert {t['child_frame_id'] for t in fixed}.isdisjoint(t['child_frame_id'] for t in moving)
-    assert len(moving) == len(JOINT_NAMES)  # one per moving joint
+    assert len(moving) == len(PUBLISHED_JOINT_NAMES)  # one per moving joint
     # Nested types are defined as in every other channel (a viewer compares them).
     tf_schema = viewer.wait_event('advertise', topic='/tf')['schema']
     markers_schema = viewer.wait_event('advertise', topic='/linkage_markers')['schema']

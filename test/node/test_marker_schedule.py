@@ -48,9 +48,10 @@ def test_markers_show_the_published_state_and_clear_on_reset(harness):
     # The pins, from the published joint values by the mechanism's own definitions
     # (mechanism.md): coupling pin on the input crank at r1 about O1 = (0, offset); crank pin
     # on the flywheel at r, at the crank phase; ram block on the ram line, H above O3.
-    angle, flywheel, lever, ram, offset = joint_state.position
+    angle, flywheel, lever, ram, offset, radius = joint_state.position
+    assert radius == R  # the crank pin at the published crank radius
     expected = [(R1 * math.cos(angle), offset + R1 * math.sin(angle)),
-                (R * math.cos(flywheel), R * math.sin(flywheel)),
+                (radius * math.cos(flywheel), radius * math.sin(flywheel)),
                 (0.2 * math.tan(lever), -H_PIVOT + 0.2)]
     pins = markers['pins', 0].points
     for point, (x, y) in zip(pins, expected):

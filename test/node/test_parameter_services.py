@@ -41,7 +41,7 @@ def test_parameters_are_declared_with_units_ranges_and_read_only_flags(harness):
         DescribeParameters, '/shaper_sim/describe_parameters', request).descriptors}
     read_only = {name for name, d in descriptors.items() if d.read_only}
     assert read_only == {'coupling_radius', 'crank_radius', 'pivot_distance', 'ram_height',
-                         'crank_phase', 'publish_rate'}
+                         'crank_phase', 'publish_rate', 'max_crank_radius'}
     for name, spec in PARAMETERS.items():
         assert f'[{spec.unit}]' in descriptors[name].description or not spec.unit
         assert descriptors[name].additional_constraints.startswith('allowed: ')

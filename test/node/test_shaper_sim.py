@@ -25,7 +25,7 @@ import time
 
 import pytest
 from qrm_ros.core.kinematics import state
-from qrm_ros.core.names import JOINT_NAMES
+from qrm_ros.core.names import PUBLISHED_JOINT_NAMES
 import rclpy
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
@@ -47,11 +47,13 @@ def test_published_state_is_the_core_closed_form_at_the_stamp(harness):
     h.wait_for(lambda: len(h.joint_states) == len(stamps), what='every joint state')
     geometry = h.shaper.geometry
     for message, stamp in zip(h.joint_states, stamps):
-        assert list(message.name) == list(JOINT_NAMES)
+        assert list(message.name) == list(PUBLISHED_JOINT_NAMES)
         assert stamp_ns(message) == stamp
         assert message.header.frame_id == 'shaper_base'
-        angle, flywheel, lever, ram, offset = message.position
-        speed, flywheel_speed, lever_speed, ram_velocity, offset_rate = message.velocity
+        angle, flywheel, lever, ram, offset, radius = message.position
+        speed, flywheel_speed, lever_speed, ram_velocity, offset_rate, radius_rate = \
+            message.velocity
+        assert (radius, radius_rate) == (geometry.crank_radius, 0.0)  # the stroke held
         expected = state(geometry, offset, angle, speed, 0.0, offset_rate)
         assert -math.pi <= angle < math.pi and -math.pi <= flywheel < math.pi
         assert math.remainder(flywheel - expected.flywheel_angle, 2 * math.pi) == \
@@ -164,8 +166,8 @@ def test_published_efforts_balance_the_energy(harness):
             h.wait_for(lambda: len(h.joint_states) == index, what='every joint state')
 
     def energy(message):
-        angle, flywheel, lever, ram, offset = message.position
-        speed, flywheel_speed, lever_speed, ram_velocity, _ = message.velocity
+        angle, flywheel, lever, ram, offset, _ = message.position
+        speed, flywheel_speed, lever_speed, ram_velocity, _, _ = message.velocity
         kinetic = 0.5 * (mass['input_inertia'] * speed ** 2
                          + mass['flywheel_inertia'] * flywheel_speed ** 2
                          + mass['lever_inertia'] * lever_speed ** 2
@@ -180,7 +182,7 @@ def test_published_efforts_balance_the_energy(harness):
 
     checked = 0
     for before, middle, after in zip(h.joint_states, h.joint_states[1:], h.joint_states[2:]):
-        assert len(middle.effort) == 5 and all(map(math.isfinite, middle.effort))
+        assert len(middle.effort) == 6 and all(map(math.isfinite, middle.effort))
         if len({load(before), load(middle), load(after)}) > 1:
             continue  # a load switch between the samples: no smooth derivative there
         energy_rate = (energy(after) - energy(before)) * rate / 2

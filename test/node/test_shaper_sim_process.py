@@ -238,8 +238,9 @@ def test_process_publishes_a_continuous_exact_state_and_refuses_bad_values(probe
 
     # Published state = the core's closed form at the published angle, speed and offset.
     for message in messages:
-        angle, flywheel, lever, ram, offset = message.position
-        speed, flywheel_speed, lever_speed, ram_velocity, offset_rate = message.velocity
+        angle, flywheel, lever, ram, offset, radius = message.position
+        speed, flywheel_speed, lever_speed, ram_velocity, offset_rate, _ = message.velocity
+        assert radius == geometry.crank_radius
         assert all(map(math.isfinite, list(message.position) + list(message.velocity)))
         exact = state(geometry, offset, angle, speed, 0.0, offset_rate)
         assert abs(wrapped(flywheel - exact.flywheel_angle)) < 1e-12

@@ -67,7 +67,7 @@ def _published(geometry, offset, input_angle):
     return {'input_shaft_joint': _wrapped(input_angle),
             'flywheel_joint': _wrapped(float(state.flywheel_angle)),
             'lever_joint': float(state.lever_angle), 'ram_joint': float(state.ram_position),
-            'coupling_offset_joint': offset}
+            'coupling_offset_joint': offset, 'crank_radius_joint': geometry.crank_radius}
 
 
 def _matrix(transform):

@@ -17,6 +17,7 @@ its open tree closes (checked with yourdfpy's forward kinematics, not our own).
 """
 
 from collections import namedtuple
+import dataclasses
 import math
 import os
 
@@ -25,7 +26,7 @@ import numpy as np
 import pytest
 
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.names import JOINT_NAMES
+from qrm_ros.core.names import PUBLISHED_JOINT_NAMES
 from qrm_ros.cli.qrm_urdf import main
 from qrm_ros.recording.urdf_model import BASE_LINK, URDF_FILE_NAME, urdf_text, write_urdf
 from repo_paths import REPO_ROOT
@@ -60,8 +61,8 @@ def _configure(model, geometry, offset, input_angle):
     values = {'input_shaft_joint': _wrapped(input_angle),
               'flywheel_joint': _wrapped(state.flywheel_angle),
               'lever_joint': state.lever_angle, 'ram_joint': state.ram_position,
-              'coupling_offset_joint': offset}
-    model.update_cfg({name: float(values[name]) for name in JOINT_NAMES})
+              'coupling_offset_joint': offset, 'crank_radius_joint': geometry.crank_radius}
+    model.update_cfg({name: float(values[name]) for name in PUBLISHED_JOINT_NAMES})
     return state
 
 
@@ -87,7 +88,7 @@ def test_joints_links_axes_and_limits(tmp_path):
     model = _load(geometry, tmp_path=str(tmp_path))
     assert model.robot.name == 'qrm_shaper'
     assert model.base_link == BASE_LINK
-    assert sorted(model.actuated_joint_names) == sorted(JOINT_NAMES)
+    assert sorted(model.actuated_joint_names) == sorted(PUBLISHED_JOINT_NAMES)
     joints = model.joint_map
     expected = {
         'coupling_offset_joint': ('prismatic', (0, 1, 0), BASE_LINK),
@@ -95,13 +96,13 @@ def test_joints_links_axes_and_limits(tmp_path):
         'flywheel_joint': ('continuous', (0, 0, 1), BASE_LINK),
         'lever_joint': ('revolute', (0, 0, -1), BASE_LINK),
         'ram_joint': ('prismatic', (1, 0, 0), BASE_LINK),
+        'crank_radius_joint': ('prismatic', (1, 0, 0), 'flywheel'),  # crank phase 0
     }
     for name, (kind, axis, parent) in expected.items():
         assert joints[name].type == kind
         assert np.array_equal(joints[name].axis, axis), name
         assert joints[name].parent == parent
-    for child, parent in (('coupling_pin', 'input_crank'), ('crank_pin', 'flywheel'),
-                          ('ram_block', 'ram')):
+    for child, parent in (('coupling_pin', 'input_crank'), ('ram_block', 'ram')):
         fixed = [j for j in joints.values() if j.child == child]
         assert len(fixed) == 1 and fixed[0].type == 'fixed' and fixed[0].parent == parent
     # Joint origins: O1 moves from O2 along y, O3 is h below O2, the ram line H above O3.
@@ -154,6 +155,21 @@ def test_published_joint_values_close_the_chain(name, tmp_path):
         worst = max(worst, abs(np.hypot(*_position(model, 'crank_pin')[:2]) - r))
         assert limits.lower - 1e-12 <= state.lever_angle <= limits.upper + 1e-12
     assert worst <= 1e-9
+
+
+def test_a_moved_crank_radius_keeps_the_chain_closed(tmp_path):
+    """The model of one radius, driven at another (a stroke change): the pins still meet."""
+    geometry = GEOMETRIES['paper']
+    model = _load(geometry, tmp_path=str(tmp_path))
+    for radius in (0.015, 0.03, 0.07):
+        moved = dataclasses.replace(geometry, crank_radius=radius)
+        for input_angle, offset in ((0.3, 0.0), (2.0, 0.01), (-2.5, -0.015)):
+            _configure(model, moved, offset, input_angle)
+            assert np.hypot(*_position(model, 'crank_pin')[:2]) == pytest.approx(radius,
+                                                                                 abs=1e-12)
+            for frame in ('crank_pin', 'ram_block'):
+                in_lever = _position(model, frame, 'lever')
+                assert abs(in_lever[0]) < 1e-12 and in_lever[1] > 0.0
 
 
 def _mass_matrix_from_urdf(model, geometry, offset, input_angle, step=1e-5):

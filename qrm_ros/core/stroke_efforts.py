@@ -1,0 +1,113 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+The efforts while the stroke screw moves the crank pin, and the screw's own force.
+
+The chain (dynamics.evaluate_chain) carries the terms in the crank radius' rate and
+acceleration; this module gives the node and the tests its efforts with them, and the
+stroke screw's force on the crank pin, F_r = tau3 d(psi)/d(r) (N along +r, outward along
+the crank), as doc/dynamics.md defines it. With the stroke still, F_r is what holds the pin
+in its slot against the lever.
+"""
+
+import functools
+import math
+from typing import Any, Dict, Optional, Tuple
+
+import numpy as np
+
+from qrm_ros.core.dynamics import (ARRAY_OPS, Chain, checked_quantity, Efforts, evaluate_chain,
+                                   geometry_fields, MassProperties, SCALAR_OPS)
+from qrm_ros.core.geometry import check_offset, FloatOrArray, Geometry
+
+__all__ = ['chain_with_stroke_screw', 'efforts_with_stroke_screw', 'lever_radius_coefficient']
+
+
+@functools.lru_cache(maxsize=8)
+def _masses(mass: MassProperties) -> Dict[str, Any]:
+    """Return the masses as a dict, once per (frozen, identity-hashed) object."""
+    return mass.as_dict()
+
+
+@functools.lru_cache(maxsize=8)
+def _float_fields(geometry: Geometry) -> Optional[Tuple[float, float, float, float, float]]:
+    """Return the geometry's fields if all are finite floats (once per geometry object)."""
+    r1, r, h, height, phase = geometry_fields(geometry)
+    fields = (r1, r, h, height, phase)
+    if all(type(value) is float and math.isfinite(value) for value in fields):
+        return fields  # type: ignore[return-value]  # floats, checked
+    return None
+
+
+def chain_with_stroke_screw(geometry: Geometry, mass: MassProperties, offset: FloatOrArray,
+                            input_angle: FloatOrArray, input_speed: FloatOrArray,
+                            input_acceleration: FloatOrArray = 0.0,
+                            offset_rate: FloatOrArray = 0.0,
+                            offset_acceleration: FloatOrArray = 0.0,
+                            external_ram_force: FloatOrArray = 0.0,
+                            crank_radius_rate: FloatOrArray = 0.0,
+                            crank_radius_acceleration: FloatOrArray = 0.0) -> Chain:
+    """
+    Return the whole chain with the crank radius moving (m/s, m/s^2) at geometry's radius.
+
+    One sample of floats takes math's functions; anything else is checked and broadcast.
+    """
+    arguments = (input_angle, input_speed, input_acceleration, offset_rate,
+                 offset_acceleration, external_ram_force, crank_radius_rate,
+                 crank_radius_acceleration)
+    scalar_fields = _float_fields(geometry)
+    if (scalar_fields is not None and type(offset) is float
+            and abs(offset) < scalar_fields[0]
+            and all(type(value) is float and math.isfinite(value) for value in arguments)):
+        # One sample of floats (the node, every tick): math's functions, no array checks.
+        return evaluate_chain(SCALAR_OPS, *scalar_fields, _masses(mass), offset, *arguments)
+    r1, r, h, height, phase = geometry_fields(geometry)
+    offset = check_offset(geometry, offset)
+    units = ('rad', 'rad/s', 'rad/s^2', 'm/s', 'm/s^2', 'N', 'm/s', 'm/s^2')
+    names = ('input_angle', 'input_speed', 'input_acceleration', 'offset_rate',
+             'offset_acceleration', 'external_ram_force', 'crank_radius_rate',
+             'crank_radius_acceleration')
+    checked = [np.asarray(checked_quantity(name, value, unit), dtype=float)
+               for name, value, unit in zip(names, arguments, units)]
+    return evaluate_chain(ARRAY_OPS, r1, r, h, height, phase, _masses(mass),
+                          np.asarray(offset, dtype=float), *checked)
+
+
+def efforts_with_stroke_screw(*arguments: Any, **keywords: Any) -> Tuple[Efforts, Any]:
+    """
+    Return (the joints' Efforts, the stroke screw's force in N along +r).
+
+    Arguments as chain_with_stroke_screw's; floats in, floats out.
+    """
+    chain = chain_with_stroke_screw(*arguments, **keywords)
+    efforts, force = chain.efforts, chain.crank_radius_force
+    if type(force) is float:  # the one-sample path: floats throughout
+        return efforts, force
+    if all(np.ndim(value) == 0 for value in (*efforts, force)):
+        return Efforts(*(float(value) for value in efforts)), float(force)
+    shaped = np.broadcast_arrays(*efforts, force)
+    return Efforts(*shaped[:5]), shaped[5]
+
+
+def lever_radius_coefficient(geometry: Geometry, flywheel_angle: float) -> float:
+    """
+    Return d(psi)/d(r) (rad/m) at a flywheel angle: h cos(phi_c) / |pin - O3|^2.
+
+    The stroke screw's force is the lever torque times this (with the stroke still: the
+    motor stepper's efforts, which carry the lever torque).
+    """
+    r, h = float(geometry.crank_radius), float(geometry.pivot_distance)
+    crank_angle = flywheel_angle + float(geometry.crank_phase)
+    sin_c = math.sin(crank_angle)
+    return h * math.cos(crank_angle) / (r * r + h * h + 2.0 * r * h * sin_c)

@@ -1,0 +1,137 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+The rules of the stroke parameters (stroke_length, max_crank_radius, the time-ratio hold).
+
+Used by shaper_parameters' table; they look at a View (values after the change, the
+start-up geometry, the stroke in force) and say why a value is refused, or None.
+stroke_length 0 means the stroke of crank_radius (the start-up stroke), so crank_radius
+stays the one start-up value and stroke_length the one live command.
+"""
+
+import dataclasses
+import math
+from typing import Any, NamedTuple, Optional
+
+from qrm_ros.core.geometry import crank_radius_for_stroke, Geometry, KinematicsError
+from qrm_ros.core.stroke_adjustment import largest_stroke
+from qrm_ros.core.time_ratio_hold import time_ratio_unreachable_reason
+
+__all__ = ['StrokeLengthRange', 'commanded_geometry', 'commanded_stroke',
+           'drive_waits_for_stroke', 'one_hold_at_a_time', 'slot_holds_crank',
+           'stroke_held_by_motor', 'stroke_holds_workpiece', 'time_ratio_reachable']
+
+
+def _shown(value: float) -> str:
+    return f'{value:.6g}'
+
+
+def commanded_stroke(view: Any) -> float:
+    """Return the stroke commanded (m): stroke_length, or crank_radius's when it is 0."""
+    stroke = view.values.get('stroke_length', 0.0)
+    return float(stroke) if stroke else float(view.geometry.ram_stroke)
+
+
+def commanded_geometry(view: Any) -> Geometry:
+    """Return the start-up geometry with the crank radius of the commanded stroke."""
+    geometry = view.geometry
+    stroke = view.values.get('stroke_length', 0.0)
+    if not stroke:
+        return geometry
+    radius = float(crank_radius_for_stroke(stroke, geometry.pivot_distance,
+                                           geometry.ram_height))
+    return dataclasses.replace(geometry, crank_radius=radius)
+
+
+class StrokeLengthRange(NamedTuple):
+    """0 (the stroke of crank_radius) or a stroke whose crank radius fits the slot."""
+
+    def descriptor_bounds(self, geometry: Geometry) -> None:
+        return None  # the range depends on max_crank_radius
+
+    def allowed(self, unit: str, view: Any) -> str:
+        radius = view.values['max_crank_radius']
+        try:
+            limit = largest_stroke(view.geometry, radius)
+        except KinematicsError:  # a slot the geometry refuses (its own refusal says why)
+            limit = math.inf
+        return (f'0 (the stroke of crank_radius) or 0 < stroke_length <= {_shown(limit)} '
+                f'{unit} (crank radius up to max_crank_radius = {_shown(radius)} m)')
+
+    def problem(self, value: Any, unit: str, view: Any) -> Optional[str]:
+        allowed = self.allowed(unit, view)
+        if not isinstance(value, float):
+            return f'must be a floating-point number: {allowed}'
+        if not math.isfinite(value):
+            return f'not finite; allowed {allowed}'
+        if value == 0.0:
+            return None
+        if value < 0.0 or value > largest_stroke(view.geometry,
+                                                 view.values['max_crank_radius']):
+            return f'outside the allowed range {allowed}'
+        return None
+
+
+def slot_holds_crank(value: float, view: Any) -> Optional[str]:
+    """max_crank_radius: at least crank_radius, below pivot_distance."""
+    geometry = view.geometry
+    if value >= geometry.pivot_distance:
+        return (f'not below pivot_distance = {_shown(geometry.pivot_distance)} m (the lever '
+                'would turn fully round)')
+    if value < geometry.crank_radius:
+        return f'below crank_radius = {_shown(geometry.crank_radius)} m (the start-up radius)'
+    return None
+
+
+def stroke_holds_workpiece(value: float, view: Any) -> Optional[str]:
+    """stroke_length: not shorter than the workpiece (cutting_length)."""
+    length = view.values['cutting_length']
+    if commanded_stroke(view) < length:
+        return (f'shorter than cutting_length = {_shown(length)} m; shorten cutting_length '
+                'first (or set both in one atomic call)')
+    return None
+
+
+def stroke_held_by_motor(value: float, view: Any) -> Optional[str]:
+    """stroke_length: the motor drive holds the stroke in force."""
+    if view.values['drive'] != 'motor':
+        return None
+    in_force = view.stroke_in_force or float(view.geometry.ram_stroke)
+    if commanded_stroke(view) != in_force:
+        return (f"the motor drive holds the stroke in force ({_shown(in_force)} m); set drive "
+                "to 'speed' to change the stroke")
+    return None
+
+
+def drive_waits_for_stroke(value: Any, view: Any) -> Optional[str]:
+    """drive: no switch to the motor while the stroke moves."""
+    if value == 'motor' and view.stroke_moving:
+        return 'the stroke is still moving toward stroke_length; switch once it has arrived'
+    return None
+
+
+def time_ratio_reachable(value: float, view: Any) -> Optional[str]:
+    """time_ratio_target: a ratio the safe offsets give at the commanded stroke."""
+    target = view.values['time_ratio_target']
+    if target == 0.0:
+        return None
+    return time_ratio_unreachable_reason(commanded_geometry(view), target)
+
+
+def one_hold_at_a_time(value: float, view: Any) -> Optional[str]:
+    """time_ratio_target and cutting_speed_target: at most one commands the offset."""
+    if view.values['time_ratio_target'] and view.values['cutting_speed_target']:
+        return ('time_ratio_target and cutting_speed_target both command the offset: set the '
+                'other to 0 first (or in the same atomic call)')
+    return None
