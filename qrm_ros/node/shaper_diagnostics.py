@@ -46,9 +46,9 @@ def _array(status: DiagnosticStatus, stamp: Time) -> DiagnosticArray:
     return message
 
 
-def _shown_figure(value: float) -> str:
-    """Show a ratio as the status text does: 4 decimals, or 'n/a' (never nan or inf)."""
-    return f'{value:.4f}' if math.isfinite(value) else 'n/a'
+def _shown_figure(value: float, spec: str = '.4f') -> str:
+    """Show a figure as the status text does (4 decimals), or 'n/a' (never nan or inf)."""
+    return format(value, spec) if math.isfinite(value) else 'n/a'
 
 
 def stroke_pair_status(report: PairReport, effort_theory: List[KeyValue],
@@ -92,7 +92,7 @@ def stroke_pair_status(report: PairReport, effort_theory: List[KeyValue],
                  f'{_shown_figure(measured["speed_ratio"])} (peak '
                  f'{_shown_figure(measured["peak_speed_ratio"])}) at offset '
                  f'{report.coupling_offset:.6g} m, {report.input_speed:.6g} rad/s, stroke '
-                 f'{report.stroke_length:.6g} m, {steady}'),
+                 f'{_shown_figure(report.stroke_length, ".6g")} m, {steady}'),
         values=key_values)
     return _array(status, stamp_message(report.stamp_ns))
 
