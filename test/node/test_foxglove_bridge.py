@@ -138,9 +138,17 @@ def test_joint_states_reach_the_client_as_dds_delivers_them(running, client):
     viewer.wait(lambda events: len([e for e in events if e.get('topic') == '/joint_states'
                                     and e['event'] == 'message']) >= 50, what='50 joint states')
     by_stamp = {}
-    wait_for(lambda: len(probe.joint_states) > 0)
-    for message in list(probe.joint_states):
-        by_stamp[message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec] = message
+
+    def probe_caught_up():
+        """The DDS probe spins in its own thread and may lag the client on a loaded machine."""
+        for message in list(probe.joint_states):
+            by_stamp[message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec] = (
+                message)
+        client_stamps = [_stamp(event['message']['header'])
+                         for event in viewer.matching('message', topic='/joint_states')]
+        return sum(stamp in by_stamp for stamp in client_stamps) >= 40
+
+    wait_for(probe_caught_up, 20.0, 'the DDS probe to hold 40 of the stamps the client got')
     matched = 0
     for event in viewer.matching('message', topic='/joint_states'):
         seen = event['message']

@@ -543,6 +543,11 @@ def test_sigkill_loses_at_most_one_chunk_and_recover_finishes_the_file(tmp_path,
     try:
         wait_for(lambda: len(listener.messages('/joint_states')) >= 150, 15.0,
                  '150 joint states at the listener')
+        # On a loaded machine the recorder may match the publisher well after the listener:
+        # kill it only once a chunk of joint states is on disk.
+        wait_for(lambda: os.path.exists(output) and next(
+            open_run(output).messages(['joint_states']), None) is not None,
+            15.0, 'a chunk of joint states in the file')
         killed_ns = time.time_ns()
         recorder.stop(signal.SIGKILL)
     finally:
