@@ -20,7 +20,7 @@ what the safe offsets reach is refused when it is set; if a later speed change p
 reach, the nearest reachable offset is held and the answer says so.
 """
 
-from typing import NamedTuple, Optional, Tuple
+from typing import Callable, NamedTuple, Optional, Tuple
 
 import numpy as np
 
@@ -31,7 +31,7 @@ from qrm_ros.core.offset_inverses import offset_for_cutting_speed
 from qrm_ros.core.peak_speeds import peak_ram_speeds
 
 __all__ = ['CUTTING_SPEED_DEFINITIONS', 'CUTTING_SPEED_FIGURES', 'HoldAnswer', 'cutting_speed',
-           'hold_offset', 'unreachable_reason',
+           'exact_or_nearest_offset', 'hold_offset', 'unreachable_reason',
            'reachable_cutting_speeds']
 
 # 'mean': stroke length / cutting time, the figure of shop tables; 'peak': the largest
@@ -91,7 +91,7 @@ class HoldAnswer(NamedTuple):
     """The offset to command, and why it is not exact when it is not."""
 
     offset: float                # m, within the safety limit
-    reachable: Tuple[float, float]  # m/s at this speed
+    reachable: Tuple[float, float]  # the held figure's range (m/s, or a time ratio)
     problem: Optional[str]       # None: the offset gives the target exactly
 
 
@@ -103,17 +103,34 @@ def hold_offset(geometry: Geometry, input_speed: float, target: float,
         return HoldAnswer(0.0, (0.0, 0.0), f'{reason}; offset 0 m held')
     offsets, speeds = _over_safe_offsets(geometry, input_speed, definition)
     reachable = float(speeds.min()), float(speeds.max())
-    reason = unreachable_reason(geometry, input_speed, target, definition, reachable)
+    invert = (offset_for_mean_cutting_speed if definition == 'mean'
+              else offset_for_cutting_speed)
+    return exact_or_nearest_offset(
+        geometry, target, offsets, speeds,
+        unreachable_reason(geometry, input_speed, target, definition, reachable),
+        lambda: invert(geometry, input_speed, target),
+        f'{definition} cutting speed {target:.6g} m/s', lambda speed: f'{speed:.6g} m/s')
+
+
+def exact_or_nearest_offset(geometry: Geometry, target: float, offsets: np.ndarray,
+                            figures: np.ndarray, reason: Optional[str],
+                            exact_offset: Callable[[], FloatOrArray], target_text: str,
+                            figure_text: Callable[[float], str]) -> HoldAnswer:
+    """
+    Answer a hold: the exact inverse's offset if the target is reachable and it is safe.
+
+    Otherwise the sampled safe offset whose figure lies nearest the target, with the reason
+    (the time-ratio hold and the cutting-speed hold share this rule).
+    """
+    reachable = float(figures.min()), float(figures.max())
     if reason is None:
-        invert = (offset_for_mean_cutting_speed if definition == 'mean'
-                  else offset_for_cutting_speed)
-        offset = float(invert(geometry, input_speed, target))
+        offset = float(exact_offset())
         if abs(offset) <= geometry.max_safe_offset:
             return HoldAnswer(offset, reachable, None)
-        reason = (f'{definition} cutting speed {target:.6g} m/s needs offset {offset:.6g} m, '
+        reason = (f'{target_text} needs offset {offset:.6g} m, '
                   f'beyond the safety limit {geometry.max_safe_offset:.6g} m')
-    nearest = int(np.argmin(np.abs(speeds - target)))
+    nearest = int(np.argmin(np.abs(figures - target)))
     return HoldAnswer(
         float(offsets[nearest]), reachable,
         f'{reason}; holding the nearest, offset {float(offsets[nearest]):.6g} m '
-        f'({float(speeds[nearest]):.6g} m/s)')
+        f'({figure_text(float(figures[nearest]))})')

@@ -26,7 +26,7 @@ from typing import Optional, Tuple
 
 import numpy as np
 
-from qrm_ros.core.cutting_speed_hold import HoldAnswer
+from qrm_ros.core.cutting_speed_hold import HoldAnswer, exact_or_nearest_offset
 from qrm_ros.core.geometry import Geometry
 from qrm_ros.core.offset_inverses import offset_for_time_ratio
 from qrm_ros.core.stroke_timing import time_ratio
@@ -64,15 +64,8 @@ def hold_time_ratio(geometry: Geometry, target: float) -> HoldAnswer:
     """Return the offset giving the target time ratio at this crank radius, or the nearest."""
     offsets, ratios = _over_safe_offsets(geometry)
     reachable = float(ratios.min()), float(ratios.max())
-    reason = time_ratio_unreachable_reason(geometry, target, reachable)
-    if reason is None:
-        offset = float(offset_for_time_ratio(geometry, target))
-        if abs(offset) <= geometry.max_safe_offset:
-            return HoldAnswer(offset, reachable, None)
-        reason = (f'time ratio {target:.6g} needs offset {offset:.6g} m, beyond the safety '
-                  f'limit {geometry.max_safe_offset:.6g} m')
-    nearest = int(np.argmin(np.abs(ratios - target)))
-    return HoldAnswer(
-        float(offsets[nearest]), reachable,
-        f'{reason}; holding the nearest, offset {float(offsets[nearest]):.6g} m '
-        f'(time ratio {float(ratios[nearest]):.6g})')
+    return exact_or_nearest_offset(
+        geometry, target, offsets, ratios,
+        time_ratio_unreachable_reason(geometry, target, reachable),
+        lambda: offset_for_time_ratio(geometry, target),
+        f'time ratio {target:.6g}', lambda ratio: f'time ratio {ratio:.6g}')
