@@ -33,6 +33,8 @@ from rcl_interfaces.srv import GetParameters, ListParameters, SetParameters
 from rclpy.node import Node
 from rclpy.parameter import parameter_value_to_python
 
+from qrm_ros.node.bridge_services import call_from_thread
+
 __all__ = ['PARAMETER_CALL_TIMEOUT', 'ParameterBridge', 'ParameterRefusal', 'from_ros',
            'split_name', 'to_ros']
 
@@ -123,17 +125,8 @@ class _NodeClients:
 
 
 def _answer(client, request):
-    """Call a service from a thread other than the executor's; the answer, or refuse."""
-    if not client.service_is_ready():
-        raise ParameterRefusal(f'{client.service_name} is not available')
-    done = threading.Event()
-    future = client.call_async(request)
-    future.add_done_callback(lambda finished: done.set())
-    if not done.wait(PARAMETER_CALL_TIMEOUT) or future.result() is None:
-        client.remove_pending_request(future)
-        raise ParameterRefusal(f'{client.service_name} did not answer in '
-                               f'{PARAMETER_CALL_TIMEOUT:g} s')
-    return future.result()
+    """Ask a node's parameter service; a missing or silent service is a refusal."""
+    return call_from_thread(client, request, PARAMETER_CALL_TIMEOUT, ParameterRefusal)
 
 
 class ParameterBridge:

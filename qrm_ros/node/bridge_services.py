@@ -39,7 +39,7 @@ from qrm_ros.node.ros_process import rcl_error_text
 from qrm_ros.recording.rosbag2_formats import find_service_definitions
 
 __all__ = ['ClientPublishers', 'PublishRefusal', 'SERVICE_CALL_TIMEOUT', 'ServiceBridge',
-           'service_class']
+           'call_from_thread', 'service_class']
 
 SERVICE_CALL_TIMEOUT = 5.0  # s, for the answer of a bridged ROS service
 # Service packages the bridge leaves out (parameters have their own capability).
@@ -126,16 +126,7 @@ class ServiceBridge:
         except Exception as error:  # rclpy raises several kinds on bytes that are not CDR
             raise ValueError(f'the request is not a CDR {kind.__name__} request: '
                              f'{rcl_error_text(error)}') from None
-        if not client.service_is_ready():
-            raise RuntimeError(f'{client.service_name} is not available')
-        done = threading.Event()
-        future = client.call_async(request)
-        future.add_done_callback(lambda finished: done.set())
-        if not done.wait(SERVICE_CALL_TIMEOUT) or future.result() is None:
-            client.remove_pending_request(future)
-            raise RuntimeError(f'{client.service_name} did not answer in '
-                               f'{SERVICE_CALL_TIMEOUT:g} s')
-        return serialize_message(future.result())
+        return serialize_message(call_from_thread(client, request, SERVICE_CALL_TIMEOUT))
 
 
 class _ClientChannel:
@@ -211,3 +202,22 @@ class ClientPublishers:
         if not channel.ready.wait(PUBLISHER_WAIT) or channel.publisher is None:
             raise PublishRefusal(f'{channel.topic}: no publisher yet, message dropped')
         channel.publisher.publish(bytes(data))
+
+
+def call_from_thread(client: Client, request, timeout: float,
+                     error: Callable[[str], Exception] = RuntimeError):
+    """
+    Call a service from a thread other than the executor's and wait for its answer.
+
+    The server's callbacks run on the SDK's threads while the executor spins the node
+    elsewhere; a service that is missing or silent for timeout seconds raises error.
+    """
+    if not client.service_is_ready():
+        raise error(f'{client.service_name} is not available')
+    done = threading.Event()
+    future = client.call_async(request)
+    future.add_done_callback(lambda finished: done.set())
+    if not done.wait(timeout) or future.result() is None:
+        client.remove_pending_request(future)
+        raise error(f'{client.service_name} did not answer in {timeout:g} s')
+    return future.result()
