@@ -43,7 +43,8 @@ from qrm_ros.recording.atomic_files import staged_outputs
 from qrm_ros.recording.bag_reader import open_run, RunFileError
 
 __all__ = ['AnimationError', 'FORMATS', 'FramePlan', 'MAX_FRAMES', 'MAX_GIF_FPS',
-           'MP4_MISSING', 'check_output', 'check_rates', 'frame_plan', 'gif_delay',
+           'MP4_MISSING', 'animate_plan', 'check_offsets', 'check_output', 'check_rates',
+           'frame_plan', 'gif_delay',
            'offset_tour_samples', 'ratio_text', 'read_efforts', 'recorded_cutting_length',
            'render_frames', 'segment_at', 'write_animation', 'write_offset_tour']
 
@@ -105,18 +106,20 @@ def check_rates(fps: float, speed: float, extension: str = '.mp4') -> None:
 
 def frame_plan(sample_time: np.ndarray, start: Optional[float] = None,
                end: Optional[float] = None, fps: float = 25.0, speed: float = 1.0,
-               extension: str = '.mp4') -> FramePlan:
+               extension: str = '.mp4',
+               extent: Optional[Tuple[float, float]] = None) -> FramePlan:
     """
     Plan frames over [start, end] (s from the run's first sample) at fps, played at speed.
 
     Frame k is at start + k speed / fps and shows the last sample (by stamp) at or before
     it; a recording whose clock jumps back is taken in stamp order. ``extension`` sets the
-    most frames allowed (MAX_FRAMES).
+    most frames allowed (MAX_FRAMES). ``extent``: the run's earliest and latest sample
+    times when sample_time holds only a window of it (animation_window.read_window).
     """
     check_rates(fps, speed)
     order = np.argsort(sample_time, kind='stable')
     ordered = np.asarray(sample_time)[order]
-    first, last = float(ordered[0]), float(ordered[-1])
+    first, last = (float(ordered[0]), float(ordered[-1])) if extent is None else extent
     start = first if start is None else float(start)
     end = last if end is None else float(end)
     if not (math.isfinite(start) and math.isfinite(end)):
@@ -326,7 +329,8 @@ def _write(frames, path, fps, total, progress_stream=None):
     return count
 
 
-def _check_offsets(geometry, offsets):
+def check_offsets(geometry: kin.Geometry, offsets: np.ndarray) -> None:
+    """Refuse recorded offsets the linkage cannot be drawn at."""
     try:
         kin.check_offset(geometry, offsets)
     except kin.KinematicsError as error:
@@ -348,11 +352,20 @@ def write_animation(recording: Recording, path: str, start: Optional[float] = No
     check_rates(fps, speed, extension)
     samples = recording.samples
     plan = frame_plan(samples.time, start, end, fps, speed, extension)
-    _check_offsets(recording.geometry, samples.offset[plan.sample])
+    check_offsets(recording.geometry, samples.offset[plan.sample])
     result = result or analyse(recording)
+    return animate_plan(recording.geometry, samples, plan, result, path, fps, efforts,
+                        cutting_length, progress_stream)
+
+
+def animate_plan(geometry: kin.Geometry, samples: Samples, plan: FramePlan, result: Analysis,
+                 path: str, fps: float, efforts: Optional[np.ndarray] = None,
+                 cutting_length: Optional[float] = None,
+                 progress_stream: Optional[TextIO] = None) -> int:
+    """Draw the planned frames of samples into path (write_animation); return the count."""
     # The traces cover the samples of the span, in recording order.
     span = slice(int(plan.sample.min()), int(plan.sample.max()) + 1)
-    figure = LinkageFigure(recording.geometry, samples.time[span], samples.ram_velocity[span],
+    figure = LinkageFigure(geometry, samples.time[span], samples.ram_velocity[span],
                            None if efforts is None else efforts[span], cutting_length)
     try:
         frames = (rgb for _, rgb in render_frames(figure, samples, plan.sample,
@@ -406,7 +419,7 @@ def write_offset_tour(result: Analysis, path: str, offsets: int = 4, fps: float 
     if not indices.size:
         return None
     samples = result.recording.samples
-    _check_offsets(result.recording.geometry, samples.offset[indices])
+    check_offsets(result.recording.geometry, samples.offset[indices])
     efforts = read_efforts(result.recording.path, samples)
     figure = LinkageFigure(result.recording.geometry, samples.time, samples.ram_velocity,
                            efforts)

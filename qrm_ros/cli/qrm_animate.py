@@ -14,8 +14,9 @@
 """
 ``qrm_animate RUN.mcap -o OUT.gif|.mp4``: an animation of a recorded run (no ROS needed).
 
-Reads the run as qrm_analyze does (qrm_ros.analysis.recorded_run), then draws and writes
-the frames (qrm_ros.analysis.animation). Exit status as qrm_analyze's: 0 written; 1
+Analyses the run as qrm_analyze does (qrm_ros.analysis.streamed_run), then reads only the
+span it animates and draws and writes the frames (qrm_ros.analysis.animation_window): memory
+independent of the run's length. Exit status as qrm_analyze's: 0 written; 1
 rendering or writing failed (nothing written); 2 bad options or nothing usable in the file
 (one line says why); 3 written, but the recording was damaged or incomplete (stderr says
 what was lost).
@@ -26,11 +27,12 @@ import sys
 from typing import Optional, Sequence
 
 from qrm_ros.analysis.animation import (AnimationError, check_output, check_rates,
-                                        MAX_GIF_FPS, read_efforts, recorded_cutting_length,
-                                        write_animation)
+                                        MAX_GIF_FPS, recorded_cutting_length)
+from qrm_ros.analysis.animation_window import write_window_animation
 from qrm_ros.analysis.linkage_figure import FRAME_SIZE
-from qrm_ros.analysis.recorded_run import AnalysisError, read_recording
+from qrm_ros.analysis.recorded_run import AnalysisError
 from qrm_ros.analysis.report import incompleteness
+from qrm_ros.analysis.streamed_run import analyse_file
 from qrm_ros.cli.arguments import add_geometry_override_arguments, geometry_overrides
 from qrm_ros.cli.exit_codes import EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_INCOMPLETE, EXIT_OK
 from qrm_ros.recording.bag_reader import RunFileError
@@ -69,11 +71,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     overrides = geometry_overrides(args)
     try:
         check_rates(args.fps, args.speed, check_output(args.output))
-        recording = read_recording(args.run, overrides, progress_stream=sys.stderr)
-        count = write_animation(recording, args.output, args.start, args.end, args.fps,
-                                args.speed, efforts=read_efforts(args.run, recording.samples),
-                                cutting_length=recorded_cutting_length(args.run),
-                                progress_stream=sys.stderr)
+        result = analyse_file(args.run, overrides, progress_stream=sys.stderr)
+        count = write_window_animation(result, args.output, args.start, args.end, args.fps,
+                                       args.speed, recorded_cutting_length(args.run),
+                                       progress_stream=sys.stderr)
     except (AnimationError, AnalysisError, RunFileError) as error:
         print(f'qrm_animate: error: {error}', file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -88,7 +89,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         return EXIT_FAILURE
     print(f'{args.output}: {count} frames, {FRAME_SIZE[0]} x {FRAME_SIZE[1]} px, '
           f'{args.fps:g} fps, {count / args.fps:.2f} s')
-    lines = incompleteness(recording)
+    lines = incompleteness(result.recording)
     for line in lines:
         print(f'qrm_animate: warning: {line}', file=sys.stderr)
     if lines:
