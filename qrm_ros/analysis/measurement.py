@@ -37,7 +37,12 @@ from qrm_ros.core import kinematics as kin
 from qrm_ros.core.effort_theory import (EFFORT_FIGURES, Setting,
                                         steady_effort_theory_and_problem, THEORY_FIGURES,
                                         ZERO_CAN_BE_EXACT)
+from qrm_ros.core.sampling_bounds import (BOUNDED_FIGURES, figure_sampling_bounds,
+                                          steady_motion)
 from qrm_ros.core.strokes import find_stroke_pairs, measure_pair_efforts
+
+# Steps are rounded up to a power of this before their bounds are worked out.
+_STEP_ROUNDING = 1.01
 
 
 def finite_or_none(value: Any) -> Any:
@@ -135,7 +140,41 @@ def measure_segment(samples: Samples, segment: Segment, geometry: kin.Geometry,
     for name, values in measured.items():
         _measured_and_theory(row, name, values, theory[name])
     _measure_efforts(row, samples, span, pairs, geometry, drive)
+    _add_sampling_bounds(row, samples, span, pairs, geometry)
     return row
+
+
+def _add_sampling_bounds(row: Dict[str, Any], samples: Samples, span: slice, pairs: Any,
+                         geometry: kin.Geometry) -> None:
+    """
+    Add each figure's bound from the sampling alone (core.sampling_bounds), or None.
+
+    Each pair is bounded at its own longest step (a late sample spoils only its pair), and
+    the mean over the pairs by the mean of their bounds; steps are rounded up to 1 % so
+    that a long run needs only a few bounds worked out.
+    """
+    time = samples.time[span]
+    recorded = np.abs(samples.input_speed[span])
+    fastest = max(abs(row['input_speed']), float(np.max(recorded)) if recorded.size else 0.0)
+    speed = math.copysign(fastest, row['input_speed'])
+    motion = steady_motion(geometry, row['offset']) if fastest > 0.0 else None
+    theory = None
+    if motion is not None:
+        with contextlib.suppress(kin.KinematicsError):
+            theory = kin.steady_theory(geometry, row['offset'], speed)
+    steps = np.array([np.max(np.diff(time[first:last + 1]), initial=0.0)
+                      for first, last in zip(pairs.first_sample, pairs.last_sample)])
+    with np.errstate(divide='ignore'):  # a step of 0 s gets no bound
+        rounded = np.power(_STEP_ROUNDING, np.ceil(np.log(steps) / np.log(_STEP_ROUNDING)))
+    per_step = {step: figure_sampling_bounds(geometry, row['offset'], speed, step, motion,
+                                             theory) if theory is not None
+                else dict.fromkeys(BOUNDED_FIGURES)
+                for step in np.unique(rounded)}
+    for name in BOUNDED_FIGURES:
+        bounds = [per_step[step][name] for step in rounded]
+        known = [bound for bound in bounds if bound is not None]
+        row[f'{name}_sampling_bound'] = (float(np.mean(known)) if known and len(known) ==
+                                         len(bounds) else None)
 
 
 def _measure_efforts(row: Dict[str, Any], samples: Samples, span: slice, pairs: Any,

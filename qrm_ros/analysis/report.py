@@ -21,12 +21,14 @@ half-written file. JSON holds null where a figure is not finite.
 import contextlib
 import csv
 import json
+import math
 import os
-from typing import Any, Dict, List, Optional
+from typing import Any, Dict, List, Optional, Tuple
 
 from qrm_ros.analysis.joint_state_decoding import JOINT_STATES_TOPIC
 from qrm_ros.analysis.measurement import Analysis, finite_or_none
 from qrm_ros.analysis.recorded_run import IN_EFFORTS, IN_FILE, IN_MESSAGE, Recording
+from qrm_ros.core.sampling_bounds import BOUNDED_FIGURES, SUPPORTED_RELATIVE_ERROR
 from qrm_ros.recording.atomic_files import staged_outputs
 
 # Below this, the between-sample interpolation can miss sharp speed peaks (large offsets).
@@ -50,10 +52,12 @@ def format_table(analysis: Analysis) -> str:
         f'{geometry.crank_radius * 1e3:g} mm, h = {geometry.pivot_distance * 1e3:g} mm, '
         f'H = {geometry.ram_height * 1e3:g} mm, crank phase = {geometry.crank_phase:g} rad',
         '',
-        ' offset  offset/h    input  pairs |      TR measured  TR theory  rel.err |'
-        '      SR measured  SR theory  rel.err | peak SR measured  theory   rel.err',
-        '   [mm]       [-]  [rad/s]    [-] |                                      |'
-        '                                      |',
+        ' offset  offset/h    input  pairs |      TR measured  TR theory  rel.err sampling |'
+        '      SR measured  SR theory  rel.err sampling | peak SR measured  theory   rel.err'
+        ' sampling',
+        '   [mm]       [-]  [rad/s]    [-] |                                       (rel.) |'
+        '                                       (rel.) |                                '
+        '  (rel.)',
     ]
     for row in analysis.rows:
         parts = [f'{row["offset"] * 1e3:7.2f} {row["offset_over_pivot_distance"]:+9.5f} '
@@ -62,7 +66,8 @@ def format_table(analysis: Analysis) -> str:
             mean, spread = row[f'{name}_measured'], row[f'{name}_measured_std']
             measured = '-' if mean is None else f'{mean:8.5f} ± {spread:.1e}'
             parts.append(f' {measured:>16} {_fmt(row[name + "_theory"], "10.5f")} '
-                         f'{_fmt(row[name + "_relative_error"], "+8.1e")} |')
+                         f'{_fmt(row[name + "_relative_error"], "+8.1e")} '
+                         f'{_sampling_column(row, name)} |')
         lines.append(''.join(parts)[:-2])
     if not analysis.rows:
         lines.append('  (no segment of steady offset and input speed)')
@@ -86,6 +91,58 @@ def format_table(analysis: Analysis) -> str:
         lines.append(f'note: {recording.repeated_stamps} messages repeat the previous one '
                      '(same stamp, same values) and were counted once')
     return '\n'.join(lines)
+
+
+def _sampling_column(row: Dict[str, Any], name: str) -> str:
+    """Format the figure's sampling bound relative to it; 'none' where no bound holds."""
+    if row.get(f'{name}_measured') is None:
+        return format('-', '>8')
+    relative = sampling_relative_bound(row, name)
+    return format('none' if relative is None else format(relative, '8.1e'), '>8')
+
+
+def sampling_relative_bound(row: Dict[str, Any], name: str) -> Optional[float]:
+    """Return a figure's sampling bound over its theory (its measured value if no theory)."""
+    bound = row.get(f'{name}_sampling_bound')
+    reference = row.get(f'{name}_theory') or row.get(f'{name}_measured')
+    if bound is None or not reference:
+        return None
+    return bound / abs(reference)
+
+
+def unsupported_by_sampling(analysis: Analysis) -> List[str]:
+    """One line per figure kind that the sampling cannot support to SUPPORTED_RELATIVE_ERROR."""
+    lines = []
+    for name in BOUNDED_FIGURES:
+        worst: List[Tuple[float, Dict[str, Any]]] = []
+        for row in analysis.rows:
+            if row.get(f'{name}_measured') is None:
+                continue
+            relative = sampling_relative_bound(row, name)
+            if relative is None or relative > SUPPORTED_RELATIVE_ERROR:
+                worst.append((math.inf if relative is None else relative, row))
+        if not worst:
+            continue
+        relative, row = max(worst, key=lambda item: item[0])
+        per_turn = row['samples_per_revolution']
+        said = ('cannot be bounded' if math.isinf(relative)
+                else f'may be off by up to {relative:.1e} relative')
+        lines.append(
+            f'{FIGURE_WORDS.get(name, name)} is not supported to '
+            f'{SUPPORTED_RELATIVE_ERROR:g} by the sampling in {len(worst)} of '
+            f'{len(analysis.rows)} segments: at offset {row["offset"] * 1e3:g} mm, '
+            f'{row["input_speed"]:g} rad/s'
+            + ('' if per_turn is None else f' ({per_turn:.1f} samples per input revolution)')
+            + f' it {said}; record at a higher publish_rate')
+    return lines
+
+
+# How a warning names each bounded figure.
+FIGURE_WORDS = {'time_ratio': 'the time ratio TR', 'speed_ratio': 'the speed ratio SR',
+                'peak_speed_ratio': 'the peak speed ratio', 'cutting_time': 'the cutting time',
+                'return_time': 'the return time', 'peak_cutting_speed': 'the peak cutting speed',
+                'peak_return_speed': 'the peak return speed',
+                'flywheel_speed_swing': 'the flywheel speed swing'}
 
 
 # Rows of the effort block: figure, what it is [unit], value format.

@@ -24,7 +24,8 @@ JSON and the paper's figures when asked (qrm_ros.analysis.report, qrm_ros.analys
 
 Exit status: 0 analysed, complete; 1 failure at run time (an output could not be written;
 no output file is left half written); 2 bad usage or an input that cannot be analysed (one
-line on stderr says why); 3 analysed, but incomplete (stderr says what was lost).
+line on stderr says why); 3 analysed, but incomplete (stderr says what was lost), or sampled
+too coarsely to support a figure to 1e-3 (stderr names the figure and its bound).
 """
 
 import argparse
@@ -35,7 +36,7 @@ from typing import List, Optional, Sequence
 from qrm_ros.analysis import fleet
 from qrm_ros.analysis.recorded_run import AnalysisError, usable_cores
 from qrm_ros.analysis.report import (format_table, incompleteness, theory_shortfalls,
-                                     write_outputs)
+                                     unsupported_by_sampling, write_outputs)
 from qrm_ros.analysis.streamed_run import analyse_file
 from qrm_ros.cli.arguments import add_geometry_override_arguments, geometry_overrides
 from qrm_ros.cli.exit_codes import (EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_INCOMPLETE,
@@ -49,7 +50,8 @@ def _parser() -> argparse.ArgumentParser:
                     'compare them with the closed form.',
         epilog='Exit status: 0 analysed, complete; 1 an output could not be written; 2 bad '
                'usage or a file that cannot be analysed; 3 analysed, but incomplete (damaged '
-               'or truncated file, unusable messages: stderr says what was lost).')
+               'or truncated file, unusable messages: stderr says what was lost) or sampled '
+               'too coarsely to support a figure to 1e-3 (stderr says which).')
     parser.add_argument('run', nargs='+',
                         help='recorded run (.mcap) from mcap_recorder; several runs, or folders '
                              '(searched for .mcap files), make a fleet')
@@ -110,13 +112,13 @@ def _main(args: argparse.Namespace) -> int:
     for path in figure_paths:
         print(f'figure: {path}')
     lines = incompleteness(recording) + theory_shortfalls(result)
-    for line in lines:
+    unsupported = unsupported_by_sampling(result)
+    for line in lines + unsupported:
         print(f'qrm_analyze: warning: {line}', file=sys.stderr)
     if lines:
         print('qrm_analyze: warning: the figures above cover only what was readable and '
               'usable', file=sys.stderr)
-        return EXIT_INCOMPLETE
-    return EXIT_OK
+    return EXIT_INCOMPLETE if lines or unsupported else EXIT_OK
 
 
 # A fleet's status is its worst file's: a failure over a refusal over an incomplete file.

@@ -44,6 +44,9 @@ if TYPE_CHECKING:
     from qrm_ros.core.offset_inverses import (offset_for_cutting_speed, offset_for_speed_ratio,
                                               offset_for_time_ratio)
     from qrm_ros.core.peak_speeds import peak_ram_speeds, peak_speed_ratio
+    from qrm_ros.core.sampling_bounds import (BOUNDED_FIGURES, figure_sampling_bounds,
+                                              steady_motion, SteadyMotion,
+                                              SUPPORTED_RELATIVE_ERROR)
     from qrm_ros.core.speed_drive import pair_efforts, PairEfforts, peak_input_torque
     from qrm_ros.core.steady_figures import steady_theory, SteadyTheory
     from qrm_ros.core.steady_running import (energy_method_inertia,

@@ -23,6 +23,8 @@ from qrm_ros.analysis import recorded_run
 from qrm_ros.cli import exit_codes
 from qrm_ros.cli import qrm_analyze
 from qrm_ros.analysis import figures
+from qrm_ros.analysis import report
+from qrm_ros.core.sampling_bounds import BOUNDED_FIGURES
 from qrm_ros.core import dynamics as dyn
 from qrm_ros.core import kinematics as kin
 from synthetic_run import write_run, write_truncated_run
@@ -263,3 +265,38 @@ def test_an_offset_just_inside_the_coupling_radius_costs_a_bounded_effort_and_sa
     assert 'segment at offset 0.02499999 m' in err and said in err
     row, = json.loads((tmp_path / 'out.json').read_text())['segments']
     assert said in row['effort_theory_problem'] and row['peak_input_torque_theory'] is None
+
+
+@pytest.mark.parametrize('rate', [10.0, 2.5])
+def test_coarse_sampling_is_warned_once_per_figure_and_exits_3(tmp_path, capsys, rate):
+    """60 rpm at 10 Hz or 2.5 Hz: figures the sampling cannot support to 1e-3 are said."""
+    path = tmp_path / 'coarse.mcap'
+    write_run(path, PAPER, [0.01], hold=20.0, rate=rate)
+    code, out, err = run_main([path, '--json', tmp_path / 'r.json', '--csv',
+                               tmp_path / 'r.csv'], capsys)
+    assert code == exit_codes.EXIT_INCOMPLETE, err
+    warnings = [line for line in err.splitlines() if 'by the sampling' in line]
+    said = [name for name, words in report.FIGURE_WORDS.items()
+            if any(line.split(': warning: ')[1].startswith(words + ' is not') for line in
+                   warnings)]
+    assert len(said) == len(warnings) >= 3  # one line per kind of figure
+    assert 'time_ratio' in said and 'peak_speed_ratio' in said
+    assert 'sampling' in out.splitlines()[3]
+    (segment,) = json.loads((tmp_path / 'r.json').read_text())['segments']
+    header = (tmp_path / 'r.csv').read_text().splitlines()[0].split(',')
+    for name in BOUNDED_FIGURES:
+        assert f'{name}_sampling_bound' in segment and f'{name}_sampling_bound' in header
+        bound = segment[f'{name}_sampling_bound']
+        measured, theory = segment[f'{name}_measured'], segment[f'{name}_theory']
+        if bound is not None and measured is not None:
+            assert abs(measured - theory) <= bound + 1e-9 * abs(theory)
+
+
+def test_fine_sampling_supports_every_figure(tmp_path, capsys):
+    path = tmp_path / 'fine.mcap'
+    write_run(path, PAPER, [-0.015, 0.015], hold=4.0, rate=100.0)
+    code, out, err = run_main([path, '--json', tmp_path / 'r.json'], capsys)
+    assert code == exit_codes.EXIT_OK and 'sampling' not in err, err
+    for segment in json.loads((tmp_path / 'r.json').read_text())['segments']:
+        for name in BOUNDED_FIGURES:
+            assert segment[f'{name}_sampling_bound'] < 1e-3 * abs(segment[f'{name}_theory'])

@@ -52,6 +52,7 @@ from qrm_ros.core import dynamics as dyn
 from qrm_ros.core import kinematics as kin
 from qrm_ros.recording.bag_reader import open_run
 from qrm_ros.core.motor_stepper import MotorStepper
+from qrm_ros.core.sampling_bounds import BOUNDED_FIGURES
 from qrm_ros.core.names import JOINT_NAMES
 from qrm_ros.node.shaper_parameters import MOTOR_PREFIX
 from qrm_ros.core.stepping import ShaperStepper, wrap_angle
@@ -395,6 +396,12 @@ def test_analysis_finds_the_commanded_settings_and_theory(name):
             assert abs(row[f'{key}_relative_error']) < tolerance, (key, row)
         assert row['time_ratio_theory'] == pytest.approx(
             kin.time_ratio_rk4(result.recording.geometry, row['offset']), rel=1e-9)
+        # The sampling bounds (added to the rows later): each covers its figure's error
+        # and, at 100 Hz, supports it to 1e-3.
+        for key in BOUNDED_FIGURES:
+            bound, theory = row[f'{key}_sampling_bound'], row[f'{key}_theory']
+            assert bound < 1e-3 * abs(theory), (key, row)
+            assert abs(row[f'{key}_measured'] - theory) <= bound + 1e-9 * abs(theory), (key, row)
 
 
 def test_analysis_reads_a_motor_logs_drive_as_started(motor_log, request):
