@@ -108,13 +108,10 @@ class SampleChecks:
             _merge_times(self.rejected, NON_FINITE_MOTION, log_times[~finite])
         count = block.stamps.size
         if self.geometry is not None:
-            # A stroke changed mid-run (its crank radius recorded) is not the geometry's:
-            # those samples are not judged.
-            radius_all = (np.full(count, np.nan) if block.crank_radius is None
-                          else np.asarray(block.crank_radius, dtype=float))
-            judged = finite & ~(np.isfinite(radius_all)
-                                & (radius_all != self.geometry.crank_radius))
-            for reason, caught in contradicted(self.geometry, position, velocity, judged):
+            # Each sample is judged with the crank radius in force (its recorded one, when
+            # the recording has the crank radius joint: a stroke changed mid-run included).
+            for reason, caught in contradicted(self.geometry, position, velocity, finite,
+                                               block.crank_radius, block.crank_radius_rate):
                 self.inconsistent += int(caught.sum())
                 _merge_times(self.rejected, reason, log_times[caught])
                 finite &= ~caught

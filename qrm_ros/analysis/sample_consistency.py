@@ -33,22 +33,29 @@ FOREIGN_FRACTION = 0.5
 
 
 def contradicted(geometry: Geometry, position: np.ndarray, velocity: np.ndarray,
-                 judged: np.ndarray) -> List[Tuple[str, np.ndarray]]:
+                 judged: np.ndarray, crank_radius: Optional[np.ndarray] = None,
+                 crank_radius_rate: Optional[np.ndarray] = None
+                 ) -> List[Tuple[str, np.ndarray]]:
     """
     Return (reason, caught) per check that caught samples of a decoded block.
 
     position and velocity: (n, joints) in JOINT_NAMES order (input, flywheel, lever, ram,
-    offset); judged: which rows to judge (the finite ones). Each sample is caught once,
-    by the first check it fails.
+    offset); judged: which rows to judge (the finite ones); crank_radius and its rate: the
+    crank radius joint's (NaN or None: not recorded, the geometry's radius is in force).
+    Each sample is caught once, by the first check it fails.
     """
     caught_any = np.zeros(judged.shape, dtype=bool)
     found: List[Tuple[str, np.ndarray]] = []
     if not judged.any():
         return found
     rows = np.flatnonzero(judged)
-    failed = inconsistent_samples(geometry, position[rows, 0], velocity[rows, 0],
-                                  position[rows, 4], velocity[rows, 4], position[rows, 1],
-                                  velocity[rows, 1], position[rows, 3], velocity[rows, 3])
+    failed = inconsistent_samples(
+        geometry, position[rows, 0], velocity[rows, 0], position[rows, 4], velocity[rows, 4],
+        position[rows, 1], velocity[rows, 1], position[rows, 3], velocity[rows, 3],
+        lever_angle=position[rows, 2], lever_speed=velocity[rows, 2],
+        crank_radius=None if crank_radius is None else np.asarray(crank_radius)[rows],
+        crank_radius_rate=(None if crank_radius_rate is None
+                           else np.asarray(crank_radius_rate)[rows]))
     for name, failing in failed.items():
         caught = np.zeros(judged.shape, dtype=bool)
         caught[rows[failing]] = True

@@ -119,16 +119,20 @@ def write_six_joint_run(path, samples):
         channel = writer.register_channel('/joint_states', 'cdr', schema)
         writer.add_metadata('qrm_ros.geometry', {k: repr(float(v)) for k, v in
                                                  PAPER.as_dict().items()})
+        # The lever, as the node publishes it: the ram sits at H tan(lever) (mechanism.md).
+        lever = np.arctan(samples.ram_position / PAPER.ram_height)
+        lever_speed = samples.ram_velocity * np.cos(lever) ** 2 / PAPER.ram_height
         for i, t in enumerate(samples.time):
             stamp_ns = 1_700_000_000 * 10 ** 9 + int(round(t * 1e9))
             message = types[type_name](
                 header=types['std_msgs/msg/Header'](stamp=types['builtin_interfaces/msg/Time'](
                     sec=stamp_ns // 10 ** 9, nanosec=stamp_ns % 10 ** 9), frame_id='shaper_base'),
                 name=list(PUBLISHED_JOINT_NAMES),
-                position=np.array([samples.input_angle[i], samples.flywheel_angle[i], 0.0,
+                position=np.array([samples.input_angle[i], samples.flywheel_angle[i], lever[i],
                                    samples.ram_position[i], samples.offset[i],
                                    samples.crank_radius[i]]),
-                velocity=np.array([samples.input_speed[i], samples.flywheel_speed[i], 0.0,
+                velocity=np.array([samples.input_speed[i], samples.flywheel_speed[i],
+                                   lever_speed[i],
                                    samples.ram_velocity[i], samples.offset_rate[i],
                                    samples.crank_radius_rate[i]]),
                 effort=np.zeros(0))

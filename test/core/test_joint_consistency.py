@@ -109,3 +109,62 @@ def test_a_recording_of_another_geometry_fails_nearly_everywhere(field, factor):
     for caught in failed.values():
         bad |= caught
     assert bad.mean() > 0.95
+
+
+def _stroke_samples(count=400):
+    """Samples of a run whose crank radius moves (the stroke screw at 2 mm/s), with the lever."""
+    time = np.linspace(0.0, 2.0, count)
+    angle = (2 * math.pi * time + math.pi) % (2 * math.pi) - math.pi
+    offset = np.full(count, 0.008)
+    radius = 0.045 + 0.002 * time
+    radius_rate = np.full(count, 0.002)
+    speed = np.full(count, 2 * math.pi)
+    in_force = Geometry(PAPER.coupling_radius, radius, PAPER.pivot_distance, PAPER.ram_height)
+    moved = state(in_force, offset, angle, speed, 0.0, 0.0, radius_rate)
+    return dict(input_angle=angle, input_speed=speed, offset=offset,
+                offset_rate=np.zeros(count),
+                flywheel_angle=(moved.flywheel_angle + math.pi) % (2 * math.pi) - math.pi,
+                flywheel_speed=moved.flywheel_speed, ram_position=moved.ram_position,
+                ram_velocity=moved.ram_velocity, lever_angle=moved.lever_angle,
+                lever_speed=moved.lever_speed, crank_radius=radius,
+                crank_radius_rate=radius_rate)
+
+
+def test_samples_during_a_stroke_change_are_judged_with_the_radius_in_force():
+    samples = _stroke_samples()
+    assert not any(v.any() for v in inconsistent_samples(PAPER, **samples).values())
+    # The same samples judged at the geometry's radius (as if the joint were absent) fail.
+    without = dict(samples, crank_radius=None, crank_radius_rate=None)
+    assert inconsistent_samples(PAPER, **without)['lever_angle'].mean() > 0.95
+
+
+# The lever and the crank radius joint: which check catches a flip of each.
+CAUGHT_WITH_STROKE = {'lever_angle': 'lever_angle', 'lever_speed': 'lever_speed',
+                      'crank_radius': ('crank_radius', 'lever_angle'),
+                      'crank_radius_rate': ('crank_radius', 'lever_speed')}
+
+
+@pytest.mark.parametrize('name', sorted(CAUGHT_WITH_STROKE))
+@pytest.mark.parametrize('bit', [45, 51, 52, 57, 62, 63])
+def test_one_flipped_bit_in_the_lever_or_the_crank_radius_is_caught(name, bit):
+    samples = _stroke_samples()
+    index = 211
+    samples[name] = samples[name].copy()
+    samples[name][index] = _flip(float(samples[name][index]), bit)
+    failed = inconsistent_samples(PAPER, **samples)
+    checks = CAUGHT_WITH_STROKE[name]
+    assert any(failed[check][index] for check in np.atleast_1d(checks)), (name, bit)
+    bad = np.zeros(400, dtype=bool)
+    for caught in failed.values():
+        bad |= caught
+    assert np.flatnonzero(bad).tolist() == [index]
+
+
+@pytest.mark.parametrize('radius', [0.0, -0.01, 0.113, 1.0, math.inf])
+def test_a_crank_radius_outside_its_range_is_its_own_check(radius):
+    samples = _stroke_samples()
+    samples['crank_radius'] = samples['crank_radius'].copy()
+    samples['crank_radius'][9] = radius
+    failed = inconsistent_samples(PAPER, **samples)
+    assert np.flatnonzero(failed['crank_radius']).tolist() == [9]
+    assert not any(failed[name].any() for name in CONSISTENCY_CHECKS if name != 'crank_radius')
