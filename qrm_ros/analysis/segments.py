@@ -26,12 +26,13 @@ import numpy as np
 
 from qrm_ros.analysis.recorded_drive import Drive, drive_differences, DriveSpan
 from qrm_ros.analysis.recorded_run import MIN_SEGMENT_SAMPLES, Samples
+from qrm_ros.core.sampling_bounds import GAP_PERIODS
 
 # Samples whose offset and input speed differ by less than this (relative) are one setting.
 STEADY_TOLERANCE = 1e-12
-# A step between stamps longer than this many median sample periods is a gap (a pause, a
-# clock jump, lost messages): segments end there, so no stroke is measured across it.
-GAP_PERIODS = 3.0
+# GAP_PERIODS: a step between stamps longer than this many median sample periods is a gap
+# (a pause, a clock jump, lost messages): segments end there, so no stroke is measured
+# across it (the node's stroke-pair reports call a pair across one not steady, alike).
 
 
 class Segment(NamedTuple):

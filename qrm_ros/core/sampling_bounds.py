@@ -39,9 +39,12 @@ from qrm_ros.core.mechanism_state import (input_angle_for_flywheel_angle,
                                           reversal_flywheel_angles, state)
 from qrm_ros.core.steady_figures import steady_theory, SteadyTheory
 
-__all__ = ['BOUNDED_FIGURES', 'figure_sampling_bounds', 'steady_motion', 'SteadyMotion',
-           'SUPPORTED_RELATIVE_ERROR']
+__all__ = ['BOUNDED_FIGURES', 'figure_sampling_bounds', 'GAP_PERIODS', 'steady_motion',
+           'SteadyMotion', 'SUPPORTED_RELATIVE_ERROR']
 
+# A step between samples longer than this many median steps is a gap (a pause, a stalled
+# timer, ticks not published, a clock jump): no stroke pair is taken as steady across one.
+GAP_PERIODS = 3.0
 # A figure whose sampling bound exceeds this fraction of it is not supported by the data.
 SUPPORTED_RELATIVE_ERROR = 1e-3
 # The measured figures given a sampling bound.

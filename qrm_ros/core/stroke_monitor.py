@@ -33,6 +33,7 @@ from typing import Dict, List, NamedTuple, Optional
 import numpy as np
 
 from qrm_ros.core.geometry import Geometry
+from qrm_ros.core.sampling_bounds import GAP_PERIODS
 from qrm_ros.core.steady_figures import steady_theory, SteadyTheory
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
 from qrm_ros.core.strokes import (pair_effort_steps, PairEffortsMeasured, run_steps, Steps,
@@ -79,10 +80,13 @@ class PairReport(NamedTuple):
     crank_radius: float = math.nan  # m, in force at the pair's end
     stroke_length: float = math.nan  # m, the ram stroke of that crank radius
     stroke_steady: bool = True  # the crank radius did not move during the pair
+    # No gap in the samples during the pair (no step longer than GAP_PERIODS median steps).
+    sampled_without_gap: bool = True
 
     @property
     def steady(self) -> bool:
-        return self.offset_steady and self.input_speed_steady and self.stroke_steady
+        return (self.offset_steady and self.input_speed_steady and self.stroke_steady
+                and self.sampled_without_gap)
 
     def values(self) -> Dict[str, float]:
         """Every figure as name -> float, in publishing order."""
@@ -189,6 +193,8 @@ class StrokeMonitor:
         # Exact differences, then one division each (float(ns - origin) / 1e9, as in Python).
         time = (stamps - origin) / NANOSECONDS_PER_SECOND
         columns = {name: np.frombuffer(column) for name, column in completed.columns.items()}
+        # The usual step between samples, to tell a gap in publication within a pair.
+        usual_step = float(np.median(np.diff(time))) if time.size > 1 else math.inf
         yield
         pairs = yield from stroke_pair_steps(time, columns['ram_position'],
                                              columns['ram_velocity'])
@@ -201,10 +207,10 @@ class StrokeMonitor:
         for index in range(len(pairs.cutting_time)):
             yield
             reports.append(self._report(completed.stamp_ns, columns, origin, pairs, figures,
-                                        index))
+                                        index, (time, usual_step)))
         return reports
 
-    def _report(self, stamp_ns, columns, origin, pairs, figures, index):
+    def _report(self, stamp_ns, columns, origin, pairs, figures, index, timing):
         first, last = int(pairs.first_sample[index]), int(pairs.last_sample[index])
         offsets = columns['offset'][first:last + 1]
         speeds = columns['input_speed'][first:last + 1]
@@ -217,6 +223,8 @@ class StrokeMonitor:
             radii[first:last + 1].min() == radii[first:last + 1].max()
             and not columns['crank_radius_rate'][first:last].any())
         origin_seconds = float(origin) / NANOSECONDS_PER_SECOND
+        time, usual_step = timing
+        steps = np.diff(time[first:last + 1])
         return PairReport(
             stamp_ns=stamp_ns,
             pair_start=origin_seconds + float(pairs.cutting_start[index]),
@@ -228,7 +236,9 @@ class StrokeMonitor:
             measured={name: float(figures[name][index]) for name in MEASURED_FIGURES},
             theory=self.theory(offset, speed, geometry) if speed != 0.0 else {},
             crank_radius=radius, stroke_length=float(geometry.ram_stroke),
-            stroke_steady=stroke_steady)
+            stroke_steady=stroke_steady,
+            sampled_without_gap=not steps.size or bool(
+                np.max(steps) <= GAP_PERIODS * usual_step))
 
     def _geometry_of(self, crank_radius: float) -> Geometry:
         """Return the geometry with this crank radius (the same object while it holds)."""

@@ -144,6 +144,7 @@ class Conductor:
                    if pair.get('offset_steady') == 'true'
                    and pair.get('input_speed_steady') == 'true'
                    and pair.get('stroke_steady') != 'false'
+                   and pair.get('sampled_without_gap') != 'false'
                    and (offset is None or float(pair.get('coupling_offset', 'nan')) == offset)
                    and (input_speed is None
                         or float(pair.get('input_speed', 'nan')) == input_speed)

@@ -67,6 +67,8 @@ def stroke_pair_status(report: PairReport, effort_theory: List[KeyValue],
     key_values.append(KeyValue(key='input_speed_steady',
                                value=str(report.input_speed_steady).lower()))
     key_values.append(KeyValue(key='stroke_steady', value=str(report.stroke_steady).lower()))
+    key_values.append(KeyValue(key='sampled_without_gap',
+                               value=str(report.sampled_without_gap).lower()))
     if time_ratio_target:
         measured_ratio = report.measured['time_ratio']
         key_values += [
@@ -85,7 +87,8 @@ def stroke_pair_status(report: PairReport, effort_theory: List[KeyValue],
                 KeyValue(key='cutting_speed_measured', value=repr(measured_speed)),
                 KeyValue(key='cutting_speed_error', value=repr(measured_speed / target - 1.0))]
     measured = report.measured
-    steady = 'steady' if report.steady else 'NOT steady (ratios mixed)'
+    steady = ('steady' if report.steady else 'NOT steady (ratios mixed)'
+              if report.sampled_without_gap else 'NOT steady (a gap in the samples)')
     status = DiagnosticStatus(
         level=DiagnosticStatus.OK, name=STROKE_PAIR_STATUS, hardware_id=MACHINE_NAME,
         message=(f'TR {_shown_figure(measured["time_ratio"])}, SR '

@@ -184,3 +184,28 @@ def test_a_figure_that_is_not_finite_is_never_shown_in_the_status_text():
     assert 'nan' not in status.message and 'inf' not in status.message
     assert all(v.value not in ('nan', 'inf') for v in status.values)
     assert 'speed_ratio' not in {v.key for v in status.values}
+
+
+def test_a_pair_across_a_gap_in_publication_is_not_steady(harness):
+    """A stalled timer: no tick for 0.35 s mid-pair; the pair across it is not steady."""
+    h = harness(spin_shaper=False, coupling_offset=0.01)
+    before = run_ticks(h.shaper, 5000 * NS, 2.55)
+    gap_start = before[-1]
+    after = run_ticks(h.shaper, gap_start + int(0.35 * NS), 3.0, seed=11)
+    gap_end = after[0]
+    h.wait_for(lambda: len(h.diagnostics) == h.shaper.pair_reports_published >= 3,
+               what='the stroke-pair diagnostics')
+    spans, kept = 0, 0
+    for message in h.diagnostics:
+        values = pair_values(message)
+        start, end = values['pair_start'] * NS, values['pair_end'] * NS
+        text = message.status[0].message
+        if start < gap_end and end > gap_start:  # measured across the gap
+            spans += 1
+            assert values['sampled_without_gap'] == 'false', values
+            assert text.endswith('NOT steady (a gap in the samples)'), text
+        else:
+            kept += 1
+            assert values['sampled_without_gap'] == 'true', values
+            assert text.endswith(', steady'), text
+    assert spans >= 1 and kept >= 2
