@@ -20,7 +20,11 @@ Two families, both starting from the golden logs:
 - rewrites through the mcap Writer (joint states only, the other topics' channels kept
   without messages, to keep the suite fast), so every CRC is right and the damage reaches
   the CDR decoder and the analysis: undecodable payloads, wrong schemas and message types, bad
-  metadata values, odd timestamps, non-finite values, arrays that do not match the names.
+  metadata values, odd timestamps, non-finite values, arrays that do not match the names,
+  single-bit flips of joint values (the lever's and, in logs given the crank radius joint,
+  the crank radius's too) and of stamps (header or log time) that only the physics can
+  see, and runs decimated to a coarse sampling.
+Values just inside the singular limits are test_qrm_analyze_hostile_runs.py's (synthetic runs).
 Each case knows how many joint-state messages its file holds and which exit codes of
 ``qrm_analyze`` are acceptable for it.
 """
@@ -34,15 +38,55 @@ from typing import Callable, Dict, FrozenSet, List, NamedTuple, Optional
 
 from mcap.reader import make_reader
 from mcap.writer import CompressionType, Writer
+import numpy as np
 from rosbags.typesys import get_typestore, Stores
 
-from qrm_ros.core.names import GEOMETRY_METADATA, JOINT_STATE_TYPE
+from qrm_ros.core.names import CRANK_RADIUS_JOINT, GEOMETRY_METADATA, JOINT_STATE_TYPE
+from qrm_ros.core.sampling_bounds import BOUNDED_FIGURES, SUPPORTED_RELATIVE_ERROR
 
 JOINT_STATES = '/joint_states'
 ANY_OUTCOME = frozenset({0, 2, 3})
 INCOMPLETE = frozenset({2, 3})  # 2 when nothing usable is left
 REFUSED = frozenset({2})
 GAP = frozenset({0})  # a pause or a clock jump: complete, with a gap listed
+
+
+def assert_supported(segments, constant_speed, context):
+    """Check an analysis that exited 0: every figure supported to 1e-3 by the sampling.
+
+    At a constant input speed (the speed drive), each figure must also lie within its stated
+    bound of the closed form: the bound is true.
+    """
+    for segment in segments:
+        for name in BOUNDED_FIGURES:
+            measured, theory = segment[f'{name}_measured'], segment[f'{name}_theory']
+            if measured is None:
+                continue
+            bound = segment[f'{name}_sampling_bound']
+            assert bound is not None and bound <= SUPPORTED_RELATIVE_ERROR * abs(
+                theory or measured), (name, segment['offset'], context)
+            if constant_speed and theory is not None:
+                assert abs(measured - theory) <= bound + 1e-9 * abs(theory), (
+                    name, segment['offset'], measured, theory, bound, context)
+
+
+def incomplete_or_unsupported(document):
+    """Say whether an analysis' JSON shows why it exited 3.
+
+    Data left out, a theory missing, or a figure the sampling does not support.
+    """
+    if not document['complete']:
+        return True
+    for segment in document['segments']:
+        if segment.get('misplaced_stamps') or segment.get('effort_theory_problem'):
+            return True
+        for name in BOUNDED_FIGURES:
+            measured, bound = segment[f'{name}_measured'], segment[f'{name}_sampling_bound']
+            reference = abs(segment[f'{name}_theory'] or measured or 0.0)
+            if measured is not None and (bound is None
+                                         or bound > SUPPORTED_RELATIVE_ERROR * reference):
+                return True
+    return False
 
 
 class Case(NamedTuple):
@@ -337,21 +381,43 @@ def flip_bit(value, bit):
     return struct.unpack('<d', struct.pack('<Q', bits ^ (1 << bit)))[0]
 
 
-# The joint values the closed form ties together (positions: input, flywheel, ram, offset;
-# velocities: input, flywheel, ram): a change in any is caught by the physics.
-TIED_POSITIONS, TIED_VELOCITIES = (0, 1, 3, 4), (0, 1, 3)
+# The joint values the closed form ties together (positions: input, flywheel, lever, ram,
+# offset and the crank radius joint's when recorded; velocities: input, flywheel, lever, ram,
+# and the crank radius's rate): a change in any is caught by the physics.
+TIED_POSITIONS, TIED_VELOCITIES = (0, 1, 2, 3, 4, 5), (0, 1, 2, 3, 5)
+
+
+def with_crank_radius_joint(recorded):
+    """Give every joint state the crank radius joint, at the geometry's radius and at rest.
+
+    As the node publishes it now (six joints): the golden logs predate it.
+    """
+    radius = float(recorded.metadata[GEOMETRY_METADATA]['crank_radius'])
+
+    def add(decoded, message):
+        decoded.name = list(decoded.name) + [CRANK_RADIUS_JOINT]
+        decoded.position = np.append(decoded.position, radius)
+        decoded.velocity = np.append(decoded.velocity, 0.0)
+        if len(decoded.effort):
+            decoded.effort = np.append(decoded.effort, 0.0)
+    _rewrite_joint_states(recorded, add)
 
 
 def value_flips(rng, recorded):
     """Flip one bit of one joint value in a few messages: no CRC sees it (re-encoded)."""
+    if rng.random() < 0.5:
+        with_crank_radius_joint(recorded)
     picked = _pick(rng, recorded.joint_states())
     chosen = {id(m) for m in picked}
 
     def flip(decoded, message):
         if id(message) not in chosen:
             return False
-        places = [(decoded.position, i) for i in TIED_POSITIONS if decoded.position[i]]
-        places += [(decoded.velocity, i) for i in TIED_VELOCITIES if decoded.velocity[i]]
+        joints = len(decoded.position)
+        places = [(decoded.position, i) for i in TIED_POSITIONS
+                  if i < joints and decoded.position[i]]
+        places += [(decoded.velocity, i) for i in TIED_VELOCITIES
+                   if i < joints and decoded.velocity[i]]
         array, index = rng.choice(places)
         # A high mantissa or low exponent bit: at least 1/128 of the value, never round-off.
         array[index] = flip_bit(float(array[index]), rng.randrange(45, 58))
@@ -367,8 +433,44 @@ def foreign_geometry(rng, recorded):
     return REFUSED
 
 
+def stamp_flips(rng, recorded):
+    """Flip one bit of a header stamp (sec or nanosec) or of the log time in a few messages.
+
+    Whatever the analysis makes of it (a gap, a jump back, an invalid stamp excluded), the
+    figures it calls complete must be supported (checked by the test on exit 0).
+    """
+    picked = _pick(rng, recorded.joint_states(), most=3)
+    chosen = {id(m) for m in picked}
+    where = rng.choice(['sec', 'nanosec', 'log_time'])
+    if where == 'log_time':
+        for message in picked:
+            message[1] ^= 1 << rng.randrange(0, 64)
+        return frozenset({0, 3})
+
+    def flip(decoded, message):
+        if id(message) not in chosen:
+            return False
+        stamp = decoded.header.stamp
+        if where == 'sec':  # int32
+            stamp.sec = struct.unpack('<i', struct.pack('<I', (stamp.sec & 0xFFFFFFFF)
+                                                        ^ (1 << rng.randrange(32))))[0]
+        else:  # uint32
+            stamp.nanosec ^= 1 << rng.randrange(32)
+    _rewrite_joint_states(recorded, flip, picked)
+    return frozenset({0, 3})
+
+
+def decimation(rng, recorded):
+    """Keep every k-th joint state only (a recorder that dropped most of them, evenly)."""
+    every = rng.choice([2, 4, 10, 40])
+    joints = {id(m) for m in recorded.joint_states()[1::every]}
+    recorded.messages[:] = [m for m in recorded.messages
+                            if m[0] != recorded.joint_channel or id(m) not in joints]
+    return frozenset({0, 3})
+
+
 REWRITES = [cdr_payload, wrong_schema, bad_metadata, odd_timestamps, non_finite, odd_arrays,
-            value_flips, foreign_geometry]
+            value_flips, foreign_geometry, stamp_flips, decimation]
 
 
 def cases(logs: Dict[str, bytes], count: int, seed: int) -> List[Case]:

@@ -248,7 +248,10 @@ class _Decoder:
         radius_rates = np.full(count, np.nan)
         usable = np.zeros(count, dtype=bool)
         sizes = np.fromiter(map(len, payloads), dtype=np.int64, count=count)
-        times = np.array(log_times, dtype=np.int64)
+        # MCAP log times are unsigned: one past 2^63 - 1 ns (the year 2262, a damaged value)
+        # is held at that, as only the losses' times are told from them.
+        times = np.minimum(np.array(log_times, dtype=np.uint64),
+                           np.uint64(np.iinfo(np.int64).max)).astype(np.int64)
         slow = np.ones(count, dtype=bool)
         if FAST_DECODING:
             for size in np.unique(sizes):

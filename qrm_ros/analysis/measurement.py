@@ -37,6 +37,7 @@ from qrm_ros.core import kinematics as kin
 from qrm_ros.core.effort_theory import (EFFORT_FIGURES, Setting,
                                         steady_effort_theory_and_problem, THEORY_FIGURES,
                                         ZERO_CAN_BE_EXACT)
+from qrm_ros.core.joint_consistency import misplaced_stamps
 from qrm_ros.core.sampling_bounds import (BOUNDED_FIGURES, figure_sampling_bounds,
                                           steady_motion)
 from qrm_ros.core.strokes import find_stroke_pairs, measure_pair_efforts
@@ -113,14 +114,22 @@ def measure_segment(samples: Samples, segment: Segment, geometry: kin.Geometry,
                     drive: Optional[Drive] = None) -> Dict[str, Any]:
     """Measured and theoretical figures of one steady segment, as a JSON-ready dict."""
     span = slice(segment.start, segment.end)
+    misplaced = misplaced_stamps(samples.time[span], samples.input_angle[span],
+                                 samples.input_speed[span])
+    misplaced_times = samples.time[span][misplaced].tolist()
+    if misplaced.any():  # measured without them, and said (report.misplaced_stamp_lines)
+        kept = np.flatnonzero(~misplaced) + segment.start
+        samples = Samples._make(None if values is None else values[kept] for values in samples)
+        span = slice(0, kept.size)
     pairs = find_stroke_pairs(samples.time[span], samples.ram_position[span],
                               samples.ram_velocity[span])
     row: Dict[str, Any] = {
         'offset': segment.offset,
         'offset_over_pivot_distance': segment.offset / geometry.pivot_distance,
         'input_speed': segment.input_speed,
-        'start_time': float(samples.time[segment.start]),
-        'end_time': float(samples.time[segment.end - 1]),
+        'start_time': float(samples.time[span][0]),
+        'end_time': float(samples.time[span][-1]),
+        'misplaced_stamps': misplaced_times,
         'stroke_pairs': int(len(pairs.time_ratio)),
         'samples_per_revolution': None,
     }

@@ -193,6 +193,17 @@ def _effort_lines(analysis: Analysis) -> List[str]:
     return lines
 
 
+def misplaced_stamp_lines(analysis: Analysis) -> List[str]:
+    """Lines naming samples left out for a stamp the input shaft's advance contradicts."""
+    return [f'{len(row["misplaced_stamps"])} {JOINT_STATES_TOPIC} messages excluded from the '
+            f'segment at offset {row["offset"]:.10g} m, {row["input_speed"]:.6g} rad/s (at '
+            + ', '.join(f'{time:.6f}' for time in row['misplaced_stamps'][:5])
+            + (', ...' if len(row['misplaced_stamps']) > 5 else '')
+            + ' s): their stamps contradict the input angle\'s advance at a constant speed '
+            '(closed form, check stamp)'
+            for row in analysis.rows if row.get('misplaced_stamps')]
+
+
 def theory_shortfalls(analysis: Analysis) -> List[str]:
     """Lines saying where the theory could not be worked out within its bound (exit 3)."""
     return [f'segment at offset {row["offset"]:.10g} m, {row["input_speed"]:.6g} rad/s: no '

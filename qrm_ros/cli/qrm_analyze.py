@@ -35,8 +35,9 @@ from typing import List, Optional, Sequence
 
 from qrm_ros.analysis import fleet
 from qrm_ros.analysis.recorded_run import AnalysisError, usable_cores
-from qrm_ros.analysis.report import (format_table, incompleteness, theory_shortfalls,
-                                     unsupported_by_sampling, write_outputs)
+from qrm_ros.analysis.report import (format_table, incompleteness, misplaced_stamp_lines,
+                                     theory_shortfalls, unsupported_by_sampling,
+                                     write_outputs)
 from qrm_ros.analysis.streamed_run import analyse_file
 from qrm_ros.cli.arguments import add_geometry_override_arguments, geometry_overrides
 from qrm_ros.cli.exit_codes import (EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_INCOMPLETE,
@@ -111,7 +112,8 @@ def _main(args: argparse.Namespace) -> int:
         return EXIT_FAILURE
     for path in figure_paths:
         print(f'figure: {path}')
-    lines = incompleteness(recording) + theory_shortfalls(result)
+    lines = (incompleteness(recording) + misplaced_stamp_lines(result)
+             + theory_shortfalls(result))
     unsupported = unsupported_by_sampling(result)
     for line in lines + unsupported:
         print(f'qrm_analyze: warning: {line}', file=sys.stderr)

@@ -31,7 +31,8 @@ import numpy as np
 from qrm_ros.core.geometry import Geometry, TWO_PI
 from qrm_ros.core.mechanism_state import state
 
-__all__ = ['CONSISTENCY_CHECKS', 'CONSISTENCY_TOLERANCE', 'inconsistent_samples']
+__all__ = ['CONSISTENCY_CHECKS', 'CONSISTENCY_TOLERANCE', 'inconsistent_samples',
+           'misplaced_stamps']
 
 # Relative to 1 + |the closed form's value| (rad, m, rad/s, m/s): a million times round-off.
 CONSISTENCY_TOLERANCE = 1e-9
@@ -89,7 +90,8 @@ def inconsistent_samples(geometry: Geometry, input_angle: np.ndarray, input_spee
     usable = ~failed['offset'] & ~failed['crank_radius']
     if not usable.any():
         return failed
-    in_force = dataclasses.replace(geometry, crank_radius=radius[usable])
+    # Geometry's fields broadcast as arrays (design sweeps): one crank radius per sample.
+    in_force = dataclasses.replace(geometry, crank_radius=radius[usable])  # type: ignore[arg-type]
     recorded = {'flywheel_angle': flywheel_angle, 'flywheel_speed': flywheel_speed,
                 'lever_angle': lever_angle, 'lever_speed': lever_speed,
                 'ram_position': ram_position, 'ram_velocity': ram_velocity}
@@ -116,3 +118,30 @@ def _radius_in_force(geometry: Geometry, shape: Tuple[int, ...],
     absent = np.isnan(recorded)
     return (np.where(absent, float(geometry.crank_radius), recorded),
             np.where(absent, 0.0, rate))
+
+
+def misplaced_stamps(time: np.ndarray, input_angle: np.ndarray,
+                     input_speed: np.ndarray) -> np.ndarray:
+    """
+    Return which samples' stamps alone contradict the input shaft's advance (booleans).
+
+    At a constant input speed the input angle advances by the speed times the step, exactly
+    as the node publishes it (to 1e-14 rad). A stamp changed on its way (a flipped bit)
+    breaks that on both sides of its sample, in opposite directions; a pause or a clock
+    jump breaks it on one side only and is not blamed on a sample. Steps across a speed
+    change are not judged (the motor drive's speed changes at every sample).
+    """
+    t = np.asarray(time, dtype=float)
+    angle = np.asarray(input_angle, dtype=float)
+    speed = np.asarray(input_speed, dtype=float)
+    misplaced = np.zeros(t.shape, dtype=bool)
+    if t.size < 3:
+        return misplaced
+    with np.errstate(all='ignore'):
+        expected = np.diff(t) * speed[1:]
+        residual = (np.diff(angle) - expected + np.pi) % TWO_PI - np.pi
+        broken = (speed[1:] == speed[:-1]) & ~(
+            np.abs(residual) <= CONSISTENCY_TOLERANCE * (1.0 + np.abs(expected)))
+    misplaced[1:-1] = (broken[:-1] & broken[1:]
+                       & (np.sign(residual[:-1]) == -np.sign(residual[1:])))
+    return misplaced

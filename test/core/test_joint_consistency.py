@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 from qrm_ros.core.geometry import Geometry
 from qrm_ros.core.joint_consistency import (CONSISTENCY_CHECKS, CONSISTENCY_TOLERANCE,
-                                            inconsistent_samples)
+                                            inconsistent_samples, misplaced_stamps)
 from qrm_ros.core.kinematics import state
 
 PAPER = Geometry.paper()
@@ -168,3 +168,31 @@ def test_a_crank_radius_outside_its_range_is_its_own_check(radius):
     failed = inconsistent_samples(PAPER, **samples)
     assert np.flatnonzero(failed['crank_radius']).tolist() == [9]
     assert not any(failed[name].any() for name in CONSISTENCY_CHECKS if name != 'crank_radius')
+
+
+def _steady_shaft(count=300, speed=2 * math.pi):
+    time = np.arange(count) * 0.01
+    angle = (speed * time + 0.3 + math.pi) % (2 * math.pi) - math.pi
+    return time, angle, np.full(count, speed)
+
+
+# Not whole turns (1 s here): a stamp moved by whole turns leaves the angle right, and only
+# the gap it makes tells it (the analysis ends segments at gaps).
+@pytest.mark.parametrize('shift', [1e-6, 1e-3, -2e-3, 8.3, -1.37])
+def test_one_misplaced_stamp_is_found_and_only_that_sample(shift):
+    time, angle, speed = _steady_shaft()
+    time[150] += shift
+    assert np.flatnonzero(misplaced_stamps(time, angle, speed)).tolist() == [150]
+
+
+def test_a_pause_a_jump_back_and_a_speed_change_blame_no_sample():
+    time, angle, speed = _steady_shaft()
+    assert not misplaced_stamps(time, angle, speed).any()
+    paused = time.copy()
+    paused[100:] += 3.0  # the shaft held while the clock ran: one broken step
+    assert not misplaced_stamps(paused, angle, speed).any()
+    back = time.copy()
+    back[200:] -= 2.0
+    assert not misplaced_stamps(back, angle, speed).any()
+    changing = speed * (1 + 0.01 * np.arange(speed.size))  # the motor drive: not judged
+    assert not misplaced_stamps(time, angle, changing).any()

@@ -366,3 +366,29 @@ def test_a_change_while_held_applies_to_the_held_state():
                                stepper.input_speed, 0.0, stepper.offset_rate, 0.0, 0.0)
     assert stepper.input_acceleration == EquationOfMotion.acceleration(
         chain, stepper.motor_torque, stepper.ram_load)
+
+
+def test_a_stamp_too_far_ahead_is_cut_off_in_bounded_pieces_and_the_state_held():
+    """A clock jump of a day: at most MAX_PIECES_PER_STAMP pieces, then the state is held
+    and integration goes on from the new stamp (the loop behind the hang once seen)."""
+    stepper = _stepper()
+    _run(stepper, 0, 100_000_000)
+    far = 86_400 * 10 ** 9
+    stepper.advance_to(far)
+    assert stepper.integration_cutoffs == 1
+    assert math.isfinite(stepper.input_angle) and math.isfinite(stepper.input_speed)
+    rows = _run(stepper, far, far + 200_000_000, 10_000_000)
+    assert stepper.integration_cutoffs == 1 and len(rows) == 21
+    assert stepper.input_speed > 1.0  # running on from the held state
+
+
+@pytest.mark.parametrize('max_torque', [1e-3, 1.0, 30.0])
+def test_the_input_effort_stays_within_the_motor_torque_while_braking_and_held(max_torque):
+    """A weak motor braked to a stop and held: the input effort is the motor's torque,
+    clipped to +-max_torque on every path (it once read -10 N m for a limit of 1e-12)."""
+    stepper = _stepper(motor=dyn.MotorDrive(speed_stiffness=360.0, max_torque=max_torque))
+    rows = _run(stepper, 0, 1_000_000_000, 5_000_000)
+    stepper.set_speed_command(0.0)
+    rows += _run(stepper, 1_000_000_000, 6_000_000_000, 5_000_000)
+    efforts = [row[-5] for row in rows]  # the input shaft's effort
+    assert max(abs(effort) for effort in efforts) <= max_torque * (1 + 1e-12)
