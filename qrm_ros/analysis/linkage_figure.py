@@ -157,7 +157,7 @@ class LinkageFigure:
         guide = 0.5 * (float(geometry.ram_stroke) + self.sizes.ram_length)
         for line, y in zip(self.guides, self._rails):
             line.set_data([-guide, guide], [y, y])
-        if self.workpiece:
+        if self.workpiece and self._cutting_length:
             low, high = workpiece_span(geometry, self._cutting_length, self.sizes)
             self.workpiece[0].set_x(low)
             self.workpiece[0].set_width(high - low)
