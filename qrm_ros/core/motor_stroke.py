@@ -143,8 +143,14 @@ class MovingStroke:
     _changed: Callable[[Callable[[], None]], None]
 
     def set_stroke_command(self, stroke_length: float) -> None:
-        """Command the ram stroke (m); the crank radius follows at the stroke's rate limit."""
+        """
+        Command the ram stroke (m); the crank radius follows at the stroke's rate limit.
+
+        Refused (KinematicsError, DynamicsError) if the slot cannot take it or the workpiece
+        (cutting_length) is longer.
+        """
         command = self._stroke.check(stroke_length)
+        self._equation.loads.check_against(command)
         self._changed(lambda: self._stroke.set_command(command))
 
     def _stroke_changed(self) -> bool:

@@ -235,3 +235,41 @@ def test_motor_stepper_moves_the_stroke_at_its_limit_and_ends_on_the_lean_forms(
     other.integrate_to(1000 * MS)
     assert other.input_angle == pytest.approx(stepper.input_angle, abs=1e-9)
     assert other.input_speed == pytest.approx(stepper.input_speed, abs=1e-9)
+
+
+def test_the_screw_moves_the_pin_of_a_stalled_shaft():
+    """The stroke moves at its rate whether the shaft turns or not (the operator's screw)."""
+    heavy = dyn.Loads(cutting_force=20000.0, ram_friction=20.0, cutting_length=0.05)
+    stepper = _stepper(heavy, rate_limit=0.05, offset=0.0)
+    for stamp in range(MS, 3000 * MS, 10 * MS):
+        stepper.integrate_to(stamp)
+    assert stepper.stalled and stepper.input_speed == 0.0
+    stepper.set_stroke_command(0.1)
+    # The screw's start is an impulse on the pin: the input's momentum is kept, so the
+    # shaft gets a kick (test_the_input_momentum_is_kept...) and the stall rule takes over.
+    for stamp in range(3000 * MS, 4000 * MS, 10 * MS):
+        sample = stepper.advance_to(stamp)
+        assert all(map(math.isfinite, (*sample, *stepper.efforts())))
+    assert stepper.stroke.stroke == pytest.approx(0.2 - 0.05 * 0.999, rel=1e-12)  # 2.991 s on
+    stepper.integrate_to(6000 * MS)
+    assert stepper.stroke.stroke == 0.1 and stepper.stroke.rate == 0.0
+    assert stepper.stalled  # the cut is still too much for the motor
+
+
+def test_a_clock_jump_mid_change_holds_the_stroke_reached_with_the_state():
+    stepper = _stepper(dyn.Loads.small_shaper(), rate_limit=1e-4)  # 1400 s to arrive
+    with pytest.raises(dyn.DynamicsError, match='cutting_length = 0.15 m is out of range: '
+                                                'allowed 0 to the ram stroke, 0.06 m'):
+        stepper.set_stroke_command(0.06)  # shorter than the workpiece
+    stepper.set_dynamics(loads=dyn.Loads(cutting_force=400.0, ram_friction=20.0,
+                                         cutting_length=0.05))
+    stepper.set_stroke_command(0.06)
+    stepper.integrate_to(500 * MS)
+    stepper.integrate_to(10 ** 6 * MS)  # 1000 s ahead: past the bounded effort
+    assert stepper.integration_cutoffs == 1
+    reached = stepper.stroke.stroke
+    assert 0.06 < reached < 0.2 - 1e-4 * 0.5  # held where the state was reached
+    assert stepper.geometry.crank_radius == pytest.approx(
+        crank_radius_for_stroke(reached, H_PIVOT, RAM_HEIGHT), rel=1e-15)
+    stepper.integrate_to(10 ** 6 * MS + 100 * MS)  # and moves on from there
+    assert stepper.stroke.stroke == pytest.approx(reached - 1e-5, rel=1e-9)
