@@ -46,7 +46,7 @@ MS = 10 ** 6  # ns
 
 def _lagrange():
     """
-    Return (input generalised force Q(q, q', q'', F), momentum p(q, q')) from sympy.
+    Return (Q_theta(q, q', q'', F), p_theta(q, q'), Q_r(q, q', q'', F)) from sympy.
 
     Q = d/dt dL/d(theta') - dL/d(theta) - F dx/d(theta) for q = (theta, offset, r), written from
     the positions alone (doc/mechanism.md): phi(theta, offset), psi(phi, r), x = H tan(psi).
@@ -66,12 +66,16 @@ def _lagrange():
                + MASS.lever_inertia * rate(psi) ** 2 + MASS.ram_mass * rate(x) ** 2) / 2
     potential = MASS.lever_mass * MASS.gravity * MASS.lever_com_distance * sympy.cos(psi)
     lagrangian = kinetic - potential
-    momentum = sympy.diff(lagrangian, qd[0])
-    momentum_rate = sum(sympy.diff(momentum, qj) * qdj + sympy.diff(momentum, qdj) * qddj
-                        for qj, qdj, qddj in zip(q, qd, qdd))
-    force_on_input = momentum_rate - sympy.diff(lagrangian, theta) - force * sympy.diff(x, theta)
-    return (sympy.lambdify((*q, *qd, *qdd, force), force_on_input, 'math'),
-            sympy.lambdify((*q, *qd), momentum, 'math'))
+    forces = []
+    for coordinate, rate_symbol in ((theta, qd[0]), (radius, qd[2])):
+        momentum = sympy.diff(lagrangian, rate_symbol)
+        momentum_rate = sum(sympy.diff(momentum, qj) * qdj + sympy.diff(momentum, qdj) * qddj
+                            for qj, qdj, qddj in zip(q, qd, qdd))
+        forces.append(momentum_rate - sympy.diff(lagrangian, coordinate)
+                      - force * sympy.diff(x, coordinate))
+    return (sympy.lambdify((*q, *qd, *qdd, force), forces[0], 'math'),
+            sympy.lambdify((*q, *qd), sympy.diff(lagrangian, qd[0]), 'math'),
+            sympy.lambdify((*q, *qd, *qdd, force), forces[1], 'math'))
 
 
 def _radius_of_stroke():
@@ -90,8 +94,13 @@ def _stepper(loads, stroke=0.2, rate_limit=0.05, offset=0.008, speed=6.0):
 
 
 def test_motor_acceleration_with_a_moving_crank_radius_from_lagrange():
-    """theta'' = (T_m - b) / M with r(t), r', r'' against Lagrange's equation (sympy)."""
-    force_on_input, _ = _lagrange()
+    """
+    theta'' = (T_m - b) / M with r(t), r', r'' against Lagrange's equation (sympy).
+
+    And the stroke screw's force as the node publishes it (tau3 dpsi/dr) against the
+    generalised force on r at that motion.
+    """
+    force_on_input, _, force_on_pin = _lagrange()
     radius_of = _radius_of_stroke()
     loads = dyn.Loads(cutting_force=300.0, ram_friction=20.0, cutting_length=0.05)
     stepper = _stepper(loads)
@@ -119,6 +128,11 @@ def test_motor_acceleration_with_a_moving_crank_radius_from_lagrange():
         # Without r' and r'' it would be another number (the terms are there to see).
         plain = force_on_input(*arguments[:5], 0.0, 0.0, 0.0, 0.0, stepper.ram_load)
         assert abs((stepper.motor_torque - plain) / inertia - expected) > 1e-4
+        screw = stepper.efforts().lever_torque * lever_radius_coefficient(
+            stepper.geometry, stepper.mechanism_state().flywheel_angle)
+        assert screw == pytest.approx(force_on_pin(
+            *arguments, stepper.input_acceleration, 0.0, radius_acceleration,
+            stepper.ram_load), rel=1e-8, abs=1e-8)
         checked += 1
     assert checked > 40
 
@@ -189,7 +203,7 @@ def test_energy_balance_over_a_stroke_change():
 
 def test_the_input_momentum_is_kept_when_the_screw_starts_and_stops():
     """The speed jumps where r' does, p_theta = dT/d(theta') kept (sympy's T)."""
-    _, momentum = _lagrange()
+    _, momentum, _ = _lagrange()
     radius_of = _radius_of_stroke()
     stepper = _stepper(dyn.Loads.none(), stroke=0.1, rate_limit=0.2)
     stepper.integrate_to(10 * MS)
