@@ -32,7 +32,7 @@ from qrm_ros.core.geometry import TWO_PI
 from qrm_ros.core.lean_chain import lean_acceleration_of
 from qrm_ros.core.motor_equation import EquationOfMotion, sign
 from qrm_ros.core.motor_kernel_loading import COMPILED_MOTOR_KERNEL
-from qrm_ros.core.motor_stroke import moving_radius_chain, StrokeSegment
+from qrm_ros.core.motor_stroke import moving_radius_motion, StrokeSegment
 from qrm_ros.core.stepping import ramp, wrap_angle
 
 __all__ = ['DIRECTION', 'SATURATION', 'Segment', 'segment_functions', 'SegmentFunctions',
@@ -246,8 +246,8 @@ def segment_functions(plan: SegmentPlan, equation: EquationOfMotion) -> SegmentF
     direction, spin, half_work = plan.direction, plan.spin, plan.half_work
     # The stroke screw moving the crank pin: the whole chain at the radius r(t) (motor_stroke).
     moving = plan.stroke.moving
-    chain_at = (moving_radius_chain(plan.stroke, equation.fixed[1:6], equation.fixed[6], rate,
-                                    load) if moving else None)
+    motion_at = (moving_radius_motion(plan.stroke, equation.lean_constants, rate, load)
+                 if moving else None)
     switch_angles = (equation.switch_angles(segment_offset) if spin and rate == 0.0
                      and not moving else None)
     work_sign = 1 if plan.in_work else -1
@@ -269,9 +269,8 @@ def segment_functions(plan: SegmentPlan, equation: EquationOfMotion) -> SegmentF
         else:
             torque = held_torque
         offset = target if time >= offset_end else offset_at(time)
-        if chain_at is not None:  # the crank radius moves: M theta'' = T_m - b (r', r'')
-            chain = chain_at(time, offset, angle, speed)
-            return (torque - chain.efforts.input_torque) / chain.generalized_inertia
+        if motion_at is not None:  # the crank radius moves: M theta'' = T_m - b (r', r'')
+            return motion_at(time, offset, angle, speed, torque)[0]
         return kernel(constants, offset, angle, speed, rate, torque, load)
 
     # The solver's times are never before the segment's start: with the ramps ended by
@@ -305,11 +304,10 @@ def segment_functions(plan: SegmentPlan, equation: EquationOfMotion) -> SegmentF
         if not ram:
             return [1.0, 1.0, torque_margin, spin * speed]
         offset = target if time >= offset_end else offset_at(time)
-        if chain_at is None:
+        if motion_at is None:
             position, velocity = ram_motion(offset, angle, speed, rate)
         else:
-            chain = chain_at(time, offset, angle, speed)
-            position, velocity = chain.ram_position, chain.ram_velocity
+            _, position, velocity = motion_at(time, offset, angle, speed, 0.0)
         return [direction * velocity,
                 (half_work - abs(position)) * work_sign if cutting else 1.0,
                 torque_margin, spin * speed]

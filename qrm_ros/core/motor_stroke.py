@@ -19,18 +19,19 @@ radius is a prescribed motion r(t) with its rate and acceleration in closed form
 (stroke_adjustment.crank_radius_motion). The input's equation of motion then gains the
 terms in r' and r'' (doc/dynamics.md): M theta'' = T_m - b, with b the chain's input torque
 at zero input acceleration at the radius r(t), carrying r' and r''. The lean chain's
-constants hold one radius, so such a segment evaluates the whole chain
-(dynamics.evaluate_chain on floats); once the stroke has arrived, the next segment takes
-the lean (and compiled) forms at the new radius again.
+constants hold one radius, so such a segment takes the chain's operations written out with
+the radius as an argument (``moving_radius_motion_of``, plain floats); once the stroke has
+arrived, the next segment takes the lean (and compiled) forms at the new radius again.
 
 ``StrokeSegment`` is the stroke's part of a segment's plan: where the stroke starts, its
-command, rate limit and the ramp's end. ``moving_radius_chain`` gives a segment's chain at a
-time, the radius moving. ``MovingStroke`` is the motor stepper's stroke: its command, the
-equation of motion at the radius in force, the efforts while it moves.
+command, rate limit and the ramp's end. ``moving_radius_motion`` gives a segment's input
+acceleration and ram motion at a time, the radius moving. ``MovingStroke`` is the motor
+stepper's stroke: its command, the equation of motion at the radius in force, the efforts
+while it moves.
 """
 
 import math
-from typing import Any, Callable, Optional, Tuple
+from typing import Any, Callable, Optional, Sequence, Tuple
 
 from qrm_ros.core import dynamics as dyn
 from qrm_ros.core.geometry import Geometry
@@ -38,7 +39,7 @@ from qrm_ros.core.motor_equation import EquationOfMotion
 from qrm_ros.core.ramps import ramp
 from qrm_ros.core.stroke_adjustment import crank_radius_motion, StrokeRamp
 
-__all__ = ['moving_radius_chain', 'MovingStroke', 'StrokeSegment']
+__all__ = ['moving_radius_motion', 'moving_radius_motion_of', 'MovingStroke', 'StrokeSegment']
 
 
 class StrokeSegment:
@@ -97,33 +98,85 @@ class StrokeSegment:
         return self.end > self.start
 
 
-def moving_radius_chain(stroke: StrokeSegment, geometry_fields: Tuple[float, ...],
-                        masses: dict, offset_rate: float,
-                        load: float) -> Callable[[float, float, float, float], dyn.Chain]:
+def moving_radius_motion_of(constants: Sequence[float], offset: float, angle: float,
+                            speed: float, offset_rate: float, torque: float, load: float,
+                            radius: float, radius_rate: float,
+                            radius_acceleration: float) -> Tuple[float, float, float]:
     """
-    Return chain_at(time, offset, angle, speed): the chain at zero input acceleration.
+    Return (input acceleration rad/s^2, ram position m, ram velocity m/s), the radius moving.
 
-    The crank radius is the stroke's at time, with its rate and acceleration; geometry_fields
-    as dynamics.geometry_fields (the radius among them is replaced), masses as floats, the
-    ram load (N along +x) and the offset rate (m/s) those of the segment.
+    dynamics.evaluate_chain's operations at zero input and offset acceleration on plain
+    floats, with the crank radius (m), its rate and acceleration given: its numbers to
+    round-off (a test holds them together) at a fraction of its cost. constants are
+    lean_chain.lean_constants' (those of the radius are not used).
     """
-    r1, _, h, height, phase = geometry_fields
-    ops = dyn.SCALAR_OPS
+    (r1, _, h, height, phase, input_inertia, flywheel_inertia, lever_inertia, ram_mass,
+     lever_weight, r1_r1, two_r1, _, _, _, _, _, two_height, minus_two_r1) = constants
+    r = radius
+    sin_t, cos_t = math.sin(angle), math.cos(angle)
+    n = r1_r1 + offset * offset + two_r1 * offset * sin_t
+    phi_t = r1 * (r1 + offset * sin_t) / n
+    phi_d = r1 * cos_t / n
+    crank_angle = angle + math.atan2(offset * cos_t, r1 + offset * sin_t) + phase
+    sin_c, cos_c = math.sin(crank_angle), math.cos(crank_angle)
+    tan_l = r * cos_c / (h + r * sin_c)
+    n2 = n * n
+    phi_tt = r1 * offset * cos_t * (offset * offset - r1_r1) / n2
+    phi_td = -r1 * (sin_t * (r1_r1 + offset * offset) + two_r1 * offset) / n2
+    phi_dd = minus_two_r1 * cos_t * (offset + r1 * sin_t) / n2
+    r_r, h_h = r * r, h * h
+    m = r_r + h_h + 2.0 * r * h * sin_c
+    m2 = m * m
+    psi_p = -r * (r + h * sin_c) / m
+    psi_pp = -r * h * cos_c * (h_h - r_r) / m2
+    psi_r = h * cos_c / m
+    psi_pr = -h * (sin_c * (r_r + h_h) + 2.0 * r * h) / m2
+    psi_rr = -2.0 * h * cos_c * (r + h * sin_c) / m2
+    sec2 = 1.0 + tan_l * tan_l
+    x_p = height * sec2
+    flywheel_speed = phi_t * speed + phi_d * offset_rate
+    flywheel_acc = (phi_tt * (speed * speed) + 2.0 * phi_td * speed * offset_rate
+                    + phi_dd * offset_rate * offset_rate)
+    lever_speed = psi_p * flywheel_speed + psi_r * radius_rate
+    lever_acc = (psi_p * flywheel_acc + psi_pp * flywheel_speed * flywheel_speed
+                 + psi_r * radius_acceleration + 2.0 * psi_pr * flywheel_speed * radius_rate
+                 + psi_rr * radius_rate * radius_rate)
+    ram_force = ram_mass * (x_p * lever_acc + two_height * tan_l * sec2 * lever_speed
+                            * lever_speed) - load
+    lever_torque = (lever_inertia * lever_acc - lever_weight * tan_l / math.sqrt(sec2)
+                    + ram_force * x_p)
+    flywheel_torque = flywheel_inertia * flywheel_acc + lever_torque * psi_p
+    inertia = input_inertia + phi_t * phi_t * (
+        flywheel_inertia + psi_p * psi_p * (lever_inertia + ram_mass * x_p * x_p))
+    return ((torque - flywheel_torque * phi_t) / inertia, height * tan_l,
+            x_p * lever_speed)
+
+
+def moving_radius_motion(stroke: StrokeSegment, constants: Sequence[float],
+                         offset_rate: float,
+                         load: float) -> Callable[..., Tuple[float, float, float]]:
+    """
+    Return motion_at(time, offset, angle, speed, torque): moving_radius_motion_of's triple.
+
+    The crank radius is the stroke's at time (s), with its rate and acceleration; the ram
+    load (N along +x) and the offset rate (m/s) are the segment's, the input torque (N m)
+    the caller's.
+    """
+    h, height = stroke.pivot_distance, stroke.ram_height
     start, stroke_start, command = stroke.start, stroke.stroke, stroke.command
     rate, rate_limit, end = stroke.rate, stroke.rate_limit, stroke.end
 
-    def chain_at(time, offset, angle, speed):
+    def motion_at(time, offset, angle, speed, torque):
         if time >= end:
             radius, radius_rate, radius_acceleration = crank_radius_motion(
                 command, 0.0, h, height)
         else:
             radius, radius_rate, radius_acceleration = crank_radius_motion(
                 ramp(stroke_start, command, rate_limit, time - start)[0], rate, h, height)
-        return dyn.evaluate_chain(ops, r1, radius, h, height, phase, masses, offset, angle,
-                                  speed, 0.0, offset_rate, 0.0, load, radius_rate,
-                                  radius_acceleration)
+        return moving_radius_motion_of(constants, offset, angle, speed, offset_rate, torque,
+                                       load, radius, radius_rate, radius_acceleration)
 
-    return chain_at
+    return motion_at
 
 
 class MovingStroke:

@@ -27,7 +27,7 @@ and every joint stays continuous. The machine's slot bounds the radius: 0 < r <=
 max_crank_radius < pivot_distance. numpy only.
 """
 
-import dataclasses
+import copy
 import math
 from typing import Optional, Tuple
 
@@ -165,7 +165,12 @@ class StrokeRamp:
         radius = float(crank_radius_for_stroke(stroke, base.pivot_distance, base.ram_height))
         if known is not None and radius == known.crank_radius:
             return known
-        return dataclasses.replace(base, crank_radius=radius)
+        # The base is a checked geometry of floats and the radius a checked stroke's (0 < r
+        # <= max_crank_radius < pivot_distance): a copy with the radius set skips Geometry's
+        # checks, most of a tick's cost while the stroke moves (each tick a new radius).
+        geometry = copy.copy(base)
+        object.__setattr__(geometry, 'crank_radius', radius)
+        return geometry
 
     @property
     def base_stroke(self) -> float:

@@ -32,7 +32,9 @@ import sympy
 
 from qrm_ros.core import dynamics as dyn
 from qrm_ros.core.geometry import crank_radius_for_stroke, Geometry
+from qrm_ros.core.lean_chain import lean_constants
 from qrm_ros.core.motor_stepper import MotorStepper
+from qrm_ros.core.motor_stroke import moving_radius_motion_of
 from qrm_ros.core.stroke_adjustment import StrokeRamp
 from qrm_ros.core.stroke_efforts import lever_radius_coefficient
 
@@ -287,3 +289,25 @@ def test_a_clock_jump_mid_change_holds_the_stroke_reached_with_the_state():
         crank_radius_for_stroke(reached, H_PIVOT, RAM_HEIGHT), rel=1e-15)
     stepper.integrate_to(10 ** 6 * MS + 100 * MS)  # and moves on from there
     assert stepper.stroke.stroke == pytest.approx(reached - 1e-5, rel=1e-9)
+
+
+def test_the_lean_moving_radius_form_is_the_chain():
+    """moving_radius_motion_of against dynamics.evaluate_chain with r' and r''."""
+    constants = lean_constants(PAPER, MASS)
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        offset, angle, speed = rng.uniform(-0.02, 0.02), rng.uniform(-4, 4), rng.uniform(-9, 9)
+        offset_rate, torque, load = rng.uniform(-0.01, 0.01), rng.uniform(-300, 300), \
+            rng.uniform(-500, 500)
+        radius, radius_rate, radius_acceleration = rng.uniform(0.01, 0.08), \
+            rng.uniform(-0.02, 0.02), rng.uniform(-0.1, 0.1)
+        chain = dyn.evaluate_chain(dyn.SCALAR_OPS, R1, radius, H_PIVOT, RAM_HEIGHT, 0.0,
+                                   MASS.scalars(), offset, angle, speed, 0.0, offset_rate, 0.0,
+                                   load, radius_rate, radius_acceleration)
+        acceleration, position, velocity = moving_radius_motion_of(
+            constants, offset, angle, speed, offset_rate, torque, load, radius, radius_rate,
+            radius_acceleration)
+        expected = (torque - chain.efforts.input_torque) / chain.generalized_inertia
+        assert acceleration == pytest.approx(expected, rel=1e-12, abs=1e-12)
+        assert (position, velocity) == pytest.approx(
+            (chain.ram_position, chain.ram_velocity), rel=1e-13, abs=1e-15)
