@@ -244,7 +244,7 @@ def segment_functions(plan: SegmentPlan, equation: EquationOfMotion) -> SegmentF
     stiffness, limit = (0.0, 0.0) if motor is None else (motor.speed_stiffness,
                                                          motor.max_torque)
     direction, spin, half_work = plan.direction, plan.spin, plan.half_work
-    # The stroke screw moving the crank pin: the whole chain at the radius r(t) (motor_stroke).
+    # The stroke screw moving the crank pin: the chain written out at r(t) (motor_stroke).
     moving = plan.stroke.moving
     motion_at = (moving_radius_motion(plan.stroke, equation.lean_constants, rate, load)
                  if moving else None)
