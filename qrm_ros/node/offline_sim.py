@@ -25,15 +25,16 @@ services. The channels carry the QoS and type hash the recorder would find for t
 publishers, the metadata the records it would read from the node's parameters, and the
 machine is written beside the joint states by the recorder's own MachineChannels. What differs
 from a live recording: the log time of each message is the simulated time it was sent at,
-not a wall-clock receive time, and a stroke pair's report waits for its effort theory (the
-live node reports 'pending' while the theory is worked out).
+not a wall-clock receive time, and a stroke pair's report carries its effort theory, worked
+out in the loop's own thread (the live node reports 'pending' while its worker process
+works it out).
 """
 
 from collections import deque
 import functools
 import os
 import time
-from typing import Callable, Dict, NamedTuple, Optional, Sequence
+from typing import Any, Callable, Dict, NamedTuple, Optional, Sequence
 
 from qrm_ros.core.motor_kernel_loading import COMPILED_MOTOR_KERNEL
 from qrm_ros.core.motor_stepper import MotorStepper
@@ -59,7 +60,8 @@ from std_srvs.srv import SetBool, Trigger
 __all__ = ['OfflineShaperSim', 'RecordingPublisher', 'Simulation', 'SimulationSummary',
            'THEORY_TIMEOUT', 'summary_line']
 
-# s a stroke pair's report waits for its effort theory (worked out in a worker process).
+# s a live node's stroke-pair report may wait for its effort theory (worked out in a worker
+# process) where it is to match an offline run's, which works it out in its own thread.
 THEORY_TIMEOUT = 120.0
 # s a motor-drive run waits for the motor's compiled forms before its first tick.
 KERNEL_LOAD_TIMEOUT = 30.0
@@ -68,16 +70,16 @@ CHUNK_DURATION_NS = NANOSECONDS_PER_SECOND
 
 
 class RecordingPublisher(Publisher):
-    """A publisher of the offline node: each message goes, serialized, to `write`."""
+    """A publisher of the offline node: each message goes to `write`, which serializes it."""
 
     # Set once the run file has the topic's channel; until then messages are dropped (the
     # parameter declarations, as a recorder that starts after the node misses them).
-    write: Optional[Callable[[bytes], None]] = None
+    write: Optional[Callable[[Any], None]] = None
 
     def publish(self, msg) -> None:
         write = self.write
         if write is not None:
-            write(msg if isinstance(msg, bytes) else serialize_message(msg))
+            write(msg)
 
 
 class OfflineShaperSim(ShaperSimNode):
@@ -135,7 +137,7 @@ class Simulation:
         try:
             self._node = node = OfflineShaperSim(markers=markers, context=context,
                                                  parameter_overrides=overrides)
-            node.stroke_pairs.theory_timeout = THEORY_TIMEOUT
+            node.stroke_pairs.theory_in_this_thread = True
             clock = node.get_clock()
             assert isinstance(clock, ROSClock)  # a node's clock is; use_sim_time drives it
             self._clock = clock
@@ -193,14 +195,24 @@ class Simulation:
                 if isinstance(publisher, RecordingPublisher) and publisher.topic_name == resolved:
                     publisher.write = functools.partial(write, channel)
 
-    def _write(self, channel: int, data: bytes) -> None:
+    def _write(self, channel: int, message: Any) -> None:
         now = self._now_ns
+        data = message if isinstance(message, bytes) else serialize_message(message)
         self._run_file.add_message(channel, now, now, data)  # type: ignore[union-attr]
 
-    def _write_joint_state(self, channel: int, data: bytes) -> None:
+    def _write_joint_state(self, channel: int, message: Any) -> None:
         now = self._now_ns
+        if isinstance(message, bytes):
+            data = message
+            self._run_file.add_message(channel, now, now, data)  # type: ignore[union-attr]
+            self._machine.joint_state(now, now, data)
+            return
+        data = serialize_message(message)
         self._run_file.add_message(channel, now, now, data)  # type: ignore[union-attr]
-        self._machine.joint_state(now, now, data)
+        # The machine's transforms from the message's own values: no decoding of data.
+        stamp = message.header.stamp
+        self._machine.joint_state_values(now, now, data, stamp.sec, stamp.nanosec,
+                                         message.name, message.position)
 
     def _set_clock(self, stamp_ns: int) -> None:
         self._now_ns = stamp_ns
