@@ -27,6 +27,7 @@ rosbag2 (``ros2 bag record -s mcap``); a damaged part is skipped and reported, t
 """
 
 import importlib
+import sys
 import threading
 import time
 from typing import Any, Dict, Iterator, List, NamedTuple, Optional, Sequence
@@ -42,14 +43,17 @@ from rosgraph_msgs.msg import Clock
 from std_srvs.srv import Trigger
 import yaml
 
-__all__ = ['ACK_TIMEOUT', 'BUSY_WAIT_NS', 'CLOCK_QOS', 'DEFAULT_CLOCK_RATE', 'McapPlayer',
-           'PLAYER_DEPTH', 'PLAYER_NODE_NAME', 'PlayOptions', 'PlaybackError', 'message_class',
-           'played_qos']
+__all__ = ['ACK_TIMEOUT', 'BUSY_WAIT_NS', 'CLOCK_QOS', 'DEFAULT_CLOCK_RATE',
+           'GIL_SWITCH_INTERVAL', 'McapPlayer', 'PLAYER_DEPTH', 'PLAYER_NODE_NAME', 'PlayOptions',
+           'PlaybackError', 'message_class', 'played_qos']
 
 PLAYER_NODE_NAME = 'mcap_player'
 # The last stretch of a wait (ns) is spun, not slept: a sleep overshoots by up to a
 # millisecond or more on a loaded machine, a spin by microseconds.
 BUSY_WAIT_NS = 2_000_000
+# s: the longest the service thread may hold the GIL while a message is due (Python's
+# default, 5 ms, would let it delay a message by that much).
+GIL_SWITCH_INTERVAL = 1e-4
 # Longest single sleep (s): a stop request or a pause is seen within it.
 SLEEP_SLICE = 0.05
 # History depth of a topic whose recorded depth is unknown (discovery does not tell it).
@@ -259,6 +263,8 @@ class McapPlayer(Node):
 
         stop: a stop request, truthy once asked (ros_process.StopRequest).
         """
+        if sys.getswitchinterval() > GIL_SWITCH_INTERVAL:
+            sys.setswitchinterval(GIL_SWITCH_INTERVAL)
         rate = self.options.rate
         delay_ns = round(self.options.delay * NANOSECONDS_PER_SECOND)
         # [wall origin of the recorded first message, next /clock time]: moved by pauses.

@@ -16,9 +16,10 @@ shaper_sim run offline, as fast as the CPU allows: the node itself, ticked by a 
 
 Nothing of the node is copied. The simulator is ShaperSimNode, started with use_sim_time and
 with publishers that write each message, serialized by rclpy, into the run file (the
-recorder's own McapRunFile) instead of sending it over DDS. A loop sets the node's clock to
-each tick's stamp and calls the node's timer callback, so the steppers, the efforts, the
-stroke measurement, the diagnostics and the markers are the node's; a scenario's events go in
+recorder's own McapRunFile) instead of sending it over DDS. A loop calls, at each tick's
+stamp, what the node's timer callback calls at its clock's time (publish_at), so the
+steppers, the efforts, the stroke measurement, the diagnostics and the markers are the
+node's; a scenario's events go in
 between the ticks through the node's own paths: its parameter changes (judged by its rules,
 with a /parameter_events message each), its speed-command subscription, its pause and reset
 services. The channels carry the QoS and type hash the recorder would find for the node's
@@ -267,16 +268,25 @@ class Simulation:
             COMPILED_MOTOR_KERNEL.start_loading()  # once per process: started already
             COMPILED_MOTOR_KERNEL.loaded.wait(KERNEL_LOAD_TIMEOUT)
         progress_every = max(1, round(NANOSECONDS_PER_SECOND / stamps.step))
-        on_timer, wait_for_reports, set_clock = (node.on_timer, node.wait_for_pair_reports,
-                                                 self._set_clock)
-        ticks, stopped = 0, False
+        publish_at, wait_for_reports, set_clock = (node.publish_at, node.wait_for_pair_reports,
+                                                   self._set_clock)
+        ticks, stopped, clock_ns = 0, False, start_ns
         started = time.perf_counter()
         try:
             for stamp_ns in stamps:
-                while events and events[0][0] <= stamp_ns:
-                    self._apply(events.popleft()[1])
-                set_clock(stamp_ns)
-                on_timer()
+                if events and events[0][0] <= stamp_ns:
+                    set_clock(clock_ns)  # the events come at the last tick's time
+                    while events and events[0][0] <= stamp_ns:
+                        self._apply(events.popleft()[1])
+                clock_ns = self._now_ns = stamp_ns
+                if node.paused:
+                    set_clock(stamp_ns)
+                    node.on_timer()
+                else:
+                    # What the timer's callback does at the clock's time, with the time
+                    # given: the node's clock is set only where something reads it (the
+                    # events, a paused tick), which the ticks do not.
+                    publish_at(stamp_ns)
                 wait_for_reports()
                 ticks += 1
                 if stop:
@@ -285,6 +295,7 @@ class Simulation:
                 if progress is not None and ticks % progress_every == 0:
                     progress((stamp_ns - start_ns) / NANOSECONDS_PER_SECOND)
             loop_seconds = time.perf_counter() - started
+            set_clock(clock_ns)
             node.wait_for_pair_reports()
         except BaseException:
             self.close(keep=False)
