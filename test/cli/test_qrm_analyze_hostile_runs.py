@@ -170,3 +170,25 @@ def test_one_flipped_stamp_bit_ends_cleanly_with_supported_figures(field, bit, t
     document = json.loads((tmp_path / 'out.json').read_text())
     if code == exit_codes.EXIT_OK:
         assert_supported(document['segments'], True, f'{field} bit {bit}\n{err}')
+
+
+@pytest.mark.parametrize('every', [10, 40])
+def test_the_golden_log_decimated_to_10_and_2_5_hz_is_said_unsupported(every, tmp_path,
+                                                                        capsys):
+    """The issue's case: 60 rpm kept at 10 and 2.5 samples per revolution exited 0 silently."""
+    recorded = take_apart(open(GOLDEN, 'rb').read())
+    kept = {id(m) for m in recorded.joint_states()[::every]}
+    recorded.messages[:] = [m for m in recorded.messages
+                            if m[0] != recorded.joint_channel or id(m) in kept]
+    run = tmp_path / 'coarse.mcap'
+    run.write_bytes(put_together(recorded))
+    code = qrm_analyze.main([str(run), '--json', str(tmp_path / 'out.json')])
+    out, err = capsys.readouterr()
+    assert code == exit_codes.EXIT_INCOMPLETE, err
+    assert 'the time ratio TR is not supported to 0.001 by the sampling' in err
+    for segment in json.loads((tmp_path / 'out.json').read_text())['segments']:
+        for name in ('time_ratio', 'peak_speed_ratio'):
+            measured, theory = segment[f'{name}_measured'], segment[f'{name}_theory']
+            bound = segment[f'{name}_sampling_bound']
+            if measured is not None and bound is not None:  # a stated bound is true
+                assert abs(measured - theory) <= bound + 1e-9 * abs(theory)
