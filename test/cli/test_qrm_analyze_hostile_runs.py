@@ -174,7 +174,7 @@ def test_one_flipped_stamp_bit_ends_cleanly_with_supported_figures(field, bit, t
 
 @pytest.mark.parametrize('every', [10, 40])
 def test_the_golden_log_decimated_to_10_and_2_5_hz_is_said_unsupported(every, tmp_path,
-                                                                        capsys):
+                                                                       capsys):
     """The issue's case: 60 rpm kept at 10 and 2.5 samples per revolution exited 0 silently."""
     recorded = take_apart(open(GOLDEN, 'rb').read())
     kept = {id(m) for m in recorded.joint_states()[::every]}
