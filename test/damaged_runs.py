@@ -41,6 +41,7 @@ from mcap.writer import CompressionType, Writer
 import numpy as np
 from rosbags.typesys import get_typestore, Stores
 
+from qrm_ros.analysis.report import MISSED_STROKE_TURNS
 from qrm_ros.core.names import CRANK_RADIUS_JOINT, GEOMETRY_METADATA, JOINT_STATE_TYPE
 from qrm_ros.core.sampling_bounds import BOUNDED_FIGURES, SUPPORTED_RELATIVE_ERROR
 
@@ -79,6 +80,10 @@ def incomplete_or_unsupported(document):
         return True
     for segment in document['segments']:
         if segment.get('misplaced_stamps') or segment.get('effort_theory_problem'):
+            return True
+        turns = (abs(segment['input_speed']) * (segment['end_time'] - segment['start_time'])
+                 / (2 * math.pi))
+        if segment['stroke_pairs'] == 0 and turns >= MISSED_STROKE_TURNS:
             return True
         for name in BOUNDED_FIGURES:
             measured, bound = segment[f'{name}_measured'], segment[f'{name}_sampling_bound']

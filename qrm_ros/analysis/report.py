@@ -134,7 +134,21 @@ def unsupported_by_sampling(analysis: Analysis) -> List[str]:
             f'{row["input_speed"]:g} rad/s'
             + ('' if per_turn is None else f' ({per_turn:.1f} samples per input revolution)')
             + f' it {said}; record at a higher publish_rate')
+    for row in analysis.rows:
+        turns = (abs(row['input_speed']) * (row['end_time'] - row['start_time'])
+                 / (2 * math.pi))
+        if row['stroke_pairs'] == 0 and turns >= MISSED_STROKE_TURNS:
+            lines.append(
+                f'no stroke pair was found at offset {row["offset"] * 1e3:g} mm, '
+                f'{row["input_speed"]:g} rad/s in {turns:.1f} input revolutions: a stroke '
+                'falls between samples (a reversal the sampling cannot see); record at a '
+                'higher publish_rate')
     return lines
+
+
+# A segment this many input revolutions long holds a stroke pair, unless the sampling
+# misses its strokes.
+MISSED_STROKE_TURNS = 2.5
 
 
 # How a warning names each bounded figure.

@@ -88,10 +88,11 @@ def test_values_just_inside_a_singular_limit_end_cleanly_and_bounded(
     else:
         assert done.returncode == exit_codes.EXIT_INCOMPLETE, done.stderr
         assert 'warning' in done.stderr
-    has_figures = any(segment['time_ratio_measured'] is not None
-                      for segment in document['segments'])
-    if has_figures and (abs(offset) > 0.9 * R1 or geometry.crank_radius > 0.98 * H):
+    if abs(offset) > 0.9 * R1 or geometry.crank_radius > 0.98 * H or speed > 100.0:
+        # Strokes too sharp for 100 Hz: unsupported figures, or strokes missed: said.
         assert done.returncode == exit_codes.EXIT_INCOMPLETE, done.stderr
+    if speed < 1e-6:  # not one revolution: no figure, nothing missed
+        assert done.returncode == exit_codes.EXIT_OK, done.stderr
 
 
 def _flipped(joint_array, joint, tmp_path, index=300):
