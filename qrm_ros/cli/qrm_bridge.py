@@ -30,7 +30,8 @@ from typing import List, Optional
 from qrm_ros.cli.exit_codes import EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_OK
 from qrm_ros.core.names import BRIDGE_NODE_NAME, BRIDGE_SERVING_PREFIX
 from qrm_ros.node.foxglove_bridge import (BridgeNode, BridgeSettings, DEFAULT_ADDRESS,
-                                          DEFAULT_CLIENT_QUEUE, DEFAULT_PORT)
+                                          DEFAULT_CLIENT_QUEUE, DEFAULT_PORT,
+                                          DEFAULT_SEND_PERIOD)
 from qrm_ros.node.ros_process import (ExecutorChoiceError, RCLError, rcl_error_text, run_node,
                                       start_rclpy)
 from rclpy.utilities import remove_ros_args
@@ -39,6 +40,7 @@ __all__ = ['main']
 
 PORT_RANGE = (0, 65535)
 CLIENT_QUEUE_RANGE = (1, 1_000_000)
+SEND_PERIOD_RANGE = (0.0, 1.0)  # s
 
 
 class CannotServe(RuntimeError):
@@ -64,6 +66,12 @@ def _parser():
                         help='messages a client may fall behind before its oldest are dropped, '
                              f'{CLIENT_QUEUE_RANGE[0]}-{CLIENT_QUEUE_RANGE[1]} (default: '
                              f'{DEFAULT_CLIENT_QUEUE})')
+    parser.add_argument('--send-period', type=float, default=DEFAULT_SEND_PERIOD,
+                        metavar='SECONDS',
+                        help='how often the messages gathered from ROS are handed to the '
+                             f'server, {SEND_PERIOD_RANGE[0]:g}-{SEND_PERIOD_RANGE[1]:g} s '
+                             f'(default: {DEFAULT_SEND_PERIOD:g} s; 0: each as it arrives, '
+                             'at several times the CPU)')
     return parser
 
 
@@ -73,10 +81,13 @@ def _checked(parser, options):
     for name, value, (low, high) in limits:
         if not low <= value <= high:
             parser.error(f'{name} {value} is outside {low}-{high}')  # exit code 2
+    low, high = SEND_PERIOD_RANGE
+    if not low <= options.send_period <= high:  # NaN too
+        parser.error(f'--send-period {options.send_period:g} s is outside {low:g}-{high:g} s')
     if not options.address.strip():
         parser.error('--address is empty')
     return BridgeSettings(options.address.strip(), options.port, options.topics,
-                          options.client_queue)
+                          options.client_queue, options.send_period)
 
 
 def _error(text):
