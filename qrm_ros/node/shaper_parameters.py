@@ -271,6 +271,17 @@ def _target_reachable(value, view):
                               view.values['cutting_speed_definition'])
 
 
+def _judges_changes_only(check):
+    """Mark CHECK as one that judges a live change only, not a start-up value.
+
+    Who commands the offset is a question for a change: at start-up coupling_offset is where
+    the offset starts, and a hold set beside it commands the offset from there.
+    """
+    check.changes_only = True
+    return check
+
+
+@_judges_changes_only
 def _offset_by_hand(value, view):
     target = view.values['cutting_speed_target']
     if target == 0.0:
@@ -280,6 +291,7 @@ def _offset_by_hand(value, view):
             'one atomic call)')
 
 
+@_judges_changes_only
 def _offset_by_time_ratio(value, view):
     target = view.values['time_ratio_target']
     if target == 0.0:
@@ -316,7 +328,9 @@ PARAMETERS = {
     'coupling_offset': ParameterSpec(
         0.0, 'm', 'Commanded coupling offset (input shaft above the flywheel axis when > 0). '
         'The offset in force moves toward it at offset_rate_limit. |offset| <= '
-        '0.9 * coupling_radius (the coupling locks at coupling_radius).', False,
+        '0.9 * coupling_radius (the coupling locks at coupling_radius). While a hold '
+        '(cutting_speed_target, time_ratio_target) commands the offset it is refused live; '
+        'at start-up it is where the offset starts, and the hold moves it from there.', False,
         SymmetricRange(
             lambda view: float(view.geometry.max_safe_offset),
             lambda view: ('|offset| <= max_safe_offset = 0.9 x coupling_radius '
@@ -512,6 +526,8 @@ def refusal_reason(name, value, view, starting=False):
     if problem:
         return refused + problem
     for check in spec.checks:
+        if starting and getattr(check, 'changes_only', False):
+            continue
         problem = check(value, view)
         if problem:
             return f'{refused}{problem} (allowed range {allowed_text(name, view)})'
