@@ -27,8 +27,8 @@ extra). The output is written all or nothing.
 
 import math
 import os
-from typing import (Any, Callable, cast, Dict, Iterable, Iterator, NamedTuple, Optional, TextIO,
-                    Tuple)
+from typing import (Any, Callable, cast, Dict, Iterable, Iterator, List, NamedTuple, Optional,
+                    TextIO, Tuple)
 
 import numpy as np
 
@@ -366,7 +366,8 @@ def animate_plan(geometry: kin.Geometry, samples: Samples, plan: FramePlan, resu
     # The traces cover the samples of the span, in recording order.
     span = slice(int(plan.sample.min()), int(plan.sample.max()) + 1)
     figure = LinkageFigure(geometry, samples.time[span], samples.ram_velocity[span],
-                           None if efforts is None else efforts[span], cutting_length)
+                           None if efforts is None else efforts[span], cutting_length,
+                           largest_crank_radius(samples, plan.sample))
     try:
         frames = (rgb for _, rgb in render_frames(figure, samples, plan.sample,
                                                   segment_at(result), efforts))
@@ -375,28 +376,43 @@ def animate_plan(geometry: kin.Geometry, samples: Samples, plan: FramePlan, resu
         figure.close()
 
 
+def largest_crank_radius(samples: Samples, indices: np.ndarray) -> Optional[float]:
+    """Return the largest recorded crank radius (m) at these samples (None: not recorded)."""
+    if samples.crank_radius is None or not np.size(indices):
+        return None
+    return float(np.max(samples.crank_radius[indices]))
+
+
 def offset_tour_samples(result: Analysis, offsets: int = 4, fps: float = 20.0,
                         revolutions: float = 1.0) -> np.ndarray:
     """
     Sample indices of a short tour: the last revolution(s) at a few of the recorded offsets.
 
-    ``offsets``: how many offsets at most, spread over those recorded (first and last
-    included); each shows the end of its segment with the most stroke pairs (a gap can
-    split one offset's time into several), in real time at fps. Empty when nothing turns.
+    At each recorded stroke (crank radius), ``offsets``: how many offsets at most, spread
+    over those recorded there (first and last included); each shows the end of its segment
+    with the most stroke pairs (a gap can split one offset's time into several), in real
+    time at fps, in recording order. Empty when nothing turns.
     """
     samples = result.recording.samples
-    chosen: Dict[float, Tuple[Any, Dict[str, Any]]] = {}
-    # The tour draws the recording's geometry: segments at another stroke are left out.
-    radius = result.recording.geometry.crank_radius
+    chosen: Dict[Tuple[float, Optional[float]], Tuple[Any, Dict[str, Any]]] = {}
     for segment, row in zip(result.segments, result.rows):
-        held = chosen.get(segment.offset)
-        if segment.input_speed != 0.0 and segment.crank_radius in (None, radius) and (
+        key = (segment.offset, segment.crank_radius)
+        held = chosen.get(key)
+        if segment.input_speed != 0.0 and (
                 held is None or row['stroke_pairs'] >= held[1]['stroke_pairs']):
-            chosen[segment.offset] = (segment, row)
-    segments = sorted((segment for segment, _ in chosen.values()), key=lambda s: s.start)
-    if len(segments) > offsets:
-        picks = np.unique(np.round(np.linspace(0, len(segments) - 1, offsets)).astype(int))
-        segments = [segments[i] for i in picks]
+            chosen[key] = (segment, row)
+    strokes: Dict[Optional[float], List[Any]] = {}
+    for segment, _ in chosen.values():
+        strokes.setdefault(segment.crank_radius, []).append(segment)
+    segments = []
+    for at_stroke in strokes.values():
+        at_stroke.sort(key=lambda s: s.start)
+        if len(at_stroke) > offsets:
+            picks = np.unique(np.round(np.linspace(0, len(at_stroke) - 1,
+                                                   offsets)).astype(int))
+            at_stroke = [at_stroke[i] for i in picks]
+        segments.extend(at_stroke)
+    segments.sort(key=lambda s: s.start)
     indices = []
     for segment in segments:
         times = samples.time[segment.start:segment.end]
@@ -422,7 +438,7 @@ def write_offset_tour(result: Analysis, path: str, offsets: int = 4, fps: float 
     check_offsets(result.recording.geometry, samples.offset[indices])
     efforts = read_efforts(result.recording.path, samples)
     figure = LinkageFigure(result.recording.geometry, samples.time, samples.ram_velocity,
-                           efforts)
+                           efforts, None, largest_crank_radius(samples, indices))
     try:
         frames = (rgb for _, rgb in render_frames(figure, samples, indices,
                                                   segment_at(result), efforts))

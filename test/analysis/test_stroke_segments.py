@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 from qrm_ros.analysis import recorded_run
-from qrm_ros.analysis.animation import render_frames
+from qrm_ros.analysis.animation import offset_tour_samples, render_frames
 from qrm_ros.analysis.linkage_figure import LinkageFigure
 from qrm_ros.analysis.measurement import analyse, measure_segment, segment_geometry
 from qrm_ros.analysis.recorded_run import read_recording
@@ -101,6 +101,41 @@ def test_the_animation_draws_the_recorded_crank_radius():
             assert drawn['ram_block'][0] == pytest.approx(expected.ram_position, abs=1e-12)
     finally:
         figure.close()
+
+
+def test_the_animation_draws_the_guides_and_workpiece_at_the_stroke_in_force():
+    """Each frame's guides span the stroke in force plus the ram (drawn sizes kept)."""
+    samples = stroke_change_samples()
+    figure = LinkageFigure(PAPER, samples.time, samples.ram_velocity, None, 0.04,
+                           float(np.max(samples.crank_radius)))
+    try:
+        spans = []
+        for index in (100, 3500, 7000):  # before, during and after the stroke change
+            for _ in render_frames(figure, samples, [index], lambda time: None):
+                pass
+            radius, h, height = samples.crank_radius[index], 0.113, 0.2
+            stroke = 2 * height * radius / math.sqrt(h * h - radius * radius)
+            guide = figure.drawn_points()['guide']
+            assert guide == pytest.approx(
+                [-0.5 * (stroke + figure.sizes.ram_length),
+                 0.5 * (stroke + figure.sizes.ram_length)], rel=1e-12)
+            spans.append(guide[1] - guide[0])
+        assert spans[0] > spans[1] > spans[2]
+        assert spans[0] - spans[2] == pytest.approx(float(PAPER.ram_stroke) - 0.06, rel=1e-9)
+    finally:
+        figure.close()
+
+
+def test_the_offset_tour_shows_each_recorded_stroke():
+    samples = stroke_change_samples()
+    recording = recorded_run.Recording('', PAPER, samples, None)
+    result = analyse(recording)
+    indices = offset_tour_samples(result, fps=20.0)
+    radii = np.unique(np.round(samples.crank_radius[indices], 12))
+    assert radii.tolist() == pytest.approx(
+        [crank_radius_for_stroke(0.06, 0.113, 0.2), PAPER.crank_radius], rel=1e-12)
+    # One revolution (1 s at 2 pi rad/s) of each, in recording order, at 20 frames a second.
+    assert indices.size == pytest.approx(40, abs=2) and np.all(np.diff(indices) > 0)
 
 
 def write_six_joint_run(path, samples):
