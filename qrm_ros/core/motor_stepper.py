@@ -246,11 +246,18 @@ class MotorStepper(MovingStroke, PlanViews):
     # Segments -----------------------------------------------------------------------------
 
     def _new_base(self, stamp_ns: int) -> None:
+        """Start a new time base at stamp_ns from the state at the present time (self._time).
+
+        The ramps carry on from where they are: the offset and the speed reference in force,
+        not the segment's start values (a ramping offset must not jump back).
+        """
+        plan = self._plan
+        reference, offset = plan.reference_at(self._time), plan.offset_at(self._time)
         self._stamp_ns = self._base_ns = stamp_ns
         self._time = 0.0
         self._piece = (0.0, 0.0, None)  # type: ignore[assignment]
-        self._start(0.0, self._angle, self._speed, self._plan.reference_at(None),
-                    self._plan.offset_at(None), None, self._stroke.stroke)
+        self._start(0.0, self._angle, self._speed, reference, offset, None,
+                    self._stroke.stroke)
 
     def _start(self, time: float, angle: float, speed: float, reference: float, offset: float,
                trigger: Optional[int], stroke: float) -> None:
@@ -346,6 +353,7 @@ class MotorStepper(MovingStroke, PlanViews):
             self._angle, self._speed = wrap_angle(angle), speed
         self._stroke.move_to(self._plan.stroke.at(end))  # held where the state was reached
         self.integration_cutoffs += 1
+        self._time = end
         self._new_base(stamp_ns)
 
     def mechanism_state(self) -> MechanismState:
