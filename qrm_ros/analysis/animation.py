@@ -27,8 +27,8 @@ extra). The output is written all or nothing.
 
 import math
 import os
-from typing import (Any, Callable, cast, Dict, Iterable, Iterator, NamedTuple, Optional, TextIO,
-                    Tuple)
+from typing import (Any, Callable, cast, Dict, Iterable, Iterator, List, NamedTuple, Optional,
+                    TextIO, Tuple)
 
 import numpy as np
 
@@ -46,7 +46,8 @@ __all__ = ['AnimationError', 'FORMATS', 'FramePlan', 'MAX_FRAMES', 'MAX_GIF_FPS'
            'MP4_MISSING', 'animate_plan', 'check_offsets', 'check_output', 'check_rates',
            'frame_plan', 'gif_delay',
            'offset_tour_samples', 'ratio_text', 'read_efforts', 'recorded_cutting_length',
-           'render_frames', 'segment_at', 'write_animation', 'write_offset_tour']
+           'render_frames', 'segment_at', 'tour_segments', 'write_animation', 'write_frames',
+           'write_offset_tour']
 
 # Frames at most, by format: a GIF is assembled in memory (Pillow keeps every frame, 0.5 MB
 # each, until written); an MP4 streams, but two hours is surely a mistaken span (a clock
@@ -303,7 +304,8 @@ def check_output(path: str) -> str:
     return extension
 
 
-def _write(frames, path, fps, total, progress_stream=None):
+def write_frames(frames: Iterable[np.ndarray], path: str, fps: float, total: int,
+                 progress_stream: Optional[TextIO] = None) -> int:
     """Write the RGB frames to path, all or nothing; return how many were written."""
     writer = _GifWriter if check_output(path) == '.gif' else _Mp4Writer
     progress = None
@@ -370,9 +372,31 @@ def animate_plan(geometry: kin.Geometry, samples: Samples, plan: FramePlan, resu
     try:
         frames = (rgb for _, rgb in render_frames(figure, samples, plan.sample,
                                                   segment_at(result), efforts))
-        return _write(frames, path, fps, plan.sample.size, progress_stream)
+        return write_frames(frames, path, fps, plan.sample.size, progress_stream)
     finally:
         figure.close()
+
+
+def tour_segments(result: Analysis, offsets: int = 4) -> List[int]:
+    """
+    Return the indices (into result.segments) of the segments an offset tour shows.
+
+    At most ``offsets``, spread over the recorded offsets (first and last included); at
+    each offset its turning segment with the most stroke pairs, in the run's order.
+    """
+    chosen: Dict[float, Tuple[int, Dict[str, Any]]] = {}
+    # The tour draws the recording's geometry: segments at another stroke are left out.
+    radius = result.recording.geometry.crank_radius
+    for index, (segment, row) in enumerate(zip(result.segments, result.rows)):
+        held = chosen.get(segment.offset)
+        if segment.input_speed != 0.0 and segment.crank_radius in (None, radius) and (
+                held is None or row['stroke_pairs'] >= held[1]['stroke_pairs']):
+            chosen[segment.offset] = (index, row)
+    picked = sorted(index for index, _ in chosen.values())  # segments are in the run's order
+    if len(picked) > offsets:
+        picks = np.unique(np.round(np.linspace(0, len(picked) - 1, offsets)).astype(int))
+        picked = [picked[i] for i in picks]
+    return picked
 
 
 def offset_tour_samples(result: Analysis, offsets: int = 4, fps: float = 20.0,
@@ -385,20 +409,8 @@ def offset_tour_samples(result: Analysis, offsets: int = 4, fps: float = 20.0,
     split one offset's time into several), in real time at fps. Empty when nothing turns.
     """
     samples = result.recording.samples
-    chosen: Dict[float, Tuple[Any, Dict[str, Any]]] = {}
-    # The tour draws the recording's geometry: segments at another stroke are left out.
-    radius = result.recording.geometry.crank_radius
-    for segment, row in zip(result.segments, result.rows):
-        held = chosen.get(segment.offset)
-        if segment.input_speed != 0.0 and segment.crank_radius in (None, radius) and (
-                held is None or row['stroke_pairs'] >= held[1]['stroke_pairs']):
-            chosen[segment.offset] = (segment, row)
-    segments = sorted((segment for segment, _ in chosen.values()), key=lambda s: s.start)
-    if len(segments) > offsets:
-        picks = np.unique(np.round(np.linspace(0, len(segments) - 1, offsets)).astype(int))
-        segments = [segments[i] for i in picks]
     indices = []
-    for segment in segments:
+    for segment in (result.segments[index] for index in tour_segments(result, offsets)):
         times = samples.time[segment.start:segment.end]
         duration = revolutions * 2 * math.pi / abs(segment.input_speed)
         start = max(float(times.min()), float(times.max()) - duration)
@@ -426,7 +438,7 @@ def write_offset_tour(result: Analysis, path: str, offsets: int = 4, fps: float 
     try:
         frames = (rgb for _, rgb in render_frames(figure, samples, indices,
                                                   segment_at(result), efforts))
-        _write(frames, path, fps, indices.size)
+        write_frames(frames, path, fps, indices.size)
     finally:
         figure.close()
     return path
