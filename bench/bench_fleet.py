@@ -16,8 +16,9 @@ Benchmark: a fleet of eight recordings, one process against a local pool and a D
 
 Writes one synthetic 100 Hz run (bench_analysis' writer, an offset held 5 minutes at a time)
 and links it under eight names, then analyses the eight as qrm_analyze's fleet does,
-interleaved, several times: one after the other in one process (--jobs 1), in a pool of two
-local processes (--jobs 2; its start-up counted, as a user waits for it), and on a
+interleaved, several times, each time in a fresh process as a user's qrm_analyze is (its own
+imports not timed, the same in every mode): one after the other (--jobs 1), in a pool of two
+local processes (--jobs 2; their start-up counted, as a user waits for it), and on a
 ``distributed.LocalCluster`` of two single-threaded worker processes on loopback (started
 once, as a user's cluster already runs). Prints medians and the ratios: the pool's speed-up
 over one process (target >= 1.8x on 2 cores) and the cluster's time against the pool's
@@ -30,14 +31,43 @@ import argparse
 import json
 import os
 import statistics
+import subprocess
+import sys
 import tempfile
 import time
 
 from bench_analysis import write_synthetic_run
 
-from qrm_ros.analysis import fleet
-
 HOLD = 300.0  # s at each offset
+
+# One qrm_analyze of the fleet: its imports first, then the timed analysis.
+CHILD = '''
+import json, sys, time
+from qrm_ros.analysis import fleet
+mode, scheduler, paths = sys.argv[1], sys.argv[2], sys.argv[3:]
+if mode == 'cluster':
+    import distributed  # noqa: F401 - an import, as the other modes' are, not timed
+method = fleet.start_method()
+start = time.perf_counter()
+if mode == 'serial':
+    results = fleet.run_serially(paths, None)
+elif mode == 'pool':
+    results = fleet.run_in_pool(paths, None, 2)
+else:
+    results = fleet.run_on_cluster(paths, None, scheduler)
+results = fleet.in_file_order(paths, results)
+seconds = time.perf_counter() - start
+print(json.dumps({'seconds': seconds, 'method': method,
+                  'report': fleet.fleet_document(results)}))
+'''
+
+
+def measure(mode, paths, scheduler=''):
+    """Analyse the fleet in a fresh process; return (s, the fleet report, start method)."""
+    done = subprocess.run([sys.executable, '-c', CHILD, mode, scheduler, *paths],
+                          stdout=subprocess.PIPE, text=True, check=True)
+    result = json.loads(done.stdout)
+    return result['seconds'], json.dumps(result['report']), result['method']
 
 
 def main():
@@ -59,22 +89,18 @@ def main():
             os.link(first, paths[-1])
         with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host='127.0.0.1',
                           dashboard_address=None) as cluster:
-            modes = {
-                'one process': lambda: fleet.run_serially(paths, None),
-                'pool of 2': lambda: fleet.run_in_pool(paths, None, 2),
-                'dask cluster of 2': lambda: fleet.run_on_cluster(paths, None,
-                                                                  cluster.scheduler_address),
-            }
+            modes = {'one process': ('serial', ''), 'pool of 2': ('pool', ''),
+                     'dask cluster of 2': ('cluster', cluster.scheduler_address)}
             times = {mode: [] for mode in modes}
             reports = {}
             for repeat in range(args.repeats):
                 order = list(modes) if repeat % 2 == 0 else list(reversed(modes))
                 for mode in order:
-                    start = time.perf_counter()
-                    results = fleet.in_file_order(paths, modes[mode]())
-                    times[mode].append(time.perf_counter() - start)
-                    reports[mode] = json.dumps(fleet.fleet_document(results))
-                    print(f'repeat {repeat + 1}, {mode}: {times[mode][-1]:.2f} s', flush=True)
+                    seconds, reports[mode], method = measure(modes[mode][0], paths,
+                                                             modes[mode][1])
+                    times[mode].append(seconds)
+                    started = f' (workers started by {method})' if mode == 'pool of 2' else ''
+                    print(f'repeat {repeat + 1}, {mode}: {seconds:.2f} s{started}', flush=True)
     same = len(set(reports.values())) == 1
     median = {mode: statistics.median(values) for mode, values in times.items()}
     speedups = [s / p for s, p in zip(times['one process'], times['pool of 2'])]
@@ -86,6 +112,8 @@ def main():
     print(f'dask cluster / pool of 2: median {statistics.median(cluster_ratios):.2f}x '
           f'(min {min(cluster_ratios):.2f}, max {max(cluster_ratios):.2f}; target <= 1.2x)')
     print(f'the same fleet report from all three: {same}')
+    with open('/proc/loadavg') as load:
+        print(f'load average after the run (1, 5, 15 min): {" ".join(load.read().split()[:3])}')
 
 
 if __name__ == '__main__':

@@ -32,6 +32,7 @@ import time
 
 import pytest
 
+from qrm_ros.analysis import fleet
 from qrm_ros.cli import exit_codes
 from qrm_ros.cli import qrm_analyze
 from repo_paths import TEST_DATA
@@ -101,6 +102,33 @@ def test_a_fleet_gives_the_same_report_serially_in_a_pool_and_on_a_dask_cluster(
     assert (reports['serial'] / 'fleet_time_ratio_error.png').stat().st_size > 0
     assert document['status'] == {'complete': len(GOLDEN), 'incomplete': 0, 'refused': 1,
                                   'failed': 0}
+
+
+def test_a_single_threaded_process_forks_its_workers_any_other_spawns_them():
+    probe = ('import sys, threading, time\n'
+             'from qrm_ros.analysis import fleet\n'
+             'print(fleet.start_method())\n'
+             'if sys.argv[1] == "thread":\n'
+             '    threading.Thread(target=time.sleep, args=(5,), daemon=True).start()\n'
+             'else:\n'
+             '    import rclpy  # noqa: F401 - DDS may run threads of its own\n'
+             'print(fleet.start_method())\n')
+    for other in ('thread', 'ros'):
+        done = subprocess.run([sys.executable, '-c', probe, other], capture_output=True,
+                              text=True, check=True)
+        assert done.stdout.split() == ['fork', 'spawn'], other
+
+
+def test_forked_and_spawned_workers_give_the_same_fleet_report(fleet_folder, tmp_path,
+                                                               capsys, monkeypatch):
+    reports = []
+    for method in ('fork', 'spawn'):
+        monkeypatch.setattr(fleet, 'start_method', lambda chosen=method: chosen)
+        code, _, err = run_main([fleet_folder, '--output-dir', tmp_path / method, '--jobs', '2'],
+                                capsys)
+        assert code == exit_codes.EXIT_BAD_INPUT, err  # the worst file: one is not MCAP
+        reports.append((tmp_path / method / 'fleet.json').read_bytes())
+    assert reports[0] == reports[1]
 
 
 def test_each_runs_results_are_those_of_the_run_alone(fleet_folder, tmp_path, capsys):
