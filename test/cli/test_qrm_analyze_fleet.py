@@ -22,8 +22,10 @@ stopping the others; Ctrl-C stops every worker.
 """
 
 import glob
+import io
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -33,6 +35,8 @@ import time
 import pytest
 
 from qrm_ros.analysis import fleet
+from qrm_ros.analysis import fleet_figure
+from qrm_ros.analysis import streamed_run
 from qrm_ros.cli import exit_codes
 from qrm_ros.cli import qrm_analyze
 from repo_paths import TEST_DATA
@@ -244,3 +248,46 @@ def test_ctrl_c_cancels_the_fleet_on_a_dask_cluster(tmp_path):
             time.sleep(0.05)
         assert not any(observer.processing().values()), 'tasks still running'
         assert len(observer.scheduler_info()['workers']) == 2  # the cluster itself goes on
+
+
+class Terminal(io.StringIO):
+    def isatty(self):
+        return True
+
+
+def test_one_progress_bar_over_the_files_on_a_terminal(tmp_path, monkeypatch):
+    terminal = Terminal()
+    monkeypatch.setattr(sys, 'stderr', terminal)
+    monkeypatch.setattr(streamed_run, 'PROGRESS_MIN_MESSAGES', 1)  # a file's own bar if any
+    code = qrm_analyze.main([*GOLDEN[:3], '--jobs', '1'])
+    assert code == exit_codes.EXIT_OK, terminal.getvalue()
+    shown = terminal.getvalue()
+    counts = re.findall(r'analysing: +\d+%\|[^|]*\| (\d+)/(\d+) ', shown)
+    assert counts and {total for _, total in counts} == {'3'}  # the files, counted
+    assert 'reading joint states' not in shown  # no file draws its own bar
+
+
+def test_the_fleet_figure_draws_each_segments_time_ratio_error(tmp_path, capsys, monkeypatch):
+    figures = []
+    close = fleet_figure.plt.close
+
+    def kept(figure):
+        figures.append(figure)
+        close(figure)
+    monkeypatch.setattr(fleet_figure.plt, 'close', kept)
+    out_dir = tmp_path / 'out'
+    code, _, err = run_main([*GOLDEN, '--output-dir', out_dir, '--jobs', '1'], capsys)
+    assert code == exit_codes.EXIT_OK, err
+    (figure,) = figures
+    drawn = {line.get_label(): (list(line.get_xdata()), list(line.get_ydata()))
+             for line in figure.axes[0].get_lines() if line.get_gid() == 'recording'}
+    expected = {}
+    for path in GOLDEN:  # each run's own results.json, written beside the figure
+        segments = json.loads((out_dir / os.path.basename(path)[:-5] / 'results.json')
+                              .read_text())['segments']
+        measured = [s for s in segments if s['time_ratio_relative_error'] is not None]
+        if measured:
+            expected[os.path.basename(path)] = (
+                [s['offset_over_pivot_distance'] for s in measured],
+                [s['time_ratio_relative_error'] for s in measured])
+    assert drawn == expected and len(drawn) >= 2
