@@ -18,7 +18,9 @@ efforts' target is >= 1e6 samples/s. A node tick at 1 kHz is timed as the node s
 the speed drive's ShaperStepper.advance_to plus the efforts of the prescribed motion, the
 motor drive's MotorStepper.advance_to plus its efforts(); advance_to alone is timed too, and
 the motor tick once more with the stepper's right-hand side and efforts in their Python form
-(before the compiled form has loaded, or without numba). The drives run in turns, each
+(before the compiled form has loaded, or without numba). Both ticks are timed again while the
+stroke screw moves (the whole chain at the moving crank radius, the node's efforts with the
+screw's force). The drives run in turns, each
 repeat one second of ticks, and the medians of the repeats are compared (the machine is
 shared: only ratios within one run mean much).
 
@@ -38,6 +40,8 @@ from qrm_ros.core.motor_kernel_loading import COMPILED_MOTOR_KERNEL
 from qrm_ros.core.motor_stepper import MotorStepper
 from qrm_ros.core.speed_drive import pair_efforts
 from qrm_ros.core.stepping import ShaperStepper
+from qrm_ros.core.stroke_adjustment import StrokeRamp
+from qrm_ros.core.stroke_efforts import efforts_with_stroke_screw, lever_radius_coefficient
 
 
 def median_seconds(function, repeats):
@@ -63,6 +67,9 @@ def main():
     print(f'efforts: {seconds / args.samples * 1e9:.0f} ns/sample, '
           f'{args.samples / seconds:.3g} samples/s (target >= 1e6)')
 
+    def moving_stroke():
+        return StrokeRamp(geometry, 0.07, float(geometry.ram_stroke), 0.02)
+
     def speed_efforts(stepper, motion):
         load = dyn.ram_load_force(loads, motion.ram_position, motion.ram_velocity,
                                   geometry.ram_stroke)
@@ -73,9 +80,24 @@ def main():
     def motor_efforts(stepper, motion):
         return stepper.efforts()
 
-    def ticks(stepper, efforts):
+    def moving_speed_efforts(stepper, motion):
+        load = dyn.ram_load_force(loads, motion.ram_position, motion.ram_velocity,
+                                  geometry.ram_stroke)
+        return efforts_with_stroke_screw(
+            stepper.geometry, mass, stepper.offset, stepper.input_angle, stepper.input_speed,
+            stepper.input_acceleration, stepper.offset_rate, 0.0, load,
+            *stepper.stroke.crank_radius_rates())
+
+    def moving_motor_efforts(stepper, motion):
+        efforts = stepper.efforts()
+        return efforts, efforts.lever_torque * lever_radius_coefficient(
+            stepper.geometry, motion.flywheel_angle)
+
+    def ticks(stepper, efforts, stroke_command=None):
         def run():
-            stepper.reset(2 * math.pi, 0.01)
+            stepper.reset(2 * math.pi, 0.01, stroke_length=float(geometry.ram_stroke))
+            if stroke_command is not None:  # 0.02 m/s: moving throughout the ticks
+                stepper.set_stroke_command(stroke_command)
             for tick in range(args.ticks):
                 motion = stepper.advance_to(tick * 1_000_000)
                 if efforts is not None:
@@ -92,6 +114,12 @@ def main():
                             speed_efforts),
         'motor tick': ticks(MotorStepper(geometry, mass, loads, dyn.MotorDrive.small_shaper(),
                                          2 * math.pi, 0.01, 50.0, 0.01), motor_efforts),
+        'speed tick, stroke moving': ticks(
+            ShaperStepper(geometry, 2 * math.pi, 0.01, 50.0, 0.01, moving_stroke()),
+            moving_speed_efforts, 0.16),
+        'motor tick, stroke moving': ticks(
+            MotorStepper(geometry, mass, loads, dyn.MotorDrive.small_shaper(), 2 * math.pi,
+                         0.01, 50.0, 0.01, moving_stroke()), moving_motor_efforts, 0.16),
     }
     # The stepper's compiled right-hand side loads on a thread of its own (once per process);
     # the ticks are timed once it is there, and once in its Python form for comparison.
@@ -115,6 +143,10 @@ def main():
         print(f'{kind} at 1 kHz (medians of {args.repeats}): speed drive {speed:.1f} us, '
               f'motor drive {motor:.1f} us, ratio {motor / speed:.2f}, motor adds '
               f'{(motor - speed) / 10:.1f} % of a core')
+    speed, motor = median['speed tick, stroke moving'], median['motor tick, stroke moving']
+    print(f'tick while the stroke moves (medians of {args.repeats}): speed drive {speed:.1f} '
+          f'us, motor drive {motor:.1f} us, ratio {motor / speed:.2f}; the motor tick '
+          f'{motor / median["motor tick"]:.2f} times its tick at a still stroke')
     python = median['motor tick (Python form)']
     print(f'motor tick with the Python right-hand side and efforts: {python:.1f} us, ratio '
           f'{python / median["speed tick"]:.2f} to the speed tick')

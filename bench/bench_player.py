@@ -20,13 +20,16 @@ which notes each arrival (perf_counter). The error of a message is its arrival g
 before minus the recorded log-time gap. The baseline, in the same run and interleaved: a bare
 rclpy publisher process sending the same bytes on the same schedule with a plain
 time.sleep until each message's time. Medians over repeats of each one's median and 99th
-percentile of |error|; goal for the player: median <= 0.1 ms, p99 <= 1 ms.
+percentile of |error|; goal for the player: median <= 0.1 ms, p99 <= 1 ms. Each sender
+also says how late it handed each message over against its due time (the sender's own
+timing, apart from DDS and the subscriber's scheduling).
 
     python3 dev.py run python bench/bench_player.py [--seconds 20] [--repeats 3]
 """
 
 import argparse
 import os
+import re
 import statistics
 import subprocess
 import sys
@@ -48,6 +51,9 @@ from qrm_ros.node.scenario import scenario_from_mapping
 from qrm_ros.recording.bag_reader import open_run
 
 QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+# The senders' own timing line (mcap_player's last line says it the same way).
+SENT = re.compile(r'sent after their recorded time by (-?[0-9.]+) ms \(median\), '
+                  r'(-?[0-9.]+) ms')
 
 
 def sleeping_publisher(path):
@@ -60,12 +66,18 @@ def sleeping_publisher(path):
         time.sleep(0.01)
     time.sleep(0.5)
     origin = time.perf_counter_ns()
+    lateness = []
     for log_time, data in messages:
-        remaining = origin + (log_time - messages[0][0]) - time.perf_counter_ns()
+        due = origin + (log_time - messages[0][0])
+        remaining = due - time.perf_counter_ns()
         if remaining > 0:
             time.sleep(remaining / 1e9)
+        lateness.append(time.perf_counter_ns() - due)
         publisher.publish(data)
     publisher.wait_for_all_acked()
+    lateness.sort()
+    print(f'sent after their recorded time by {lateness[len(lateness) // 2] / 1e6:.3f} ms '
+          f'(median), {_percentile(lateness, 0.99) / 1e6:.3f} ms (99th percentile)')
     node.destroy_node()
     rclpy.shutdown()
 
@@ -91,7 +103,7 @@ def measure(kind, path, log_times):
     spinning.start()
     if kind == 'player':
         process = subprocess.Popen(['mcap_player', path, '--start-paused', '--topics',
-                                    'joint_states'], stdout=subprocess.DEVNULL)
+                                    'joint_states'], stdout=subprocess.PIPE, text=True)
         while node.count_publishers('/joint_states') < 1:
             time.sleep(0.01)
         client = node.create_client(Trigger, '/mcap_player/resume')
@@ -101,8 +113,10 @@ def measure(kind, path, log_times):
         while not future.done():
             time.sleep(0.01)
     else:
-        process = subprocess.Popen([sys.executable, __file__, '--sleeping-publisher', path])
-    process.wait()
+        process = subprocess.Popen([sys.executable, __file__, '--sleeping-publisher', path],
+                                   stdout=subprocess.PIPE, text=True)
+    output, _ = process.communicate()
+    sent = SENT.search(output)
     deadline = time.monotonic() + 10
     while len(arrivals) < len(log_times) and time.monotonic() < deadline:
         time.sleep(0.01)
@@ -111,7 +125,7 @@ def measure(kind, path, log_times):
     rclpy.shutdown(context=context)
     if len(arrivals) != len(log_times):
         print(f'{kind}: {len(arrivals)} of {len(log_times)} messages arrived')
-    return _errors(arrivals, log_times)
+    return _errors(arrivals, log_times), (float(sent[1]), float(sent[2])) if sent else None
 
 
 def _percentile(values, fraction):
@@ -128,22 +142,31 @@ def main():
         return sleeping_publisher(args.sleeping_publisher)
     isolate_ros_traffic(os.environ)
     results = {'player': [], 'sleep': []}
+    lateness = {'player': [], 'sleep': []}
     with tempfile.TemporaryDirectory() as folder:
         path = os.path.join(folder, 'run.mcap')
         Simulation(scenario_from_mapping({'duration': args.seconds}), path).run()
         log_times = [m.log_time for m in open_run(path).messages('/joint_states')]
         for repeat in range(args.repeats):
             for kind in (('player', 'sleep') if repeat % 2 == 0 else ('sleep', 'player')):
-                errors = measure(kind, path, log_times)
+                errors, sent = measure(kind, path, log_times)
                 results[kind].append((statistics.median(errors), _percentile(errors, 0.99),
                                       errors[-1]))
+                if sent:
+                    lateness[kind].append(sent)
                 print(f'repeat {repeat + 1} {kind:6s}: |error| median '
                       f'{results[kind][-1][0]:.4f} ms, p99 {results[kind][-1][1]:.3f} ms, '
-                      f'max {results[kind][-1][2]:.3f} ms', flush=True)
+                      f'max {results[kind][-1][2]:.3f} ms; sent late by median '
+                      f'{sent[0] if sent else float("nan"):.4f} ms, p99 '
+                      f'{sent[1] if sent else float("nan"):.3f} ms', flush=True)
     for kind, rows in results.items():
         print(f'{kind:6s}: median of medians {statistics.median(r[0] for r in rows):.4f} ms, '
               f'median p99 {statistics.median(r[1] for r in rows):.3f} ms '
               f'(goal for the player: 0.1 ms, 1 ms)')
+        if lateness[kind]:
+            print(f'{kind:6s}: sent late (the sender alone) by a median of medians '
+                  f'{statistics.median(r[0] for r in lateness[kind]):.4f} ms, median p99 '
+                  f'{statistics.median(r[1] for r in lateness[kind]):.3f} ms')
     ratio = (statistics.median(r[0] for r in results['player'])
              / statistics.median(r[0] for r in results['sleep']))
     print(f'player / plain sleep, median error: {ratio:.3f}')

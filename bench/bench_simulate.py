@@ -14,20 +14,24 @@
 """
 qrm_simulate's speed against its floor: the same messages serialized and written, nothing else.
 
-The floor, per tick: fill a JointState (five joints' positions, velocities, efforts) and a
+The floor, per tick: fill a JointState (six joints' positions, velocities, efforts) and a
 TwistStamped, serialize both with rclpy's serialize_message and write them with the mcap
-Writer (zstd chunks), into a file. The simulator, per tick: the whole node tick (stepping,
-efforts, stroke measurement and reports, the messages), serialization and writing, with the
-node's default 100 Hz and offset +10 mm, for each drive. Ticks per second of the loop (the
-set-up, about 0.1 s, apart), interleaved over repeats; medians and their spread; the ratio
-simulator / floor (goal >= 0.7 for the speed drive) and how long an hour of machine time at
-100 Hz takes.
+Writer (zstd chunks), into a file; and, since the simulator writes them too (as the
+recorder does), the moving links' TFMessage (six transforms) filled and serialized by the
+same library call the simulator uses (rosbags' serialize_cdr: tf2_msgs has no rclpy type
+here) and written. The two-message floor of the issue (no /tf) is measured as well. The
+simulator, per tick: the whole node tick (stepping, efforts, stroke measurement and
+reports, the messages), serialization and writing, with the node's default 100 Hz and
+offset +10 mm, for each drive. Ticks per second of the loop (the set-up apart),
+interleaved over repeats; medians and their spread; the ratio simulator / floor (goal
+>= 0.7 for the speed drive) and how long an hour of machine time at 100 Hz takes.
 
     python3 dev.py run python bench/bench_simulate.py [--repeats 5] [--seconds 120]
 """
 
 import argparse
 from array import array
+import math
 import os
 import statistics
 import tempfile
@@ -36,49 +40,78 @@ import time
 from geometry_msgs.msg import TwistStamped
 from mcap.writer import CompressionType, Writer
 from rclpy.serialization import serialize_message
+from rosbags.typesys import get_typestore, Stores
 from sensor_msgs.msg import JointState
 
-from qrm_ros.core.names import JOINT_NAMES
+from qrm_ros.core.names import PUBLISHED_JOINT_NAMES, TF_MESSAGE_TYPE
 from qrm_ros.node.offline_sim import Simulation
 from qrm_ros.node.scenario import scenario_from_mapping
 
 PERIOD_NS = 10_000_000
 
 
-def floor(path, ticks):
-    """Return the ticks per second of filling, serializing and writing the two messages."""
+def _tf_message(store):
+    """Return a TFMessage of rosbags' types with as many transforms as moving joints."""
+    types = store.types
+    return types[TF_MESSAGE_TYPE](transforms=[types['geometry_msgs/msg/TransformStamped'](
+        header=types['std_msgs/msg/Header'](
+            stamp=types['builtin_interfaces/msg/Time'](sec=0, nanosec=0), frame_id='parent'),
+        child_frame_id=name, transform=types['geometry_msgs/msg/Transform'](
+            translation=types['geometry_msgs/msg/Vector3'](x=0.0, y=0.0, z=0.0),
+            rotation=types['geometry_msgs/msg/Quaternion'](x=0.0, y=0.0, z=0.0, w=1.0)))
+        for name in PUBLISHED_JOINT_NAMES])
+
+
+def floor(path, ticks, transforms=True):
+    """Return the ticks per second of filling, serializing and writing the messages."""
+    store = get_typestore(Stores.ROS2_JAZZY)
+    tf_message = _tf_message(store)
     with open(path, 'wb') as stream:
         writer = Writer(stream, compression=CompressionType.ZSTD)
         writer.start('ros2', 'bench')
         schema = writer.register_schema('sensor_msgs/msg/JointState', 'ros2msg', b'')
         joints = writer.register_channel('/joint_states', 'cdr', schema)
         twists = writer.register_channel('/ram/twist', 'cdr', schema)
-        joint_state, twist = JointState(name=list(JOINT_NAMES)), TwistStamped()
-        started = time.perf_counter()
+        tf = writer.register_channel('/tf', 'cdr', schema)
+        joint_state, twist = JointState(name=list(PUBLISHED_JOINT_NAMES)), TwistStamped()
+        started, cpu_started = time.perf_counter(), time.process_time()
         for tick in range(1, ticks + 1):
             stamp = tick * PERIOD_NS
             seconds, nanoseconds = divmod(stamp, 1_000_000_000)
             angle = tick * 0.0628
             joint_state.header.stamp.sec, joint_state.header.stamp.nanosec = seconds, nanoseconds
             joint_state.header.frame_id = 'shaper_base'
-            joint_state.position = array('d', (angle, angle, 0.1, 0.05, 0.01))
-            joint_state.velocity = array('d', (6.28, 5.1, 0.7, 0.3, 0.0))
-            joint_state.effort = array('d', (1.5, 1.2, 3.4, 10.0, 35.0))
+            joint_state.position = array('d', (angle, angle, 0.1, 0.05, 0.01, 0.05))
+            joint_state.velocity = array('d', (6.28, 5.1, 0.7, 0.3, 0.0, 0.0))
+            joint_state.effort = array('d', (1.5, 1.2, 3.4, 10.0, 35.0, 0.0))
             writer.add_message(joints, stamp, serialize_message(joint_state), stamp)
             twist.header.stamp.sec, twist.header.stamp.nanosec = seconds, nanoseconds
             twist.header.frame_id = 'shaper_base'
             twist.twist.linear.x = 0.3
             writer.add_message(twists, stamp, serialize_message(twist), stamp)
+            if transforms:
+                for index, transform in enumerate(tf_message.transforms):
+                    transform.header.stamp.sec = seconds
+                    transform.header.stamp.nanosec = nanoseconds
+                    transform.transform.translation.x = 0.01 * index
+                    transform.transform.rotation.z = math.sin(0.5 * angle)
+                    transform.transform.rotation.w = math.cos(0.5 * angle)
+                writer.add_message(tf, stamp, bytes(store.serialize_cdr(
+                    tf_message, TF_MESSAGE_TYPE)), stamp)
         writer.finish()
-        return ticks / (time.perf_counter() - started)
+        return (ticks / (time.perf_counter() - started),
+                ticks / (time.process_time() - cpu_started))
 
 
 def simulated(path, seconds, drive):
-    """Return the ticks per second of the simulator's loop on `seconds` of machine time."""
+    """Return the ticks per second (wall, CPU) of the simulator's loop on `seconds`."""
     scenario = scenario_from_mapping({'duration': seconds, 'parameters': {
         'coupling_offset': 0.01, 'drive': drive}})
-    summary = Simulation(scenario, path).run()
-    return summary.ticks / summary.loop_seconds
+    simulation = Simulation(scenario, path)
+    cpu_started = time.process_time()  # the run, finishing the file included
+    summary = simulation.run()
+    return (summary.ticks / summary.loop_seconds,
+            summary.ticks / (time.process_time() - cpu_started))
 
 
 def main():
@@ -88,28 +121,34 @@ def main():
                         help='machine time per simulated run [s] (motor: a quarter)')
     args = parser.parse_args()
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'OFF'
-    rates = {'floor': [], 'speed': [], 'motor': []}
+    rates = {'floor': [], 'floor_no_tf': [], 'speed': [], 'motor': []}
+    cpu_rates = {name: [] for name in rates}
     with tempfile.TemporaryDirectory() as folder:
         for repeat in range(args.repeats):
             for name in rates:
                 path = os.path.join(folder, f'{name}_{repeat}.mcap')
-                if name == 'floor':
-                    rate = floor(path, round(args.seconds * 100))
+                if name.startswith('floor'):
+                    rate = floor(path, round(args.seconds * 100), name == 'floor')
                 else:
                     rate = simulated(path, args.seconds / (4 if name == 'motor' else 1), name)
-                rates[name].append(rate)
+                rates[name].append(rate[0])
+                cpu_rates[name].append(rate[1])
                 os.unlink(path)
             print(f'repeat {repeat + 1}: ' + ', '.join(
                 f'{name} {values[-1]:.0f} ticks/s' for name, values in rates.items()),
                 flush=True)
-    median = {name: statistics.median(values) for name, values in rates.items()}
-    for name, values in rates.items():
-        print(f'{name:6s} median {median[name]:8.0f} ticks/s ({min(values):.0f}..'
-              f'{max(values):.0f}); an hour at 100 Hz in {360000 / median[name]:.1f} s')
-    for drive in ('speed', 'motor'):
-        ratios = [d / f for d, f in zip(rates[drive], rates['floor'])]
-        print(f'{drive} drive / floor: median {statistics.median(ratios):.3f} '
-              f'({min(ratios):.3f}..{max(ratios):.3f})')
+    # Wall time is what a user waits; CPU time (process_time) is what the work costs, which a
+    # machine shared with other work (its load) disturbs less.
+    for clock, found in (('wall', rates), ('CPU', cpu_rates)):
+        median = {name: statistics.median(values) for name, values in found.items()}
+        for name, values in found.items():
+            print(f'{clock:4s} {name:11s} median {median[name]:8.0f} ticks/s ({min(values):.0f}'
+                  f'..{max(values):.0f}); an hour at 100 Hz in {360000 / median[name]:.1f} s')
+        for drive in ('speed', 'motor'):
+            for floor_name in ('floor', 'floor_no_tf'):
+                ratios = [d / f for d, f in zip(found[drive], found[floor_name])]
+                print(f'{clock:4s} {drive} drive / {floor_name}: median '
+                      f'{statistics.median(ratios):.3f} ({min(ratios):.3f}..{max(ratios):.3f})')
 
 
 if __name__ == '__main__':

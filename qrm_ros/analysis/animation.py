@@ -368,7 +368,8 @@ def animate_plan(geometry: kin.Geometry, samples: Samples, plan: FramePlan, resu
     # The traces cover the samples of the span, in recording order.
     span = slice(int(plan.sample.min()), int(plan.sample.max()) + 1)
     figure = LinkageFigure(geometry, samples.time[span], samples.ram_velocity[span],
-                           None if efforts is None else efforts[span], cutting_length)
+                           None if efforts is None else efforts[span], cutting_length,
+                           largest_crank_radius(samples, plan.sample))
     try:
         frames = (rgb for _, rgb in render_frames(figure, samples, plan.sample,
                                                   segment_at(result), efforts))
@@ -377,26 +378,40 @@ def animate_plan(geometry: kin.Geometry, samples: Samples, plan: FramePlan, resu
         figure.close()
 
 
+def largest_crank_radius(samples: Samples, indices: np.ndarray) -> Optional[float]:
+    """Return the largest recorded crank radius (m) at these samples (None: not recorded)."""
+    if samples.crank_radius is None or not np.size(indices):
+        return None
+    return float(np.max(samples.crank_radius[indices]))
+
+
 def tour_segments(result: Analysis, offsets: int = 4) -> List[int]:
     """
     Return the indices (into result.segments) of the segments an offset tour shows.
 
-    At most ``offsets``, spread over the recorded offsets (first and last included); at
-    each offset its turning segment with the most stroke pairs, in the run's order.
+    At each recorded stroke (crank radius), at most ``offsets``, spread over the offsets
+    recorded there (first and last included); at each its turning segment with the most
+    stroke pairs; in recording order.
     """
-    chosen: Dict[float, Tuple[int, Dict[str, Any]]] = {}
-    # The tour draws the recording's geometry: segments at another stroke are left out.
-    radius = result.recording.geometry.crank_radius
+    chosen: Dict[Tuple[float, Optional[float]], Tuple[int, Dict[str, Any]]] = {}
     for index, (segment, row) in enumerate(zip(result.segments, result.rows)):
-        held = chosen.get(segment.offset)
-        if segment.input_speed != 0.0 and segment.crank_radius in (None, radius) and (
+        key = (segment.offset, segment.crank_radius)
+        held = chosen.get(key)
+        if segment.input_speed != 0.0 and (
                 held is None or row['stroke_pairs'] >= held[1]['stroke_pairs']):
-            chosen[segment.offset] = (index, row)
-    picked = sorted(index for index, _ in chosen.values())  # segments are in the run's order
-    if len(picked) > offsets:
-        picks = np.unique(np.round(np.linspace(0, len(picked) - 1, offsets)).astype(int))
-        picked = [picked[i] for i in picks]
-    return picked
+            chosen[key] = (index, row)
+    strokes: Dict[Optional[float], List[int]] = {}
+    for index, _ in chosen.values():
+        strokes.setdefault(result.segments[index].crank_radius, []).append(index)
+    picked: List[int] = []
+    for at_stroke in strokes.values():
+        at_stroke.sort()  # segments are in recording order
+        if len(at_stroke) > offsets:
+            picks = np.unique(np.round(np.linspace(0, len(at_stroke) - 1,
+                                                   offsets)).astype(int))
+            at_stroke = [at_stroke[i] for i in picks]
+        picked.extend(at_stroke)
+    return sorted(picked)
 
 
 def offset_tour_samples(result: Analysis, offsets: int = 4, fps: float = 20.0,
@@ -404,9 +419,10 @@ def offset_tour_samples(result: Analysis, offsets: int = 4, fps: float = 20.0,
     """
     Sample indices of a short tour: the last revolution(s) at a few of the recorded offsets.
 
-    ``offsets``: how many offsets at most, spread over those recorded (first and last
-    included); each shows the end of its segment with the most stroke pairs (a gap can
-    split one offset's time into several), in real time at fps. Empty when nothing turns.
+    At each recorded stroke (crank radius), ``offsets``: how many offsets at most, spread
+    over those recorded there (first and last included); each shows the end of its segment
+    with the most stroke pairs (a gap can split one offset's time into several), in real
+    time at fps, in recording order. Empty when nothing turns.
     """
     samples = result.recording.samples
     indices = []
@@ -434,7 +450,7 @@ def write_offset_tour(result: Analysis, path: str, offsets: int = 4, fps: float 
     check_offsets(result.recording.geometry, samples.offset[indices])
     efforts = read_efforts(result.recording.path, samples)
     figure = LinkageFigure(result.recording.geometry, samples.time, samples.ram_velocity,
-                           efforts)
+                           efforts, None, largest_crank_radius(samples, indices))
     try:
         frames = (rgb for _, rgb in render_frames(figure, samples, indices,
                                                   segment_at(result), efforts))

@@ -32,8 +32,9 @@ from typing import Iterator, List, NamedTuple, Optional, Set, TextIO, Tuple
 import numpy as np
 
 from qrm_ros.analysis.animation import (animate_plan, check_offsets, check_output,
-                                        check_rates, frame_plan, render_frames, segment_at,
-                                        tour_segments, write_frames)
+                                        check_rates, frame_plan, largest_crank_radius,
+                                        render_frames, segment_at, tour_segments,
+                                        write_frames)
 from qrm_ros.analysis.linkage_figure import LinkageFigure
 from qrm_ros.analysis.joint_state_decoding import decoded_blocks, MessageCounter
 from qrm_ros.analysis.measurement import Analysis
@@ -274,7 +275,8 @@ def write_window_tour(result: Analysis, path: str, offsets: int = 4, fps: float 
     time, velocity, torque = tour.trace
     efforts = samples.input_torque if tour.efforts_everywhere else None
     figure = LinkageFigure(result.recording.geometry, time, velocity,
-                           torque if tour.efforts_everywhere else None)
+                           torque if tour.efforts_everywhere else None, None,
+                           largest_crank_radius(samples, tour.frames))
     try:
         frames = (rgb for _, rgb in render_frames(figure, samples, tour.frames,
                                                   segment_at(result), efforts))

@@ -14,9 +14,10 @@
 """
 The animation's picture: the linkage at one joint state over time-synced traces.
 
-Every pin is drawn where ``qrm_ros.core.linkage`` puts it for the recorded input angle and
-offset. The figure draws on its own Agg canvas (no pyplot, no display): only the moving
-artists are redrawn per frame, and ``drawn_points`` reads back what they show.
+Every pin is drawn where ``qrm_ros.core.linkage`` puts it for the recorded input angle,
+offset and crank radius; the ram's guides and the workpiece are those of the stroke in force
+in each frame. The figure draws on its own Agg canvas (no pyplot, no display): only the
+moving artists are redrawn per frame, and ``drawn_points`` reads back what they show.
 """
 
 import dataclasses
@@ -49,9 +50,17 @@ class LinkageFigure:
 
     def __init__(self, geometry: Geometry, time: np.ndarray, ram_velocity: np.ndarray,
                  effort: Optional[np.ndarray] = None,
-                 cutting_length: Optional[float] = None) -> None:
+                 cutting_length: Optional[float] = None,
+                 largest_crank_radius: Optional[float] = None) -> None:
+        """
+        Draw the static parts; largest_crank_radius (m) widens the view for a longer stroke.
+
+        The drawn sizes (ram, pins, bars) are the geometry's throughout.
+        """
         self.geometry = geometry
         self.sizes = sizes = linkage_sizes(geometry)
+        self._cutting_length = cutting_length
+        self._drawn_radius: Optional[float] = None  # the guides' and workpiece's stroke
         width, height = FRAME_SIZE
         self.figure = Figure(figsize=(width / _DPI, height / _DPI), dpi=_DPI)
         self.canvas = FigureCanvasAgg(self.figure)
@@ -59,7 +68,8 @@ class LinkageFigure:
                                         top=0.90, bottom=0.08, hspace=0.25)
         self.axes = axes = self.figure.add_subplot(grid[0])
         self.trace_axes = self.figure.add_subplot(grid[1])
-        self._draw_static(axes, geometry, sizes, cutting_length)
+        self._draw_static(axes, geometry, sizes, cutting_length, max(
+            float(geometry.crank_radius), largest_crank_radius or 0.0))
         line: Dict[str, Any] = dict(linewidth=4, solid_capstyle='round')
         self.slot, = axes.plot([], [], color=_colour('slot_black'), linewidth=2)
         self.crank, = axes.plot([], [], color=_colour('flywheel_blue'), **line)
@@ -87,28 +97,35 @@ class LinkageFigure:
         self.moving += [(self.trace_axes, self.cursor), (self.trace_axes, self.velocity_dot)]
         if self.torque_dot is not None:
             self.moving.append((self.torque_axes, self.torque_dot))
-        for _, artist in self.moving + [(axes, self.ratios)]:
+        # The guides and the workpiece follow the stroke: redrawn into the background with
+        # the ratios when the crank radius changes.
+        self.per_stroke = [*self.guides, *self.workpiece, self.ratios]
+        for artist in [a for _, a in self.moving] + self.per_stroke:
             artist.set_animated(True)
         self.canvas.draw()
         self.bare = self.background = self.canvas.copy_from_bbox(self.figure.bbox)
 
-    def _draw_static(self, axes, geometry, sizes, cutting_length):
+    def _draw_static(self, axes, geometry, sizes, cutting_length, largest_radius):
         h = geometry.pivot_distance
-        guide = 0.5 * (float(geometry.ram_stroke) + sizes.ram_length)
+        widest = dataclasses.replace(geometry, crank_radius=largest_radius)
+        guide = 0.5 * (float(widest.ram_stroke) + sizes.ram_length)
         rail = 0.5 * (sizes.ram_thickness + sizes.bar_width)
         ram_y = sizes.ram_line_height
         grey = _colour('frame_grey')
         axes.plot([0, 0], [0, -h], color=grey, linewidth=6, zorder=0)
-        for y in (ram_y + rail, ram_y - rail):
-            axes.plot([-guide, guide], [y, y], color=grey, linewidth=2, zorder=0)
+        self.guides = [axes.plot([], [], color=grey, linewidth=2, zorder=0)[0]
+                       for _ in (ram_y + rail, ram_y - rail)]
+        self._rails = (ram_y + rail, ram_y - rail)
         axes.add_patch(Circle((0, 0), sizes.flywheel_radius, color=_colour('flywheel_blue'),
                               alpha=0.35, zorder=1))
         top = ram_y - sizes.tool_drop
+        self.workpiece = []
         if cutting_length:
-            low, high = workpiece_span(geometry, cutting_length, sizes)
-            axes.add_patch(Rectangle((low, top - sizes.ram_thickness), high - low,
-                                     sizes.ram_thickness, color=_colour('workpiece_brown'),
-                                     zorder=1))
+            self.workpiece.append(Rectangle((0.0, top - sizes.ram_thickness), 0.0,
+                                            sizes.ram_thickness,
+                                            color=_colour('workpiece_brown'), zorder=1))
+            axes.add_patch(self.workpiece[0])
+        self._show_stroke(geometry)
         margin = 2.0 * sizes.pin_radius
         axes.set_xlim(-guide - margin, guide + margin)
         axes.set_ylim(-h - 3 * margin, ram_y + sizes.ram_thickness + 0.25 * geometry.ram_height)
@@ -135,6 +152,24 @@ class LinkageFigure:
             self.torque_dot, = twin.plot([], [], 'o', color=_colour('input_orange'),
                                          markersize=5)
 
+    def _show_stroke(self, geometry: Geometry) -> None:
+        """Set the guides and the workpiece to the stroke of geometry (not drawn yet)."""
+        guide = 0.5 * (float(geometry.ram_stroke) + self.sizes.ram_length)
+        for line, y in zip(self.guides, self._rails):
+            line.set_data([-guide, guide], [y, y])
+        if self.workpiece and self._cutting_length:
+            low, high = workpiece_span(geometry, self._cutting_length, self.sizes)
+            self.workpiece[0].set_x(low)
+            self.workpiece[0].set_width(high - low)
+        self._drawn_radius = float(geometry.crank_radius)
+
+    def geometry_at(self, crank_radius: Optional[float]) -> Geometry:
+        """Return the geometry with a recorded crank radius (m; None: the figure's)."""
+        geometry = self.geometry
+        if crank_radius is not None and crank_radius != geometry.crank_radius:
+            geometry = dataclasses.replace(geometry, crank_radius=crank_radius)
+        return geometry
+
     def draw(self, input_angle: float, offset: float, time: float, ram_velocity: float,
              ratios: str, effort: Optional[float] = None,
              crank_radius: Optional[float] = None) -> np.ndarray:
@@ -144,10 +179,14 @@ class LinkageFigure:
         crank_radius (m): the recorded one, when the stroke moved (None: the geometry's).
         """
         ratios = '\n\n' + ratios  # below the clock and the offset
-        if ratios != self.ratios.get_text():
+        geometry = self.geometry_at(crank_radius)
+        if (ratios != self.ratios.get_text()
+                or float(geometry.crank_radius) != self._drawn_radius):
             self.ratios.set_text(ratios)
+            self._show_stroke(geometry)
             self.canvas.restore_region(self.bare)
-            self.axes.draw_artist(self.ratios)
+            for artist in self.per_stroke:
+                self.axes.draw_artist(artist)
             self.background = self.canvas.copy_from_bbox(self.figure.bbox)
         self.update(input_angle, offset, time, ram_velocity, effort, crank_radius)
         self.canvas.restore_region(self.background)
@@ -158,9 +197,7 @@ class LinkageFigure:
     def update(self, input_angle: float, offset: float, time: float, ram_velocity: float,
                effort: Optional[float] = None, crank_radius: Optional[float] = None) -> None:
         """Move the moving artists to one state, without drawing them."""
-        geometry = self.geometry
-        if crank_radius is not None and crank_radius != geometry.crank_radius:
-            geometry = dataclasses.replace(geometry, crank_radius=crank_radius)
+        geometry = self.geometry_at(crank_radius)
         points = linkage_points(geometry, offset, input_angle, sizes=self.sizes)
         self.slot.set_data(*zip(points.flywheel_centre, points.slot_end))
         self.crank.set_data(*zip(points.flywheel_centre, points.crank_pin))
@@ -200,6 +237,7 @@ class LinkageFigure:
             'ram_centre': np.array((x + 0.5 * self.ram.get_width(),
                                     y + 0.5 * self.ram.get_height())),
             'velocity_dot': np.column_stack(self.velocity_dot.get_data())[0],
+            'guide': np.array(self.guides[0].get_data()[0]),
             'cursor_time': float(self.cursor.get_xdata()[0]),
         }
         if self.torque_dot is not None:

@@ -139,7 +139,9 @@ def _play(argv: List[str], args: argparse.Namespace, run: Run) -> int:
         if player is not None:
             player.destroy_node()
         try_shutdown()
-    print(f'played {player.published} messages on {len(player.topics)} topics')
+    timing = player.timing_summary()
+    print(f'played {player.published} messages on {len(player.topics)} topics'
+          + (f'; {timing}' if timing else ''))
     for line in what_was_not_played(run, player):
         print(f'{PLAYER_NODE_NAME}: warning: {line}', file=sys.stderr)
     # Damage makes the playback incomplete; a type this environment lacks only warns.

@@ -25,7 +25,7 @@ import argparse
 import json
 import math
 import sys
-from typing import Callable, Dict, Optional, Sequence
+from typing import Any, Callable, Dict, Optional, Sequence
 
 import numpy as np
 
@@ -44,6 +44,22 @@ from qrm_ros.core import kinematics as kin
 def _subcommand_parser(name: str, description: str) -> argparse.ArgumentParser:
     """Return the parser of ``qrm_design NAME``."""
     return argparse.ArgumentParser(prog=f'qrm_design {name}', description=description)
+
+
+def _print_answer(prog: str, compute: Callable[[], Dict[str, Any]],
+                  formatter: Callable[[Dict[str, Any]], str], as_json: bool) -> int:
+    """Print what COMPUTE returns (JSON or text), or the reason it refused; return the status.
+
+    One rule for every table of the command: a refusal of the options is one line on stderr
+    and exit 2 (DynamicsError is a KinematicsError).
+    """
+    try:
+        data = compute()
+    except kin.KinematicsError as error:
+        print(f'{prog}: {error}', file=sys.stderr)
+        return EXIT_BAD_INPUT
+    print(json.dumps(data, indent=2) if as_json else formatter(data))
+    return EXIT_OK
 
 
 def gearbox_main(argv: Sequence[str]) -> int:
@@ -122,16 +138,13 @@ def flywheel_main(argv: Sequence[str]) -> int:
     parser.add_argument('--json', action='store_true',
                         help='print the sizing as JSON (SI units) instead of text')
     args = parser.parse_args(argv)
-    try:
+
+    def sizing() -> Dict[str, Any]:
         geometry = geometry_from_arguments(args)
         mass, loads, motor = drive_from_arguments(args)
-        data = flywheel_data(geometry, mass, loads, motor, args.offset, args.input_speed,
+        return flywheel_data(geometry, mass, loads, motor, args.offset, args.input_speed,
                              args.fluctuation)
-    except kin.KinematicsError as error:  # DynamicsError is one
-        print(f'qrm_design flywheel: {error}', file=sys.stderr)
-        return EXIT_BAD_INPUT
-    print(json.dumps(data, indent=2) if args.json else format_flywheel(data))
-    return EXIT_OK
+    return _print_answer('qrm_design flywheel', sizing, format_flywheel, args.json)
 
 
 def stroke_main(argv: Sequence[str]) -> int:
@@ -150,18 +163,15 @@ def stroke_main(argv: Sequence[str]) -> int:
     parser.add_argument('--json', action='store_true',
                         help='print the table as JSON (SI units) instead of text')
     args = parser.parse_args(argv)
-    try:
+
+    def table() -> Dict[str, Any]:
         geometry = geometry_from_arguments(args)
         target = (float(kin.time_ratio(geometry, 0.0)) if args.time_ratio is None
                   else args.time_ratio)
         strokes = (np.asarray(args.strokes_mm) if args.strokes_mm
                    else np.arange(40.0, 300.0 + 1e-9, 20.0)) / 1e3
-        data = stroke_table_data(geometry, strokes, target)
-    except kin.KinematicsError as error:
-        print(f'qrm_design stroke: {error}', file=sys.stderr)
-        return EXIT_BAD_INPUT
-    print(json.dumps(data, indent=2) if args.json else format_stroke_table(data))
-    return EXIT_OK
+        return stroke_table_data(geometry, strokes, target)
+    return _print_answer('qrm_design stroke', table, format_stroke_table, args.json)
 
 
 # Subcommands of qrm_design: name -> main(argv) returning the exit code.
@@ -195,7 +205,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                         help='print the table as JSON (SI units) instead of text')
     add_drive_arguments(parser)
     args = parser.parse_args(argv)
-    try:
+
+    def table() -> Dict[str, Any]:
         geometry = geometry_from_arguments(args)
         mass, loads, motor = drive_from_arguments(args)
         problem = input_speed_problem('--input-speed', args.input_speed) or (
@@ -203,13 +214,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         if problem:
             raise kin.KinematicsError(problem)
         offsets = (np.asarray(args.offsets_mm) if args.offsets_mm else DEFAULT_OFFSETS_MM) / 1e3
-        data = design_table_data(geometry, offsets, args.input_speed, mass, loads,
+        return design_table_data(geometry, offsets, args.input_speed, mass, loads,
                                  motor if args.speed_fluctuation else None)
-    except kin.KinematicsError as error:
-        print(f'qrm_design: {error}', file=sys.stderr)
-        return EXIT_BAD_INPUT
-    print(json.dumps(data, indent=2) if args.json else format_design_table(data))
-    return EXIT_OK
+    return _print_answer('qrm_design', table, format_design_table, args.json)
 
 
 if __name__ == '__main__':

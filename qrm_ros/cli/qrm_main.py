@@ -265,10 +265,7 @@ def _run_schedule(conductor, options, offsets):
                            f'{options.pairs} steady stroke pairs at offset {offset} m')
         print(f'qrm_main: offset {offset * 1e3:+7.2f} mm: {options.pairs} steady stroke '
               f'pairs in {time.monotonic() - started:.1f} s', flush=True)
-    if options.short_stroke_mm and options.drive == 'motor':
-        print('qrm_main: the short-stroke experiment needs drive speed (the motor drive holds '
-              'the stroke): skipped', flush=True)
-    elif options.short_stroke_mm:
+    if options.short_stroke_mm:
         _run_short_stroke(conductor, options, period, recording_since)
 
 

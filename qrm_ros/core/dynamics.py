@@ -284,6 +284,7 @@ class Chain(NamedTuple):
     ram_lever_arm: Any  # dx/d(theta) at a fixed offset, m/rad: F_ext's torque arm
     offset_coupling_inertia: Any  # d^2 T / d(theta_dot) d(offset_rate), kg m
     crank_radius_force: Any = 0.0  # the stroke screw's force on the crank pin, N along +r
+    radius_coupling_inertia: Any = 0.0  # d^2 T / d(theta_dot) d(r_dot), kg m
 
 
 def evaluate_chain(ops: SimpleNamespace, coupling_radius: FloatOrArray,
@@ -361,7 +362,8 @@ def evaluate_chain(ops: SimpleNamespace, coupling_radius: FloatOrArray,
                  lever_speed, lever_acc, ram_height * tan_l, ram_velocity, ram_acc,
                  Efforts(input_torque, flywheel_torque, lever_torque, ram_force,
                          offset_force), inertia, ram_lever_arm, phi_t * phi_d * downstream,
-                 lever_torque * psi_r)
+                 lever_torque * psi_r, phi_t * psi_p * psi_r * (
+                     mass['lever_inertia'] + mass['ram_mass'] * x_p * x_p))
 
 
 def speed_drive_torque_of(sin_c: Any, cos_c: Any, r1: Any, r: Any, h: Any, height: Any,

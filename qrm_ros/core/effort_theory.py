@@ -186,6 +186,22 @@ class BackgroundTheory:
             answer = self.lookup(setting)
         return answer
 
+    def work_out(self, setting: Setting) -> Answer:
+        """
+        Return (theory or None, problem or None), worked out here and now if not known.
+
+        For a caller that would wait for the worker anyway (an offline run): the same
+        function the worker runs, without a worker to start.
+        """
+        key = setting.key()
+        self._collect()
+        if key not in self._known and key not in self._problems:
+            if len(self._known) + len(self._problems) >= self._limit:
+                self._known.clear()
+                self._problems.clear()
+            self._keep(_answer(key, setting))
+        return self._known.get(key), self._problems.get(key)
+
     def _ask(self, key, setting):
         if self._worker is None or self._worker.poll() is not None:
             environment = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))

@@ -53,7 +53,8 @@ class EquationOfMotion:
     """
 
     def __init__(self, geometry: Geometry, mass: dyn.MassProperties, loads: dyn.Loads,
-                 motor: Optional[dyn.MotorDrive]) -> None:
+                 motor: Optional[dyn.MotorDrive],
+                 longest_stroke: Optional[float] = None) -> None:
         self.geometry = geometry
         self.mass = mass
         # The chain's fixed arguments: math's functions, the geometry, the masses as floats.
@@ -64,7 +65,10 @@ class EquationOfMotion:
         self.ram_motion: Callable[[float, float, float, float], Tuple[float, float]] = (
             lean_ram_motion(self.lean_constants))
         self._switch_angles_at: Dict[float, List[float]] = {}
-        self.loads = loads.check_against(geometry.ram_stroke)
+        # The workpiece fits the longer of the strokes in force and commanded (the node's
+        # rule while the stroke screw moves).
+        self.loads = loads.check_against(geometry.ram_stroke if longest_stroke is None
+                                         else max(geometry.ram_stroke, longest_stroke))
         loads.scalars()
         self.motor = motor
         if motor is not None:
@@ -75,21 +79,30 @@ class EquationOfMotion:
             if too_stiff:
                 raise dyn.DynamicsError(too_stiff)
 
-    def chain(self, offset: float, angle: float, speed: float,
-              offset_rate: float) -> dyn.Chain:
+    def chain(self, offset: float, angle: float, speed: float, offset_rate: float,
+              crank_radius_rate: float = 0.0,
+              crank_radius_acceleration: float = 0.0) -> dyn.Chain:
         """Evaluate the chain at zero input acceleration; all arguments plain floats."""
-        return dyn.evaluate_chain(*self.fixed, offset, angle, speed, 0.0, offset_rate, 0.0, 0.0)
+        return dyn.evaluate_chain(*self.fixed, offset, angle, speed, 0.0, offset_rate, 0.0, 0.0,
+                                  crank_radius_rate, crank_radius_acceleration)
 
     def speed_after_rate_jump(self, offset: float, angle: float, speed: float,
-                              old_rate: float, rate: float) -> float:
+                              old_rate: float, rate: float, old_radius_rate: float = 0.0,
+                              radius_rate: float = 0.0) -> float:
         """
-        Return the input speed (rad/s) after the offset rate jumps from old_rate to rate.
+        Return the input speed (rad/s) after the offset and crank radius rates jump.
 
-        An impulse on the offset alone keeps the input's generalised momentum.
+        The offset rate from old_rate to rate (m/s), the crank radius' from old_radius_rate
+        to radius_rate (m/s): impulses on the offset and the crank pin alone keep the
+        input's generalised momentum, M theta' + C_offset offset' + C_r r'.
         """
         chain = self.chain(offset, angle, speed, old_rate)
-        speed -= chain.offset_coupling_inertia * (rate - old_rate) / (
-            chain.generalized_inertia)
+        if rate != old_rate:
+            speed -= chain.offset_coupling_inertia * (rate - old_rate) / (
+                chain.generalized_inertia)
+        if radius_rate != old_radius_rate:
+            speed -= chain.radius_coupling_inertia * (radius_rate - old_radius_rate) / (
+                chain.generalized_inertia)
         return speed
 
     def motor_torque(self, reference: float, speed: float, saturation: int) -> float:

@@ -32,6 +32,7 @@ from qrm_ros.core.geometry import TWO_PI
 from qrm_ros.core.lean_chain import lean_acceleration_of
 from qrm_ros.core.motor_equation import EquationOfMotion, sign
 from qrm_ros.core.motor_kernel_loading import COMPILED_MOTOR_KERNEL
+from qrm_ros.core.motor_stroke import moving_radius_motion, StrokeSegment
 from qrm_ros.core.stepping import ramp, wrap_angle
 
 __all__ = ['DIRECTION', 'SATURATION', 'Segment', 'segment_functions', 'SegmentFunctions',
@@ -56,10 +57,12 @@ class SegmentPlan:
 
     The reference and the offset ramp from their values at the segment's start toward their
     commands at their limits; reference_end and offset_end say when they get there (-inf:
-    no ramp).
+    no ramp). The ram stroke ramps likewise (``stroke``, a StrokeSegment; without one, a
+    stroke that never moves).
     """
 
-    def __init__(self, acceleration_limit: float, offset_rate_limit: float) -> None:
+    def __init__(self, acceleration_limit: float, offset_rate_limit: float,
+                 stroke: Optional[StrokeSegment] = None) -> None:
         self.acceleration_limit = acceleration_limit  # rad/s^2
         self.offset_rate_limit = offset_rate_limit  # m/s
         self.speed_command = self.offset_command = 0.0
@@ -73,6 +76,7 @@ class SegmentPlan:
         self.spin = 0  # the input speed's sign
         self.saturation = 0  # +-1: the motor at +-max_torque
         self.load = 0.0  # N along +x
+        self.stroke = stroke or StrokeSegment(1.0, 1.0)  # the ram stroke's ramp
 
     def reset(self, speed: float, offset: float) -> None:
         """Speed and offset (commands and the segment's start) set at once; no ramp, at rest."""
@@ -113,25 +117,33 @@ class SegmentPlan:
         self.offset_end = time + abs(gap) / self.offset_rate_limit if gap else -math.inf
 
     def begin(self, equation: EquationOfMotion, time: float, angle: float, speed: float,
-              reference: float, offset: float,
-              trigger: Optional[int]) -> Tuple[float, float, Optional[str]]:
+              reference: float, offset: float, trigger: Optional[int],
+              stroke: Optional[float] = None) -> Tuple[float, float, Optional[str]]:
         """
         Begin a segment at time (s) from this state; return (angle, speed, stall reason).
 
-        The ramps start from the reference and offset there; the angle comes back wrapped,
-        the speed after the offset rate's jump (or 0.0: the shaft stopped); the mode is
-        chosen from the state (choose_mode). trigger is the switch that ended the last
-        segment (None: any other restart).
+        The ramps start from the reference, offset and stroke (m; None: the segment's
+        stroke at time) there; the angle comes back wrapped, the speed after the offset's
+        and the crank radius' rate jumps (or 0.0: the shaft stopped); the mode is chosen
+        from the state (choose_mode). trigger is the switch that ended the last segment
+        (None: any other restart). equation is the one at the stroke there.
         """
         old_rate = self.offset_rate
         gap = self.offset_command - offset
         rate = math.copysign(self.offset_rate_limit, gap) if gap else 0.0
         self.start_ramps(time, reference, offset)
+        ram_stroke = self.stroke
+        if stroke is None:
+            stroke = ram_stroke.at(time)
+        old_radius_rate = ram_stroke.radius_motion(stroke, ram_stroke.rate_before(time))[1]
+        _, radius_rate, radius_acceleration = ram_stroke.radius_motion(
+            stroke, ram_stroke.begin(time, stroke))
         angle = wrap_angle(angle)
-        if rate != old_rate:
-            speed = equation.speed_after_rate_jump(offset, angle, speed, old_rate, rate)
+        if rate != old_rate or radius_rate != old_radius_rate:
+            speed = equation.speed_after_rate_jump(offset, angle, speed, old_rate, rate,
+                                                   old_radius_rate, radius_rate)
         self.offset_rate = rate
-        chain = equation.chain(offset, angle, speed, rate)
+        chain = equation.chain(offset, angle, speed, rate, radius_rate, radius_acceleration)
         self.half_work = 0.5 * equation.loads.cutting_length
         if trigger is not None and self.spin and (
                 sign(speed) != self.spin
@@ -141,7 +153,8 @@ class SegmentPlan:
             trigger = SPIN
         if trigger == SPIN:
             speed = 0.0
-            chain = equation.chain(offset, angle, speed, rate)
+            chain = equation.chain(offset, angle, speed, rate, radius_rate,
+                                   radius_acceleration)
         return angle, speed, self.choose_mode(equation, chain, angle, speed, reference, trigger)
 
     def choose_mode(self, equation: EquationOfMotion, chain: Chain, angle: float, speed: float,
@@ -184,7 +197,8 @@ class SegmentPlan:
 
     def breakpoint(self, time: float) -> float:
         """Next time (s) a ramp ends after time, where the right-hand side has a kink."""
-        ends = [end for end in (self.reference_end, self.offset_end) if end > time]
+        ends = [end for end in (self.reference_end, self.offset_end, self.stroke.end)
+                if end > time]
         return min(ends, default=math.inf)
 
 
@@ -230,8 +244,12 @@ def segment_functions(plan: SegmentPlan, equation: EquationOfMotion) -> SegmentF
     stiffness, limit = (0.0, 0.0) if motor is None else (motor.speed_stiffness,
                                                          motor.max_torque)
     direction, spin, half_work = plan.direction, plan.spin, plan.half_work
+    # The stroke screw moving the crank pin: the chain written out at r(t) (motor_stroke).
+    moving = plan.stroke.moving
+    motion_at = (moving_radius_motion(plan.stroke, equation.lean_constants, rate, load)
+                 if moving else None)
     switch_angles = (equation.switch_angles(segment_offset) if spin and rate == 0.0
-                     else None)
+                     and not moving else None)
     work_sign = 1 if plan.in_work else -1
     cutting = equation.loads.cutting_force > 0.0
 
@@ -251,12 +269,14 @@ def segment_functions(plan: SegmentPlan, equation: EquationOfMotion) -> SegmentF
         else:
             torque = held_torque
         offset = target if time >= offset_end else offset_at(time)
+        if motion_at is not None:  # the crank radius moves: M theta'' = T_m - b (r', r'')
+            return motion_at(time, offset, angle, speed, torque)[0]
         return kernel(constants, offset, angle, speed, rate, torque, load)
 
-    # The solver's times are never before the segment's start: with both ramps ended by
+    # The solver's times are never before the segment's start: with the ramps ended by
     # then, the reference is the command and the offset its target throughout, and the
     # right-hand side is acceleration's steady branch, written out.
-    if max(reference_end, offset_end) > start:
+    if max(reference_end, offset_end, plan.stroke.end) > start:
         def rhs(time, y):
             """Right-hand side for DOP853 (y an array: its values go on as floats)."""
             angle, speed = y.tolist()
@@ -284,7 +304,10 @@ def segment_functions(plan: SegmentPlan, equation: EquationOfMotion) -> SegmentF
         if not ram:
             return [1.0, 1.0, torque_margin, spin * speed]
         offset = target if time >= offset_end else offset_at(time)
-        position, velocity = ram_motion(offset, angle, speed, rate)
+        if motion_at is None:
+            position, velocity = ram_motion(offset, angle, speed, rate)
+        else:
+            _, position, velocity = motion_at(time, offset, angle, speed, 0.0)
         return [direction * velocity,
                 (half_work - abs(position)) * work_sign if cutting else 1.0,
                 torque_margin, spin * speed]

@@ -48,8 +48,9 @@ from qrm_ros.core.motor_integration import Observer, Piece, SegmentIntegration
 from qrm_ros.core.motor_kernel_loading import COMPILED_MOTOR_KERNEL
 from qrm_ros.core.motor_segment import (Segment, segment_functions, SegmentFunctions,
                                         SegmentPlan)
+from qrm_ros.core.motor_stroke import MovingStroke, StrokeSegment
 from qrm_ros.core.stepping import checked_limits, wrap_angle
-from qrm_ros.core.stroke_adjustment import fixed_stroke, HeldStroke, StrokeRamp
+from qrm_ros.core.stroke_adjustment import fixed_stroke, StrokeRamp
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
 
 __all__ = ['MAX_PIECES_PER_STAMP', 'MotorStepper', 'PlanViews', 'Simulation', 'simulate']
@@ -119,26 +120,30 @@ class PlanViews:
         return self._plan.offset_rate_limit
 
 
-class MotorStepper(HeldStroke, PlanViews):
+class MotorStepper(MovingStroke, PlanViews):
     """
     The mechanism under a motor drive: the input speed is a state of the equation of motion.
 
     Interface and stamp rules as ``stepping.ShaperStepper``'s (integer-ns stamps, commands
     from the present stamp, time resets, wrapped angle); the speed command ramps into the
-    motor's speed reference. An offset-rate jump is an impulse on the offset only: the
-    input's generalised momentum is kept, its speed jumps. Integration and the stall rule:
-    the module's docstring. motor=None runs the shaft free (no motor torque). Stroke: held.
+    motor's speed reference. An offset-rate or crank-radius-rate jump is an impulse on the
+    offset or the crank pin only: the input's generalised momentum is kept, its speed jumps.
+    Integration and the stall rule: the module's docstring. motor=None runs the shaft free
+    (no motor torque). Stroke: motor_stroke.MovingStroke; it moves with the shaft at rest
+    too (the screw is the operator's), the crank radius a prescribed motion.
     """
 
     def __init__(self, geometry: Geometry, mass: dyn.MassProperties, loads: dyn.Loads,
                  motor: Optional[dyn.MotorDrive], input_speed: float, offset: float,
                  input_acceleration_limit: float, offset_rate_limit: float,
                  stroke: Optional[StrokeRamp] = None) -> None:
-        self._geometry = geometry = self._take_stroke(stroke or fixed_stroke(geometry))
+        self._stroke = stroke = stroke or fixed_stroke(geometry)
+        self._geometry = geometry = stroke.geometry
         self._plan = SegmentPlan(
             positive('input_acceleration_limit', input_acceleration_limit, 'rad/s^2'),
-            positive('offset_rate_limit', offset_rate_limit, 'm/s'))
-        self._equation = EquationOfMotion(geometry, mass, loads, motor)
+            positive('offset_rate_limit', offset_rate_limit, 'm/s'),
+            StrokeSegment(float(geometry.pivot_distance), float(geometry.ram_height)))
+        self._equation = EquationOfMotion(geometry, mass, loads, motor, stroke.command)
         COMPILED_MOTOR_KERNEL.start_loading()
         self.time_resets = 0
         self.integration_cutoffs = 0
@@ -160,8 +165,9 @@ class MotorStepper(HeldStroke, PlanViews):
             return
         angle, speed = self._angle, self._speed
         reference, offset = plan.reference_at(self._time), plan.offset_at(self._time)
+        stroke = plan.stroke.at(self._time)
         change()
-        self._start(self._time, angle, speed, reference, offset, None)
+        self._start(self._time, angle, speed, reference, offset, None, stroke)
 
     def set_dynamics(self, mass: Optional[dyn.MassProperties] = None,
                      loads: Optional[dyn.Loads] = None,
@@ -170,7 +176,8 @@ class MotorStepper(HeldStroke, PlanViews):
         old = self._equation
         new = (old.mass if mass is None else mass, old.loads if loads is None else loads,
                old.motor if motor is None else motor)
-        self._changed(lambda: setattr(self, '_equation', EquationOfMotion(self._geometry, *new)))
+        self._changed(lambda: setattr(self, '_equation', EquationOfMotion(
+            self._geometry, *new, self._stroke.command)))
 
     def set_speed_command(self, input_speed: float) -> None:
         """Command the input speed (rad/s): the motor's reference ramps to it."""
@@ -196,10 +203,10 @@ class MotorStepper(HeldStroke, PlanViews):
     def reset(self, input_speed: float, offset: float, *,
               stroke_length: Optional[float] = None) -> None:
         """Input angle to zero; speed, reference and offset set at once; new time base next."""
-        self._held_stroke(stroke_length)
         input_speed = finite('input_speed', input_speed, 'rad/s')
         offset = float(check_offset(self._geometry, offset))
         self._plan.reset(input_speed, offset)
+        self._reset_stroke(stroke_length)
         self._angle, self._speed = 0.0, input_speed
         self._stamp_ns: Optional[int] = None
         self._base_ns = 0
@@ -239,22 +246,33 @@ class MotorStepper(HeldStroke, PlanViews):
     # Segments -----------------------------------------------------------------------------
 
     def _new_base(self, stamp_ns: int) -> None:
+        """Start a new time base at stamp_ns from the state at the present time (self._time).
+
+        The ramps carry on from where they are: the offset and the speed reference in force,
+        not the segment's start values (a ramping offset must not jump back).
+        """
+        plan = self._plan
+        reference, offset = plan.reference_at(self._time), plan.offset_at(self._time)
         self._stamp_ns = self._base_ns = stamp_ns
         self._time = 0.0
         self._piece = (0.0, 0.0, None)  # type: ignore[assignment]
-        self._start(0.0, self._angle, self._speed, self._plan.reference_at(None),
-                    self._plan.offset_at(None), None)
+        self._start(0.0, self._angle, self._speed, reference, offset, None,
+                    self._stroke.stroke)
 
     def _start(self, time: float, angle: float, speed: float, reference: float, offset: float,
-               trigger: Optional[int]) -> None:
+               trigger: Optional[int], stroke: float) -> None:
         """Start a segment at time with this state; choose its mode from the state."""
         self._acceleration_now = None
         # A command's restart from the present stamp replaces a switch found ahead, and the
         # pieces made ahead of the stamps.
         self._integration = None
+        ram_stroke = self._stroke
+        ram_stroke.move_to(stroke)
+        self._take_geometry(ram_stroke.geometry)
         plan, equation = self._plan, self._equation
+        plan.stroke.take(ram_stroke.command, ram_stroke.rate_limit)
         angle, speed, self._stall_reason = plan.begin(equation, time, angle, speed, reference,
-                                                      offset, trigger)
+                                                      offset, trigger, stroke)
         self._angle, self._speed = angle, speed
         if plan.spin == 0:
             self._piece = (time, math.inf, None)  # type: ignore[assignment]  # resting
@@ -282,7 +300,7 @@ class MotorStepper(HeldStroke, PlanViews):
         # direction).
         time, angle, speed, kind = integration.restart()
         self._start(time, angle, speed, self._plan.reference_at(time),
-                    self._plan.offset_at(time), kind)
+                    self._plan.offset_at(time), kind, self._plan.stroke.at(time))
 
     # Stepping -----------------------------------------------------------------------------
 
@@ -299,14 +317,17 @@ class MotorStepper(HeldStroke, PlanViews):
             self.time_resets += 1
             self._new_base(stamp_ns)
             return
+        if self._stroke_changed():  # set on the StrokeRamp: from the last stamp on
+            self._changed(lambda: None)
         self._stamp_ns = stamp_ns
         time = (stamp_ns - self._base_ns) / NANOSECONDS_PER_SECOND
         self._time = time
         self._acceleration_now = None
         plan = self._plan
         if plan.spin == 0:
-            # At rest: the reference may have ramped; re-check the stall rule now.
-            self._start(time, self._angle, 0.0, plan.reference_at(time), plan.offset, None)
+            # At rest: the reference and the stroke may have ramped; re-check the stall rule.
+            self._start(time, self._angle, 0.0, plan.reference_at(time), plan.offset, None,
+                        plan.stroke.at(time))
             return
         pieces = 0
         while self._piece[1] < time:
@@ -317,6 +338,7 @@ class MotorStepper(HeldStroke, PlanViews):
             pieces += 1
             if plan.spin == 0 and self._piece[1] == math.inf:
                 break
+        self._stroke.move_to(plan.stroke.at(time))
         at = self._piece[2]
         if at is None:
             return  # resting, or the segment starts exactly here
@@ -329,13 +351,16 @@ class MotorStepper(HeldStroke, PlanViews):
         if at is not None:
             angle, speed = at(end)
             self._angle, self._speed = wrap_angle(angle), speed
+        self._stroke.move_to(self._plan.stroke.at(end))  # held where the state was reached
         self.integration_cutoffs += 1
+        self._time = end
         self._new_base(stamp_ns)
 
     def mechanism_state(self) -> MechanismState:
         """Return the kinematics core's exact state (MechanismState) at the present stamp."""
-        return state(self._geometry, self.offset, self._angle, self._speed,
-                     self.input_acceleration, self.offset_rate)
+        stroke = self._stroke
+        return state(stroke.geometry, self.offset, self._angle, self._speed,
+                     self.input_acceleration, self.offset_rate, *stroke.crank_radius_rates())
 
     def advance_to(self, stamp_ns: int) -> MechanismState:
         """Step to stamp_ns (int nanoseconds) and return the mechanism's state there."""
@@ -347,7 +372,9 @@ class MotorStepper(HeldStroke, PlanViews):
         arguments = (self.offset, self._angle, self._speed, self.input_acceleration,
                      self.offset_rate, self._plan.load)
         compiled = COMPILED_MOTOR_KERNEL.module
-        if compiled is None:
+        if self._radius_moved():
+            found = self._moving_radius_efforts(*arguments)
+        elif compiled is None:
             found = dyn.Efforts(*lean_efforts_of(self._equation.lean_constants, *arguments))
         else:
             found = dyn.Efforts(*compiled.lean_efforts(self._equation.lean_array, *arguments))

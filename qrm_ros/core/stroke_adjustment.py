@@ -27,7 +27,7 @@ and every joint stays continuous. The machine's slot bounds the radius: 0 < r <=
 max_crank_radius < pivot_distance. numpy only.
 """
 
-import dataclasses
+import copy
 import math
 from typing import Optional, Tuple
 
@@ -36,7 +36,7 @@ from qrm_ros.core.geometry import (crank_radius_for_stroke, Geometry,
                                    stroke_for_crank_radius)
 from qrm_ros.core.ramps import ramp
 
-__all__ = ['DEFAULT_STROKE_RATE_LIMIT', 'HeldStroke', 'StrokeRamp', 'check_max_crank_radius',
+__all__ = ['DEFAULT_STROKE_RATE_LIMIT', 'StrokeRamp', 'check_max_crank_radius',
            'check_stroke', 'crank_radius_motion', 'fixed_stroke', 'largest_stroke']
 
 DEFAULT_STROKE_RATE_LIMIT = 0.01  # m/s of stroke: about 10 s for a 100 mm change by hand
@@ -129,6 +129,17 @@ class StrokeRamp:
         self._stroke = self._command = self.check(stroke)
         self._update_geometry()
 
+    def move_to(self, stroke: float) -> None:
+        """
+        Take the stroke (m) a stepper reached on its own ramp (the motor stepper's).
+
+        The same ramp as advance's, timed from the stepper's segment: stroke lies between
+        the stroke in force and the command.
+        """
+        if stroke != self._stroke:
+            self._stroke = stroke
+            self._update_geometry()
+
     def _base_stroke(self) -> float:
         return float(self._base.ram_stroke)
 
@@ -154,7 +165,12 @@ class StrokeRamp:
         radius = float(crank_radius_for_stroke(stroke, base.pivot_distance, base.ram_height))
         if known is not None and radius == known.crank_radius:
             return known
-        return dataclasses.replace(base, crank_radius=radius)
+        # The base is a checked geometry of floats and the radius a checked stroke's (0 < r
+        # <= max_crank_radius < pivot_distance): a copy with the radius set skips Geometry's
+        # checks, most of a tick's cost while the stroke moves (each tick a new radius).
+        geometry = copy.copy(base)
+        object.__setattr__(geometry, 'crank_radius', radius)
+        return geometry
 
     @property
     def base_stroke(self) -> float:
@@ -210,42 +226,3 @@ def fixed_stroke(geometry: Geometry) -> StrokeRamp:
     """Return a stroke held at the geometry's (the slot ends at its crank radius)."""
     return StrokeRamp(geometry, float(geometry.crank_radius), float(geometry.ram_stroke),
                       DEFAULT_STROKE_RATE_LIMIT)
-
-
-class HeldStroke:
-    """
-    A stepper whose ram stroke is held (the motor stepper): it runs at any stroke.
-
-    The stroke changes under the speed drive only: another stroke is refused with a reason.
-    """
-
-    _stroke: StrokeRamp
-
-    def _take_stroke(self, stroke: StrokeRamp) -> Geometry:
-        """Hold stroke (a still one); return the geometry with its crank radius."""
-        self._stroke = stroke
-        self._held_stroke(stroke.command)
-        return stroke.geometry
-
-    def _held_stroke(self, stroke_length: Optional[float]) -> None:
-        """Refuse a stroke other than the one in force, or a stroke still moving."""
-        stroke = self._stroke
-        if stroke_length is not None and (stroke_length != stroke.stroke
-                                          or stroke.command != stroke.stroke):
-            raise KinematicsError(
-                f'stroke_length {stroke_length!r} m refused: the motor drive holds the stroke '
-                f'in force ({stroke.stroke:.6g} m); change the stroke under drive speed')
-
-    def set_stroke_command(self, stroke_length: float) -> None:
-        """Refuse a stroke change (KinematicsError): the stroke is held."""
-        self._held_stroke(stroke_length)
-
-    @property
-    def stroke(self) -> StrokeRamp:
-        """The ram stroke in force (held) and the crank radius."""
-        return self._stroke
-
-    @property
-    def geometry(self) -> Geometry:
-        """The geometry, with the crank radius of the held stroke."""
-        return self._stroke.geometry

@@ -90,6 +90,7 @@ class _Markers:
 
     def __init__(self, geometry):
         self.sizes = sizes = linkage_sizes(geometry)
+        self.stroke = float(geometry.ram_stroke)  # m, shown in the label
         self.header = header = Header()
         h = geometry.pivot_distance
         width = sizes.bar_width
@@ -168,9 +169,10 @@ def _ratios(geometry, offset, direction):
             kin.speed_ratio(geometry, offset, direction))
 
 
-def label_text(offset, time_ratio, speed_ratio):
-    """Return the label's text: the offset in force and the theory ratios there."""
-    return f'offset {offset * 1e3:+.2f} mm\nTR {time_ratio:.4f}  SR {speed_ratio:.4f}'
+def label_text(offset, time_ratio, speed_ratio, stroke=None):
+    """Return the label's text: the offset and stroke (m) in force, the theory ratios there."""
+    text = f'offset {offset * 1e3:+.2f} mm\nTR {time_ratio:.4f}  SR {speed_ratio:.4f}'
+    return text if stroke is None else f'{text}\nstroke {stroke * 1e3:.2f} mm'
 
 
 def linkage_marker_array(geometry, offset, input_angle, stamp, frame_id, *, input_speed=1.0,
@@ -218,7 +220,8 @@ def linkage_marker_array(geometry, offset, input_angle, stamp, frame_id, *, inpu
     else:
         built.array.markers[_WORKPIECE] = built.no_workpiece
     direction = -1.0 if input_speed < 0.0 else 1.0
-    built.label.text = label_text(offset, *_ratios(geometry, offset, direction))
+    built.label.text = label_text(offset, *_ratios(geometry, offset, direction),
+                                  built.stroke)
     return built.moving if moving_only else built.array
 
 

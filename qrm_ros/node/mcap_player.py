@@ -26,7 +26,9 @@ Files are read by qrm_ros.recording.bag_reader: recordings of mcap_recorder, qrm
 rosbag2 (``ros2 bag record -s mcap``); a damaged part is skipped and reported, the rest plays.
 """
 
+from array import array
 import importlib
+import sys
 import threading
 import time
 from typing import Any, Dict, Iterator, List, NamedTuple, Optional, Sequence
@@ -42,14 +44,19 @@ from rosgraph_msgs.msg import Clock
 from std_srvs.srv import Trigger
 import yaml
 
-__all__ = ['ACK_TIMEOUT', 'BUSY_WAIT_NS', 'CLOCK_QOS', 'DEFAULT_CLOCK_RATE', 'McapPlayer',
-           'PLAYER_DEPTH', 'PLAYER_NODE_NAME', 'PlayOptions', 'PlaybackError', 'message_class',
-           'played_qos']
+__all__ = ['ACK_TIMEOUT', 'BUSY_WAIT_NS', 'CLOCK_QOS', 'DEFAULT_CLOCK_RATE',
+           'GIL_SWITCH_INTERVAL', 'McapPlayer', 'PLAYER_DEPTH', 'PLAYER_NODE_NAME', 'PlayOptions',
+           'PlaybackError', 'TIMING_SAMPLES', 'message_class', 'played_qos']
 
 PLAYER_NODE_NAME = 'mcap_player'
 # The last stretch of a wait (ns) is spun, not slept: a sleep overshoots by up to a
 # millisecond or more on a loaded machine, a spin by microseconds.
 BUSY_WAIT_NS = 2_000_000
+# s: the longest the service thread may hold the GIL while a message is due (Python's
+# default, 5 ms, would let it delay a message by that much).
+GIL_SWITCH_INTERVAL = 1e-4
+# Messages whose send lateness is kept for timing_summary (8 bytes each; the first ones).
+TIMING_SAMPLES = 100_000
 # Longest single sleep (s): a stop request or a pause is seen within it.
 SLEEP_SLICE = 0.05
 # History depth of a topic whose recorded depth is unknown (discovery does not tell it).
@@ -127,6 +134,10 @@ class McapPlayer(Node):
         self.losses: List[Loss] = []
         self.skipped: Dict[str, str] = {}  # topic -> why it is not played
         self.published = 0
+        # ns each message was handed to its publisher after its due time (the first
+        # TIMING_SAMPLES): the player's own timing, apart from the transport's and the
+        # receiver's.
+        self.lateness_ns = array('q')
         self._topic_publishers: Dict[str, Any] = {}
         self._playback_state = threading.Condition()
         self._paused = options.start_paused
@@ -259,6 +270,8 @@ class McapPlayer(Node):
 
         stop: a stop request, truthy once asked (ros_process.StopRequest).
         """
+        if sys.getswitchinterval() > GIL_SWITCH_INTERVAL:
+            sys.setswitchinterval(GIL_SWITCH_INTERVAL)
         rate = self.options.rate
         delay_ns = round(self.options.delay * NANOSECONDS_PER_SECOND)
         # [wall origin of the recorded first message, next /clock time]: moved by pauses.
@@ -272,6 +285,9 @@ class McapPlayer(Node):
                 target = origin[0] + round((message.log_time - first_log_ns) / rate)
                 if not self._wait_until(target, stop, origin, first_log_ns, message.log_time):
                     return False
+                if len(self.lateness_ns) < TIMING_SAMPLES:  # against the target a pause moved
+                    self.lateness_ns.append(time.perf_counter_ns() - origin[0] - round(
+                        (message.log_time - first_log_ns) / rate))
                 self._topic_publishers[message.topic].publish(message.data)
                 self.published += 1
             if not self.options.loop or first_log_ns is None or stop:
@@ -280,6 +296,16 @@ class McapPlayer(Node):
                 return not stop
             origin[0] = time.perf_counter_ns()
             self.losses = []  # counted once, not per loop
+
+    def timing_summary(self) -> Optional[str]:
+        """Say how late the messages were sent (median, 99th percentile, ms); None if none."""
+        lateness = sorted(self.lateness_ns)
+        if not lateness:
+            return None
+        median = lateness[len(lateness) // 2] / 1e6
+        p99 = lateness[min(len(lateness) - 1, round(0.99 * (len(lateness) - 1)))] / 1e6
+        return (f'sent after their recorded time by {median:.3f} ms (median), {p99:.3f} ms '
+                f'(99th percentile) over {len(lateness)} messages')
 
     def wait_for_acknowledgements(self) -> None:
         """Wait (at most ACK_TIMEOUT) until reliable subscribers have every message."""

@@ -16,24 +16,26 @@ shaper_sim run offline, as fast as the CPU allows: the node itself, ticked by a 
 
 Nothing of the node is copied. The simulator is ShaperSimNode, started with use_sim_time and
 with publishers that write each message, serialized by rclpy, into the run file (the
-recorder's own McapRunFile) instead of sending it over DDS. A loop sets the node's clock to
-each tick's stamp and calls the node's timer callback, so the steppers, the efforts, the
-stroke measurement, the diagnostics and the markers are the node's; a scenario's events go in
+recorder's own McapRunFile) instead of sending it over DDS. A loop calls, at each tick's
+stamp, what the node's timer callback calls at its clock's time (publish_at), so the
+steppers, the efforts, the stroke measurement, the diagnostics and the markers are the
+node's; a scenario's events go in
 between the ticks through the node's own paths: its parameter changes (judged by its rules,
 with a /parameter_events message each), its speed-command subscription, its pause and reset
 services. The channels carry the QoS and type hash the recorder would find for the node's
 publishers, the metadata the records it would read from the node's parameters, and the
 machine is written beside the joint states by the recorder's own MachineChannels. What differs
 from a live recording: the log time of each message is the simulated time it was sent at,
-not a wall-clock receive time, and a stroke pair's report waits for its effort theory (the
-live node reports 'pending' while the theory is worked out).
+not a wall-clock receive time, and a stroke pair's report carries its effort theory, worked
+out in the loop's own thread (the live node reports 'pending' while its worker process
+works it out).
 """
 
 from collections import deque
 import functools
 import os
 import time
-from typing import Callable, Dict, NamedTuple, Optional, Sequence
+from typing import Any, Callable, Dict, NamedTuple, Optional, Sequence
 
 from qrm_ros.core.motor_kernel_loading import COMPILED_MOTOR_KERNEL
 from qrm_ros.core.motor_stepper import MotorStepper
@@ -59,7 +61,8 @@ from std_srvs.srv import SetBool, Trigger
 __all__ = ['OfflineShaperSim', 'RecordingPublisher', 'Simulation', 'SimulationSummary',
            'THEORY_TIMEOUT', 'summary_line']
 
-# s a stroke pair's report waits for its effort theory (worked out in a worker process).
+# s a live node's stroke-pair report may wait for its effort theory (worked out in a worker
+# process) where it is to match an offline run's, which works it out in its own thread.
 THEORY_TIMEOUT = 120.0
 # s a motor-drive run waits for the motor's compiled forms before its first tick.
 KERNEL_LOAD_TIMEOUT = 30.0
@@ -68,16 +71,16 @@ CHUNK_DURATION_NS = NANOSECONDS_PER_SECOND
 
 
 class RecordingPublisher(Publisher):
-    """A publisher of the offline node: each message goes, serialized, to `write`."""
+    """A publisher of the offline node: each message goes to `write`, which serializes it."""
 
     # Set once the run file has the topic's channel; until then messages are dropped (the
     # parameter declarations, as a recorder that starts after the node misses them).
-    write: Optional[Callable[[bytes], None]] = None
+    write: Optional[Callable[[Any], None]] = None
 
     def publish(self, msg) -> None:
         write = self.write
         if write is not None:
-            write(msg if isinstance(msg, bytes) else serialize_message(msg))
+            write(msg)
 
 
 class OfflineShaperSim(ShaperSimNode):
@@ -135,7 +138,7 @@ class Simulation:
         try:
             self._node = node = OfflineShaperSim(markers=markers, context=context,
                                                  parameter_overrides=overrides)
-            node.stroke_pairs.theory_timeout = THEORY_TIMEOUT
+            node.stroke_pairs.theory_in_this_thread = True
             clock = node.get_clock()
             assert isinstance(clock, ROSClock)  # a node's clock is; use_sim_time drives it
             self._clock = clock
@@ -193,14 +196,24 @@ class Simulation:
                 if isinstance(publisher, RecordingPublisher) and publisher.topic_name == resolved:
                     publisher.write = functools.partial(write, channel)
 
-    def _write(self, channel: int, data: bytes) -> None:
+    def _write(self, channel: int, message: Any) -> None:
         now = self._now_ns
+        data = message if isinstance(message, bytes) else serialize_message(message)
         self._run_file.add_message(channel, now, now, data)  # type: ignore[union-attr]
 
-    def _write_joint_state(self, channel: int, data: bytes) -> None:
+    def _write_joint_state(self, channel: int, message: Any) -> None:
         now = self._now_ns
+        if isinstance(message, bytes):
+            data = message
+            self._run_file.add_message(channel, now, now, data)  # type: ignore[union-attr]
+            self._machine.joint_state(now, now, data)
+            return
+        data = serialize_message(message)
         self._run_file.add_message(channel, now, now, data)  # type: ignore[union-attr]
-        self._machine.joint_state(now, now, data)
+        # The machine's transforms from the message's own values: no decoding of data.
+        stamp = message.header.stamp
+        self._machine.joint_state_values(now, now, data, stamp.sec, stamp.nanosec,
+                                         message.name, message.position)
 
     def _set_clock(self, stamp_ns: int) -> None:
         self._now_ns = stamp_ns
@@ -255,16 +268,25 @@ class Simulation:
             COMPILED_MOTOR_KERNEL.start_loading()  # once per process: started already
             COMPILED_MOTOR_KERNEL.loaded.wait(KERNEL_LOAD_TIMEOUT)
         progress_every = max(1, round(NANOSECONDS_PER_SECOND / stamps.step))
-        on_timer, wait_for_reports, set_clock = (node.on_timer, node.wait_for_pair_reports,
-                                                 self._set_clock)
-        ticks, stopped = 0, False
+        publish_at, wait_for_reports, set_clock = (node.publish_at, node.wait_for_pair_reports,
+                                                   self._set_clock)
+        ticks, stopped, clock_ns = 0, False, start_ns
         started = time.perf_counter()
         try:
             for stamp_ns in stamps:
-                while events and events[0][0] <= stamp_ns:
-                    self._apply(events.popleft()[1])
-                set_clock(stamp_ns)
-                on_timer()
+                if events and events[0][0] <= stamp_ns:
+                    set_clock(clock_ns)  # the events come at the last tick's time
+                    while events and events[0][0] <= stamp_ns:
+                        self._apply(events.popleft()[1])
+                clock_ns = self._now_ns = stamp_ns
+                if node.paused:
+                    set_clock(stamp_ns)
+                    node.on_timer()
+                else:
+                    # What the timer's callback does at the clock's time, with the time
+                    # given: the node's clock is set only where something reads it (the
+                    # events, a paused tick), which the ticks do not.
+                    publish_at(stamp_ns)
                 wait_for_reports()
                 ticks += 1
                 if stop:
@@ -273,6 +295,7 @@ class Simulation:
                 if progress is not None and ticks % progress_every == 0:
                     progress((stamp_ns - start_ns) / NANOSECONDS_PER_SECOND)
             loop_seconds = time.perf_counter() - started
+            set_clock(clock_ns)
             node.wait_for_pair_reports()
         except BaseException:
             self.close(keep=False)

@@ -66,7 +66,7 @@ def _parameter_descriptor(name: str, view: View, geometry: Geometry) -> Paramete
     descriptor = ParameterDescriptor(
         name=name, description=f'{spec.description}{unit}', read_only=spec.read_only,
         additional_constraints=f'allowed: {allowed_text(name, view)}')
-    bounds = spec.rule.descriptor_bounds(geometry)
+    bounds = spec.rule.descriptor_bounds(geometry, view)
     if bounds is not None:
         descriptor.floating_point_range = [
             FloatingPointRange(from_value=bounds[0], to_value=bounds[1], step=0.0)]

@@ -30,8 +30,7 @@ from qrm_ros.core.names import DRIVES, MOTOR_PREFIX
 from qrm_ros.core.physical_ranges import (MAX_INPUT_SPEED, MAX_MAGNITUDES, MIN_INPUT_SPEED,
                                           motor_speed_band_problem, motor_time_constant_problem)
 from qrm_ros.node.stroke_rules import (commanded_geometry, commanded_stroke,
-                                       drive_waits_for_stroke, one_hold_at_a_time,
-                                       slot_holds_crank, stroke_held_by_motor,
+                                       one_hold_at_a_time, slot_holds_crank,
                                        stroke_holds_workpiece, StrokeLengthRange,
                                        time_ratio_reachable)
 
@@ -90,7 +89,7 @@ class DoubleRange(NamedTuple):
     low: float
     high: float
 
-    def descriptor_bounds(self, geometry):
+    def descriptor_bounds(self, geometry, view=None):
         return self.low, self.high
 
     def allowed(self, unit, view):
@@ -111,7 +110,7 @@ class SymmetricRange(NamedTuple):
         limit = self.limit(view)
         return -limit, limit
 
-    def descriptor_bounds(self, geometry):
+    def descriptor_bounds(self, geometry, view=None):
         if not self.fixed_by_geometry:
             return None
         return self.bounds(View({}, geometry, 0.0))
@@ -129,7 +128,7 @@ class PositiveLength(NamedTuple):
 
     extra: str = ''
 
-    def descriptor_bounds(self, geometry):
+    def descriptor_bounds(self, geometry, view=None):
         return None
 
     def allowed(self, unit, view):
@@ -152,7 +151,7 @@ class AtLeast(NamedTuple):
     strict: bool = False
     magnitude: Optional[float] = None
 
-    def descriptor_bounds(self, geometry):
+    def descriptor_bounds(self, geometry, view=None):
         return None
 
     def allowed(self, unit, view):
@@ -183,7 +182,7 @@ class OffOrRange(NamedTuple):
     low: float
     high: float
 
-    def descriptor_bounds(self, geometry):
+    def descriptor_bounds(self, geometry, view=None):
         return 0.0, self.high
 
     def allowed(self, unit, view):
@@ -199,7 +198,7 @@ class OffOrRange(NamedTuple):
 class NonEmptyText(NamedTuple):
     """A non-blank string that a message can carry whole (frame ids): no NUL or control."""
 
-    def descriptor_bounds(self, geometry):
+    def descriptor_bounds(self, geometry, view=None):
         return None
 
     def allowed(self, unit, view):
@@ -218,7 +217,7 @@ class OneOf(NamedTuple):
 
     choices: Tuple[str, ...]
 
-    def descriptor_bounds(self, geometry):
+    def descriptor_bounds(self, geometry, view=None):
         return None
 
     def allowed(self, unit, view):
@@ -271,6 +270,17 @@ def _target_reachable(value, view):
                               view.values['cutting_speed_definition'])
 
 
+def _judges_changes_only(check):
+    """Mark CHECK as one that judges a live change only, not a start-up value.
+
+    Who commands the offset is a question for a change: at start-up coupling_offset is where
+    the offset starts, and a hold set beside it commands the offset from there.
+    """
+    check.changes_only = True
+    return check
+
+
+@_judges_changes_only
 def _offset_by_hand(value, view):
     target = view.values['cutting_speed_target']
     if target == 0.0:
@@ -280,6 +290,7 @@ def _offset_by_hand(value, view):
             'one atomic call)')
 
 
+@_judges_changes_only
 def _offset_by_time_ratio(value, view):
     target = view.values['time_ratio_target']
     if target == 0.0:
@@ -316,7 +327,9 @@ PARAMETERS = {
     'coupling_offset': ParameterSpec(
         0.0, 'm', 'Commanded coupling offset (input shaft above the flywheel axis when > 0). '
         'The offset in force moves toward it at offset_rate_limit. |offset| <= '
-        '0.9 * coupling_radius (the coupling locks at coupling_radius).', False,
+        '0.9 * coupling_radius (the coupling locks at coupling_radius). While a hold '
+        '(cutting_speed_target, time_ratio_target) commands the offset it is refused live; '
+        'at start-up it is where the offset starts, and the hold moves it from there.', False,
         SymmetricRange(
             lambda view: float(view.geometry.max_safe_offset),
             lambda view: ('|offset| <= max_safe_offset = 0.9 x coupling_radius '
@@ -453,7 +466,7 @@ PARAMETERS['drive'] = ParameterSpec(
     "it must supply); 'motor', a motor whose torque follows its speed error "
     "(motor_speed_stiffness, up to motor_max_torque), so the input speed follows the "
     'equation of motion and fluctuates with the load. Live: the switch keeps the state.',
-    False, OneOf(DRIVES), (drive_waits_for_stroke,),
+    False, OneOf(DRIVES),
     apply=lambda node, value: node.set_drive(value))
 PARAMETERS.update({
     'max_crank_radius': ParameterSpec(
@@ -465,10 +478,10 @@ PARAMETERS.update({
         0.0, 'm', 'Commanded ram stroke (the stroke-adjust screw). The crank radius in force '
         'moves toward the one that gives it, r = S h / sqrt(4 H^2 + S^2), at '
         'stroke_rate_limit; 0 means the stroke of crank_radius (which only sets the radius '
-        'at start-up: from there this is the one command). Not below cutting_length; under '
-        'drive motor the stroke is held. The time-ratio and cutting-speed holds follow it.',
+        'at start-up: from there this is the one command). Not below cutting_length; live '
+        'under either drive. The time-ratio and cutting-speed holds follow it.',
         False,
-        StrokeLengthRange(), (stroke_holds_workpiece, stroke_held_by_motor),
+        StrokeLengthRange(), (stroke_holds_workpiece,),
         apply=lambda node, value: node.command_stroke()),
     'stroke_rate_limit': ParameterSpec(
         0.01, 'm/s', 'Speed at which the stroke screw moves the ram stroke toward '
@@ -512,6 +525,8 @@ def refusal_reason(name, value, view, starting=False):
     if problem:
         return refused + problem
     for check in spec.checks:
+        if starting and getattr(check, 'changes_only', False):
+            continue
         problem = check(value, view)
         if problem:
             return f'{refused}{problem} (allowed range {allowed_text(name, view)})'

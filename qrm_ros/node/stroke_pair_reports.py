@@ -77,6 +77,9 @@ class StrokePairReports:
         # s a report waits for its effort theory; None: not at all (the live node never
         # waits; an offline run does, so that its reports do not depend on the CPU's speed).
         self.theory_timeout: Optional[float] = None
+        # Whether the theory is worked out in this thread instead (an offline run, which has
+        # no tick to keep: no worker to start, and the same function it would run).
+        self.theory_in_this_thread = False
 
     @property
     def published(self) -> int:
@@ -170,8 +173,12 @@ class StrokePairReports:
         stepper, mass, loads, motor, offset, speed, geometry = setting
         wanted = Setting(geometry, mass, loads,
                          motor if isinstance(stepper, MotorStepper) else None, offset, speed)
-        theory, problem = (self._theory.lookup(wanted) if self.theory_timeout is None
-                           else self._theory.wait(wanted, self.theory_timeout))
+        if self.theory_in_this_thread:
+            theory, problem = self._theory.work_out(wanted)
+        elif self.theory_timeout is None:
+            theory, problem = self._theory.lookup(wanted)
+        else:
+            theory, problem = self._theory.wait(wanted, self.theory_timeout)
         if problem:
             return [], f'unavailable: {problem}'
         if theory is None:

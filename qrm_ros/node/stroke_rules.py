@@ -22,15 +22,15 @@ stays the one start-up value and stroke_length the one live command.
 
 import dataclasses
 import math
-from typing import Any, NamedTuple, Optional
+from typing import Any, NamedTuple, Optional, Tuple
 
 from qrm_ros.core.geometry import crank_radius_for_stroke, Geometry, KinematicsError
 from qrm_ros.core.stroke_adjustment import largest_stroke
 from qrm_ros.core.time_ratio_hold import time_ratio_unreachable_reason
 
 __all__ = ['StrokeLengthRange', 'commanded_geometry', 'commanded_stroke',
-           'drive_waits_for_stroke', 'one_hold_at_a_time', 'slot_holds_crank',
-           'stroke_held_by_motor', 'stroke_holds_workpiece', 'time_ratio_reachable']
+           'one_hold_at_a_time', 'slot_holds_crank', 'stroke_holds_workpiece',
+           'time_ratio_reachable']
 
 
 def _shown(value: float) -> str:
@@ -55,10 +55,21 @@ def commanded_geometry(view: Any) -> Geometry:
 
 
 class StrokeLengthRange(NamedTuple):
-    """0 (the stroke of crank_radius) or a stroke whose crank radius fits the slot."""
+    """
+    0 (the stroke of crank_radius) or a stroke whose crank radius fits the slot.
 
-    def descriptor_bounds(self, geometry: Geometry) -> None:
-        return None  # the range depends on max_crank_radius
+    The descriptor publishes [0, the slot's largest stroke]: 0 lies in it, and the slot
+    (max_crank_radius) is read-only, so the range holds for the node's life.
+    """
+
+    def descriptor_bounds(self, geometry: Geometry,
+                          view: Any = None) -> Optional[Tuple[float, float]]:
+        if view is None:
+            return None
+        try:
+            return 0.0, largest_stroke(geometry, view.values['max_crank_radius'])
+        except KinematicsError:  # a slot the geometry refuses (its own refusal says why)
+            return None
 
     def allowed(self, unit: str, view: Any) -> str:
         radius = view.values['max_crank_radius']
@@ -100,24 +111,6 @@ def stroke_holds_workpiece(value: float, view: Any) -> Optional[str]:
     if commanded_stroke(view) < length:
         return (f'shorter than cutting_length = {_shown(length)} m; shorten cutting_length '
                 'first (or set both in one atomic call)')
-    return None
-
-
-def stroke_held_by_motor(value: float, view: Any) -> Optional[str]:
-    """stroke_length: the motor drive holds the stroke in force."""
-    if view.values['drive'] != 'motor':
-        return None
-    in_force = view.stroke_in_force or float(view.geometry.ram_stroke)
-    if commanded_stroke(view) != in_force:
-        return (f"the motor drive holds the stroke in force ({_shown(in_force)} m); set drive "
-                "to 'speed' to change the stroke")
-    return None
-
-
-def drive_waits_for_stroke(value: Any, view: Any) -> Optional[str]:
-    """drive: no switch to the motor while the stroke moves."""
-    if value == 'motor' and view.stroke_moving:
-        return 'the stroke is still moving toward stroke_length; switch once it has arrived'
     return None
 
 

@@ -24,7 +24,7 @@ or two, which MCAP's index and every reader of it allow for.
 """
 
 from collections import deque
-from typing import Deque, Optional, Tuple
+from typing import Deque, Optional, Sequence, Tuple
 
 from qrm_ros.core.geometry import Geometry
 from qrm_ros.core.names import (ROBOT_DESCRIPTION_TOPIC, ROBOT_DESCRIPTION_TYPE, TF_MESSAGE_TYPE,
@@ -68,6 +68,25 @@ class MachineChannels:
             self._waiting.append((log_time, publish_time, data))
             return
         transforms = self._messages.transforms(data)
+        if transforms is None:
+            self.dropped += 1
+            return
+        self._run_file.add_message(self._tf_channel, log_time, publish_time, transforms)
+
+    def joint_state_values(self, log_time: int, publish_time: int, data: bytes, sec: int,
+                           nanosec: int, names: Sequence[str],
+                           positions: Sequence[float]) -> None:
+        """
+        joint_state() for a writer that holds the message's stamp and values, not only data.
+
+        The transforms are the same as joint_state() finds by decoding data (the writer's own
+        message need not be decoded again); before the geometry, data waits as there.
+        """
+        messages = self._messages
+        if messages is None:
+            self.joint_state(log_time, publish_time, data)
+            return
+        transforms = messages.joint_transforms(sec, nanosec, names, positions)
         if transforms is None:
             self.dropped += 1
             return

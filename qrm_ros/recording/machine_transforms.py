@@ -128,6 +128,19 @@ class MachineMessages:
         self._quaternion = types['geometry_msgs/msg/Quaternion']
         self._tf_message = types[TF_MESSAGE_TYPE]
         self._string = types[ROBOT_DESCRIPTION_TYPE]
+        # The moving links' TFMessage, built once; each joint state only sets its numbers
+        # (rosbags serializes what the objects hold), one caller at a time.
+        self._moving_stamp = self._time(sec=0, nanosec=0)
+        self._moving = self._tf_message(transforms=[self._stamped(
+            header=self._header(stamp=self._moving_stamp, frame_id=joint.parent),
+            child_frame_id=joint.child, transform=self._transform(
+                translation=self._vector(x=0.0, y=0.0, z=0.0),
+                rotation=self._quaternion(x=0.0, y=0.0, z=0.0, w=1.0)))
+            for joint in self._joints])
+        self._moving_lock = threading.Lock()
+        # Where each moving joint's value is in a joint state in the published order.
+        self._published_index = [PUBLISHED_JOINT_NAMES.index(joint.name)
+                                 for joint in self._joints]
 
     def definition(self, type_name: str) -> str:
         """Return the ``ros2msg`` schema text of a type written here (from rosbags)."""
@@ -177,16 +190,39 @@ class MachineMessages:
         """
         try:
             message = self._store.deserialize_cdr(joint_state, JOINT_STATE_TYPE)
-            positions = dict(zip(message.name, (float(p) for p in message.position)))
-            # A publisher without the crank radius's joint (made before the stroke could
-            # move) has the geometry's crank radius.
-            positions.setdefault(CRANK_RADIUS_JOINT, float(self.geometry.crank_radius))
-            values = [positions[joint.name] for joint in self._joints]
-        except Exception:  # rosbags' errors on odd bytes; KeyError for a missing joint
-            return None
-        if not all(math.isfinite(value) for value in values):
+        except Exception:  # rosbags raises its own errors (and struct's, IndexError) on odd bytes
             return None
         stamp = message.header.stamp
-        return self._encode([joint_transform(joint, value)
-                             for joint, value in zip(self._joints, values)],
-                            stamp.sec, stamp.nanosec)
+        return self.joint_transforms(stamp.sec, stamp.nanosec, message.name, message.position)
+
+    def joint_transforms(self, sec: int, nanosec: int, names: Sequence[str],
+                         positions: Sequence[float]) -> Optional[bytes]:
+        """
+        Return the moving links' transforms of joint values by name, stamped sec, nanosec.
+
+        What transforms() does once the joint state is decoded (a writer that holds the
+        values need not decode its own message): None when a moving joint is missing or a
+        value is not finite.
+        """
+        if (len(positions) == len(names) == len(PUBLISHED_JOINT_NAMES)
+                and tuple(names) == PUBLISHED_JOINT_NAMES):
+            values = [float(positions[index]) for index in self._published_index]
+        else:
+            by_name = dict(zip(names, (float(p) for p in positions)))
+            # A publisher without the crank radius's joint (made before the stroke could
+            # move) has the geometry's crank radius.
+            by_name.setdefault(CRANK_RADIUS_JOINT, float(self.geometry.crank_radius))
+            try:
+                values = [by_name[joint.name] for joint in self._joints]
+            except KeyError:
+                return None
+        if not all(map(math.isfinite, values)):
+            return None
+        with self._moving_lock:
+            self._moving_stamp.sec, self._moving_stamp.nanosec = sec, nanosec
+            for stamped, joint, value in zip(self._moving.transforms, self._joints, values):
+                link = joint_transform(joint, value)
+                translation, rotation = stamped.transform.translation, stamped.transform.rotation
+                translation.x, translation.y, translation.z = link.translation
+                rotation.x, rotation.y, rotation.z, rotation.w = link.rotation
+            return bytes(self._store.serialize_cdr(self._moving, TF_MESSAGE_TYPE))

@@ -22,8 +22,9 @@ import math
 import numpy as np
 import pytest
 
+from qrm_ros.analysis import animation_window
 from qrm_ros.analysis import recorded_run
-from qrm_ros.analysis.animation import render_frames
+from qrm_ros.analysis.animation import offset_tour_samples, render_frames, write_offset_tour
 from qrm_ros.analysis.linkage_figure import LinkageFigure
 from qrm_ros.analysis.measurement import analyse, measure_segment, segment_geometry
 from qrm_ros.analysis.recorded_run import read_recording
@@ -103,6 +104,41 @@ def test_the_animation_draws_the_recorded_crank_radius():
         figure.close()
 
 
+def test_the_animation_draws_the_guides_and_workpiece_at_the_stroke_in_force():
+    """Each frame's guides span the stroke in force plus the ram (drawn sizes kept)."""
+    samples = stroke_change_samples()
+    figure = LinkageFigure(PAPER, samples.time, samples.ram_velocity, None, 0.04,
+                           float(np.max(samples.crank_radius)))
+    try:
+        spans = []
+        for index in (100, 3500, 7000):  # before, during and after the stroke change
+            for _ in render_frames(figure, samples, [index], lambda time: None):
+                pass
+            radius, h, height = samples.crank_radius[index], 0.113, 0.2
+            stroke = 2 * height * radius / math.sqrt(h * h - radius * radius)
+            guide = figure.drawn_points()['guide']
+            assert guide == pytest.approx(
+                [-0.5 * (stroke + figure.sizes.ram_length),
+                 0.5 * (stroke + figure.sizes.ram_length)], rel=1e-12)
+            spans.append(guide[1] - guide[0])
+        assert spans[0] > spans[1] > spans[2]
+        assert spans[0] - spans[2] == pytest.approx(float(PAPER.ram_stroke) - 0.06, rel=1e-9)
+    finally:
+        figure.close()
+
+
+def test_the_offset_tour_shows_each_recorded_stroke():
+    samples = stroke_change_samples()
+    recording = recorded_run.Recording('', PAPER, samples, None)
+    result = analyse(recording)
+    indices = offset_tour_samples(result, fps=20.0)
+    radii = np.unique(np.round(samples.crank_radius[indices], 12))
+    assert radii.tolist() == pytest.approx(
+        [crank_radius_for_stroke(0.06, 0.113, 0.2), PAPER.crank_radius], rel=1e-12)
+    # One revolution (1 s at 2 pi rad/s) of each, in recording order, at 20 frames a second.
+    assert indices.size == pytest.approx(40, abs=2) and np.all(np.diff(indices) > 0)
+
+
 def write_six_joint_run(path, samples):
     """Write samples as the node's six-joint joint states (the crank radius's joint last)."""
     from mcap.writer import Writer
@@ -147,3 +183,14 @@ def test_a_recorded_stroke_change_is_read_and_streamed_alike(tmp_path):
         pytest.approx(float(PAPER.ram_stroke), rel=1e-12), pytest.approx(0.06, rel=1e-12)]
     assert whole.rows == streamed.rows and whole.transitions == streamed.transitions
     assert 'a stroke change' in whole.transitions[0]['change']
+
+
+def test_the_streamed_offset_tour_is_the_whole_run_tour_at_each_stroke(tmp_path):
+    """qrm_main's tour read from the file alone draws what the whole-run tour draws."""
+    path = str(tmp_path / 'stroke.mcap')
+    write_six_joint_run(path, stroke_change_samples())
+    assert write_offset_tour(analyse(read_recording(path)), str(tmp_path / 'whole.gif'))
+    streamed = analyse_file(path, {}, progress_stream=None)
+    assert animation_window.write_window_tour(streamed, str(tmp_path / 'window.gif'),
+                                              trace_bins=10 ** 9)  # every sample drawn
+    assert (tmp_path / 'window.gif').read_bytes() == (tmp_path / 'whole.gif').read_bytes()

@@ -48,9 +48,10 @@ def test_main_job_runs_a_short_schedule_end_to_end(tmp_path, capsys):
         ['fig10_time_ratio.png', 'fig11_speed_ratio.png', 'fig12_flywheel_speed.png',
          'ram_motion.png', 'fig_input_torque.png', 'fig_offset_cost.png',
          'fig_time_ratio_stroke.png', qrm_main.TOUR_FILE])
-    # the last input revolution (0.5 s) of each offset at 20 frames per second, both ends
+    # the last input revolution (0.5 s) of each offset at 20 frames per second, both ends,
+    # at each recorded stroke: two offsets at the long one, two at the short one
     with Image.open(folder / 'figures' / qrm_main.TOUR_FILE) as tour:
-        assert (tour.n_frames, tour.size) == (2 * 11, linkage_figure.FRAME_SIZE)
+        assert (tour.n_frames, tour.size) == (4 * 11, linkage_figure.FRAME_SIZE)
     assert f'qrm_main: animation  {folder / "figures" / qrm_main.TOUR_FILE}' in out
     assert str(folder / 'run.mcap') in out
     document = json.loads((folder / 'results.json').read_text())

@@ -98,3 +98,12 @@ def test_an_existing_output_is_kept(tmp_path):
     result = _simulate('--duration', 1, '-o', path)
     assert result.returncode == exit_codes.EXIT_BAD_INPUT
     assert 'already exists' in result.stderr and path.read_bytes() == b'mine'
+
+
+def test_a_progress_bar_when_asked_and_none_off_a_terminal(tmp_path):
+    shown = _simulate('--duration', 3, '--progress', 'always', '-o', tmp_path / 'a.mcap')
+    assert shown.returncode == exit_codes.EXIT_OK, shown.stderr
+    assert 'simulated' in shown.stderr and '3/3 s' in shown.stderr
+    # auto: a bar only on a terminal (here stderr is a pipe), whatever the duration.
+    quiet = _simulate('--duration', 3, '-o', tmp_path / 'b.mcap')
+    assert quiet.returncode == exit_codes.EXIT_OK and 'simulated' not in quiet.stderr

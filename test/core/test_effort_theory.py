@@ -68,6 +68,18 @@ def test_background_lookup_never_waits_then_answers_by_value(theory):
     assert theory.lookup(again) == (figures, None)
 
 
+def test_worked_out_here_it_is_the_workers_answer_and_is_kept(theory):
+    """An offline run works the theory out in its own thread: the worker's numbers, no worker."""
+    setting = speed_drive_setting()
+    here = BackgroundTheory()
+    assert here.work_out(setting) == theory.wait(setting)
+    assert here.worker_pid is None  # no worker was started
+    assert here.lookup(setting) == here.work_out(setting)  # kept
+    broken = speed_drive_setting(mass=dyn.MassProperties.small_shaper())._replace(loads=None)
+    figures, problem = here.work_out(broken)
+    assert figures is None and problem.startswith('AttributeError')
+
+
 def test_a_failing_theory_is_a_problem_with_its_reason_not_an_exception(theory):
     broken = speed_drive_setting()._replace(loads=None)  # not a Loads: the worker raises
     figures, problem = theory.wait(broken)

@@ -290,19 +290,28 @@ def test_speed_drive_stepper_moves_the_stroke_with_continuous_exact_states():
     assert stepper.geometry is PAPER  # the base's own stroke: its own radius, exactly
 
 
-def test_motor_stepper_holds_the_stroke_and_says_why_it_refuses_a_change():
+def test_motor_stepper_takes_the_stroke_and_refuses_one_the_slot_cannot_hold():
+    """The motor drive moves the stroke too (test_motor_stroke); refusals as the ramp's."""
     short = StrokeRamp(PAPER, 0.08, 0.1, 0.01)
     stepper = MotorStepper(PAPER, MASS, dyn.Loads.none(), dyn.MotorDrive.small_shaper(), 6.0,
                            0.0, 20.0, 0.005, short)
     assert stepper.geometry is short.geometry
     assert stepper.geometry.crank_radius == pytest.approx(crank_radius_for_stroke(0.1, 0.113,
                                                                                   0.2))
-    with pytest.raises(KinematicsError, match=r'stroke_length 0\.06 m refused: the motor drive '
-                                              r'holds the stroke in force \(0\.1 m\)'):
-        stepper.set_stroke_command(0.06)
-    stepper.set_stroke_command(0.1)  # the stroke in force: nothing to refuse
+    with pytest.raises(KinematicsError, match=r'stroke_length 0\.5 m is out of range: '
+                                              r'allowed 0 < stroke_length <= 0\.400972 m'):
+        stepper.set_stroke_command(0.5)
+    assert short.command == 0.1  # a refused command changes nothing
+    stepper.integrate_to(0)
+    stepper.set_stroke_command(0.06)
+    stepper.integrate_to(10 ** 9)
+    assert short.stroke == pytest.approx(0.09, rel=1e-12) and short.rate == -0.01
     stepper.reset(6.0, 0.0, stroke_length=0.1)
+    assert (short.stroke, short.command, short.rate) == (0.1, 0.1, 0.0)
+    # A stroke already moving (a drive switched mid-change) goes on moving.
     moving = StrokeRamp(PAPER, 0.08, 0.1, 0.01)
     moving.set_command(0.06)
-    with pytest.raises(KinematicsError, match='holds the stroke'):
-        MotorStepper(PAPER, MASS, dyn.Loads.none(), None, 6.0, 0.0, 20.0, 0.005, moving)
+    stepper = MotorStepper(PAPER, MASS, dyn.Loads.none(), None, 6.0, 0.0, 20.0, 0.005, moving)
+    stepper.integrate_to(0)
+    stepper.integrate_to(10 ** 9)
+    assert moving.stroke == pytest.approx(0.09, rel=1e-12)

@@ -186,8 +186,11 @@ def test_workpiece_only_with_a_cutting_load():
 def test_label_shows_offset_and_the_ratios(offset):
     label = _by_key(linkage_marker_array(GEOMETRY, offset, 0.0, 0, 'f'))['label', 0]
     assert label.type == Marker.TEXT_VIEW_FACING
-    first, second = label.text.split('\n')
+    first, second, third = label.text.split('\n')
     assert first == f'offset {offset * 1e3:+.2f} mm'
+    # The stroke in force, 2 H r / sqrt(h^2 - r^2) written out (doc/mechanism.md).
+    r, h, height = GEOMETRY.crank_radius, GEOMETRY.pivot_distance, GEOMETRY.ram_height
+    assert third == f'stroke {2e3 * height * r / math.sqrt(h * h - r * r):.2f} mm'
     words = second.split()
     # Against the paper's ways: RK4 of eq. (20) for TR, eq. (25) for SR.
     assert words[0] == 'TR' and words[1] == f'{kin.time_ratio_rk4(GEOMETRY, offset):.4f}'

@@ -24,10 +24,13 @@ import dataclasses
 import math
 
 import pytest
+from qrm_ros.analysis import analyse_file, incompleteness
 from qrm_ros.core.cutting_speed_hold import hold_offset
 from qrm_ros.core.geometry import Geometry
 from qrm_ros.core.names import TIME_RATIO_STATUS
 from qrm_ros.core.stroke_timing import time_ratio
+from qrm_ros.node.offline_sim import Simulation
+from qrm_ros.node.scenario import scenario_from_mapping
 from rclpy.parameter import Parameter
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
@@ -158,10 +161,25 @@ def test_stroke_and_hold_refusals_name_value_unit_and_range(harness):
     set_ok(h, cutting_speed_target=0.0, stroke_length=0.16)
     h.shaper.publish_at(5 * NS)
     assert h.shaper.stroke_moving
-    assert 'still moving' in refusal(h, drive='motor')
-    h.shaper.publish_at(15 * NS)  # arrived
+    # The motor drive takes a moving stroke over, and moves it on (test_stroke_under_...).
     set_ok(h, drive='motor')
-    assert 'the motor drive holds the stroke in force (0.16 m)' in refusal(h, stroke_length=0.2)
+    h.shaper.publish_at(6 * NS)
+    assert h.shaper.stroke_moving and h.shaper.stepper.stroke.rate == -0.01
+    set_ok(h, stroke_length=0.2)
+    assert 'stroke_length = 0.5 refused' in refusal(h, stroke_length=0.5)
+    assert 'shorter than cutting_length = 0.15 m' in refusal(h, stroke_length=0.1)
+
+
+def test_stroke_length_descriptor_publishes_the_slot_s_range(harness):
+    """[0, the stroke at max_crank_radius]: 0 is the stroke of crank_radius."""
+    h = harness(spin_shaper=False)
+    descriptor = h.shaper.describe_parameter('stroke_length')
+    bounds = descriptor.floating_point_range[0]
+    # 2 H r / sqrt(h^2 - r^2) at the slot's 0.07 m, written out.
+    largest = 2 * RAM_HEIGHT * 0.07 / math.sqrt(H_PIVOT ** 2 - 0.07 ** 2)
+    assert (bounds.from_value, bounds.step) == (0.0, 0.0)
+    assert bounds.to_value == pytest.approx(largest, rel=1e-12)
+    assert 'crank radius up to max_crank_radius' in descriptor.additional_constraints
 
 
 def test_unreachable_after_a_stroke_change_holds_the_nearest_offset_with_a_warning(harness):
@@ -177,6 +195,14 @@ def test_unreachable_after_a_stroke_change_holds_the_nearest_offset_with_a_warni
     values = {item.key: item.value for item in warn.values}
     assert float(values['offset_command']) == pytest.approx(0.0225)
     assert h.shaper.stepper.offset_command == pytest.approx(0.0225)
+    # Back to the long stroke: in reach again, the exact offset and an OK status.
+    count = len(h.diagnostics)
+    set_ok(h, stroke_length=0.0)
+    h.wait_for(lambda: [m for m in h.diagnostics[count:]
+                        if m.status[0].name == TIME_RATIO_STATUS
+                        and m.status[0].level == b'\x00'], what='an OK time ratio status')
+    assert time_ratio(Geometry.paper(), h.shaper.stepper.offset_command) == pytest.approx(
+        10.0, rel=1e-9)
 
 
 def test_reset_during_a_stroke_change_returns_to_the_stroke_parameter(harness):
@@ -193,6 +219,22 @@ def test_reset_during_a_stroke_change_returns_to_the_stroke_parameter(harness):
     assert first.position[0] == 0.0
     assert first.position[5] == pytest.approx(radius_for(0.1), rel=1e-14)
     assert first.velocity[5] == 0.0
+
+
+def test_reset_during_a_stroke_change_under_the_motor_drive(harness):
+    h = harness(spin_shaper=False, drive='motor', stroke_rate_limit=0.02)
+    now = publish_for(h, 5 * NS, 0.1)
+    set_ok(h, stroke_length=0.1)
+    now = publish_for(h, now, 0.5)
+    assert h.joint_states[-1].velocity[5] < 0.0  # moving
+    response = h.shaper.on_reset(Trigger.Request(), Trigger.Response())
+    assert response.success and 'stroke 0.1 m' in response.message
+    count = len(h.joint_states)
+    publish_for(h, now, 0.05)
+    first = h.joint_states[count]
+    assert first.position[0] == 0.0
+    assert first.position[5] == pytest.approx(radius_for(0.1), rel=1e-14)
+    assert first.velocity[5] == 0.0 and all(map(math.isfinite, first.effort))
 
 
 def test_cutting_speed_hold_follows_a_stroke_change(harness):
@@ -233,3 +275,76 @@ def test_the_markers_draw_the_crank_pin_at_the_published_radius(harness):
     crank_pin = {(m.ns, m.id): m for m in arrays[-1].markers}['pins', 0].points[1]
     assert (crank_pin.x, crank_pin.y) == pytest.approx(
         (radius * math.cos(flywheel), radius * math.sin(flywheel)), abs=1e-12)
+
+
+def test_stroke_change_under_the_motor_drive_keeps_every_joint_continuous(harness):
+    """The motor drive's equation of motion carries r(t): published rates are derivatives."""
+    h = harness(spin_shaper=False, drive='motor', stroke_rate_limit=0.05,
+                coupling_offset=0.008, ram_friction=20.0)
+    now = publish_for(h, 5 * NS, 0.3)
+    set_ok(h, stroke_length=0.06)
+    now = publish_for(h, now, 3.2)
+    messages = h.joint_states
+    dt = 1e-3
+    assert messages[-1].position[5] == pytest.approx(radius_for(0.06), rel=1e-14)
+    moving = [i for i in range(1, len(messages) - 1) if messages[i].velocity[5] != 0.0]
+    assert len(moving) > 2500  # 0.1398 m of stroke at 0.05 m/s: 2.8 s
+    for i in moving[1:-1]:
+        before, middle, after = messages[i - 1], messages[i], messages[i + 1]
+        # Central differences of the published positions against the published rates: the
+        # ram's, the lever's, the crank radius's and the input's (its speed fluctuates).
+        for joint, tolerance in ((3, 1e-4), (2, 1e-3), (5, 1e-9), (0, 1e-3)):
+            step = after.position[joint] - before.position[joint]
+            if joint == 0:
+                step = math.remainder(step, 2 * math.pi)
+            assert abs(step / (2 * dt) - middle.velocity[joint]) < tolerance, (joint, i)
+        assert all(map(math.isfinite, middle.effort)) and len(middle.effort) == 6
+        # The stroke screw's force is published (the lever torque's share through dpsi/dr).
+        assert middle.effort[5] != 0.0
+    for before, after in zip(messages, messages[1:]):
+        for joint in (2, 3, 5):
+            fastest = max(abs(before.velocity[joint]), abs(after.velocity[joint]))
+            assert abs(after.position[joint] - before.position[joint]) <= fastest * dt * 1.01 \
+                + 1e-12
+
+
+def test_time_ratio_hold_follows_a_stroke_change_under_the_motor_drive(harness):
+    """The hold recomputes on a stroke change under the motor too (its offset, not TR)."""
+    h = harness(spin_shaper=False, drive='motor', stroke_rate_limit=0.1,
+                offset_rate_limit=0.02)
+    set_ok(h, time_ratio_target=1.8)
+    base = Geometry.paper()
+    first = h.shaper.stepper.offset_command
+    now = publish_for(h, 5 * NS, 0.2)
+    set_ok(h, stroke_length=0.06)
+    short = dataclasses.replace(base, crank_radius=radius_for(0.06))
+    # The exact inverse at the new stroke: TR there is the target (eq. 28's closed form).
+    assert time_ratio(short, h.shaper.stepper.offset_command) == pytest.approx(1.8, rel=1e-9)
+    assert h.shaper.stepper.offset_command != pytest.approx(first, rel=1e-3)
+    now = publish_for(h, now, 3.0)
+    assert h.shaper.stepper.stroke.stroke == 0.06
+    assert h.shaper.stepper.offset == h.shaper.stepper.offset_command
+    set_ok(h, time_ratio_target=0.0, cutting_speed_target=0.25)
+    expected = hold_offset(short, 2 * math.pi, 0.25, 'mean').offset
+    assert h.shaper.stepper.offset_command == pytest.approx(expected, rel=1e-9)
+
+
+@pytest.mark.slow
+def test_a_motor_drive_run_with_a_stroke_change_analyses_whole(tmp_path):
+    """Simulated offline and analysed: every sample passes the closed-form checks."""
+    path = tmp_path / 'motor_stroke.mcap'
+    Simulation(scenario_from_mapping({
+        'parameters': {'drive': 'motor', 'cutting_force': 400.0, 'ram_friction': 20.0,
+                       'cutting_length': 0.05, 'stroke_rate_limit': 0.05},
+        'duration': 12.0,
+        'events': [{'at': 3.0, 'set': {'stroke_length': 0.06}},
+                   {'at': 8.0, 'set': {'time_ratio_target': 1.8}}]}), str(path)).run()
+    result = analyse_file(str(path), progress_stream=None)
+    assert not incompleteness(result.recording) and result.recording.problem is None
+    assert [row['stroke_length'] for row in result.rows] == pytest.approx(
+        [0.19983, 0.06, 0.06], abs=1e-5)
+    assert 'a stroke change' in result.transitions[0]['change']
+    # The short stroke loses its quick return; the hold gives it back (under the motor the
+    # speed fluctuates, so the measured ratio is within a few 1e-3 of the closed form's).
+    assert result.rows[1]['time_ratio_measured'] < 1.22
+    assert result.rows[2]['time_ratio_measured'] == pytest.approx(1.8, rel=5e-3)

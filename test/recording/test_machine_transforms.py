@@ -35,8 +35,8 @@ import yaml
 from qrm_ros.cli import qrm_analyze
 from qrm_ros.core import kinematics as kin
 from qrm_ros.core.names import (GEOMETRY_METADATA, JOINT_NAMES, JOINT_STATE_TYPE,
-                                JOINT_STATES_TOPIC, ROBOT_DESCRIPTION_TOPIC, TF_STATIC_TOPIC,
-                                TF_TOPIC)
+                                JOINT_STATES_TOPIC, PUBLISHED_JOINT_NAMES,
+                                ROBOT_DESCRIPTION_TOPIC, TF_STATIC_TOPIC, TF_TOPIC)
 from qrm_ros.recording.bag_reader import open_run
 from qrm_ros.recording.machine_channels import MachineChannels
 from qrm_ros.recording.machine_transforms import (fixed_transforms, MachineMessages,
@@ -157,6 +157,25 @@ def test_a_recorded_joint_state_gives_its_transforms_stamped_as_it_is():
                                             [values[n] for n in JOINT_NAMES[:4]])) is None
     assert messages.transforms(_joint_state(stamp, JOINT_NAMES,
                                             [math.nan] + [0.0] * 4)) is None
+
+
+def test_a_writer_holding_the_values_gets_the_decoded_joint_states_transforms():
+    """joint_transforms (the simulator's, no decoding) is transforms() of the same message."""
+    geometry = GEOMETRIES['phased']
+    messages = MachineMessages(geometry)
+    for offset, angle in ((0.01, 2.0), (-0.02, -3.1), (0.0, 0.4)):
+        values = _published(geometry, offset, angle)
+        stamp = 1_700_000_000_123_456_789 + round(angle * 1e9)
+        sec, nanosec = divmod(stamp, 1_000_000_000)
+        for names in (PUBLISHED_JOINT_NAMES, PUBLISHED_JOINT_NAMES[::-1],
+                      PUBLISHED_JOINT_NAMES[:-1]):
+            positions = [values[name] for name in names]
+            data = _joint_state(stamp, names, positions)
+            assert messages.joint_transforms(sec, nanosec, names, positions) == (
+                messages.transforms(data)) is not None
+    assert messages.joint_transforms(0, 0, JOINT_NAMES[:4], [0.0] * 4) is None
+    assert messages.joint_transforms(0, 0, PUBLISHED_JOINT_NAMES,
+                                     [math.inf] + [0.0] * 5) is None
 
 
 def _copy_with_machine(source, target, geometry_after):
