@@ -16,10 +16,11 @@ Bridge benchmark: qrm_bridge serving a 1 kHz shaper_sim to one Foxglove client.
 
 Part 1, CPU and latency (--repeats): shaper_sim publishes joint states at --rate Hz and its
 linkage markers (30 Hz); qrm_bridge serves both topics to Foxglove's own protocol client
-(Node.js, counting and timing what it decodes). Its baseline in the same run, over the same
-window: a bare rclpy process whose raw subscriptions of the same topics, on the same executor
-(EventsExecutor) and QoS, only count. Prints the CPU of each (user + system of the whole
-process, from /proc), the ratio bridge / bare (goal <= 1.5), the messages each got, and the
+(Node.js, counting and timing what it decodes). Its baselines in the same run, over the same
+window: two bare rclpy processes whose raw subscriptions of the same topics, with the same
+QoS, only count, one on the bridge's executor (the EventsExecutor), one on rclpy's
+SingleThreadedExecutor. Prints the CPU of each (user + system of the whole process, from
+/proc), the ratios bridge / bare (goal <= 1.5), the messages each got, and the
 delivery latency of the joint states from their stamp to the client (median, 99th percentile),
 beside a DDS subscriber's in the same run; and what the bridge costs per message over the bare
 subscription beside what the SDK's server alone costs per message (a plain loop logging to a
@@ -55,34 +56,35 @@ from foxglove_client import (bridge_address, FoxgloveClient, node_executable,  #
                              node_modules)
 
 TOPICS = ('/joint_states', '/linkage_markers')
+FLOORS = ('events', 'single')  # the bare subscriptions' executors
 IMAGE_TOPIC = '/bench_image'
 SETTLE_TIMEOUT = 60.0  # s, for processes to start and messages to flow
 
 
 # --- children ------------------------------------------------------------------------------
 
-def floor():
-    """Child: bare raw subscriptions of TOPICS that only count (the bridge's executor, QoS)."""
+def floor(kind):
+    """Child: bare raw subscriptions of TOPICS that only count (the bridge's QoS), on `kind`."""
     import rclpy
     from qrm_ros.node.recorder import adapted_request_qos
     from qrm_ros.node.ros_process import init_rclpy, new_executor, spin_until_stopped, StopRequest
     from sensor_msgs.msg import JointState
     from visualization_msgs.msg import MarkerArray
     init_rclpy()
-    node = rclpy.create_node('bench_floor')
+    node = rclpy.create_node(f'bench_floor_{kind}')
     count = [0]
 
     def take(data):
         count[0] += 1
     signal.signal(signal.SIGUSR1, lambda *_: print(f'received {count[0]}', flush=True))
-    for topic, kind in zip(TOPICS, (JointState, MarkerArray)):
+    for topic, message_type in zip(TOPICS, (JointState, MarkerArray)):
         while not node.get_publishers_info_by_topic(topic):
             time.sleep(0.05)
         qos, _ = adapted_request_qos([i.qos_profile for i in
                                       node.get_publishers_info_by_topic(topic)])
-        node.create_subscription(kind, topic, take, qos, raw=True)
+        node.create_subscription(message_type, topic, take, qos, raw=True)
     print('subscribed', flush=True)
-    executor = new_executor('events')
+    executor = new_executor(kind)
     executor.add_node(node)
     with StopRequest() as stop:
         spin_until_stopped(executor, stop)
@@ -228,6 +230,10 @@ def bare_count(process):
     return int(process.stdout.readline().split()[-1])
 
 
+def send_period(args):
+    return [] if args.send_period is None else ['--send-period', repr(args.send_period)]
+
+
 def report(client, timeout=60.0):
     client.events.clear()
     client.send(op='report')
@@ -266,23 +272,25 @@ def cpu_repeat(args, env, modules, folder):
     try:
         run.start('sim', [sys.executable, '-m', 'qrm_ros.cli.shaper_sim', '--ros-args', '-p',
                           f'publish_rate:={float(args.rate)}'])
-        bridge, address = run.bridge('--topics', *TOPICS)
-        bare = run.start('floor', [sys.executable, __file__, '--floor'], stdout=subprocess.PIPE)
-        assert bare.stdout.readline().strip() == 'subscribed'
+        bridge, address = run.bridge('--topics', *TOPICS, *send_period(args))
+        bares = {kind: run.start(f'floor_{kind}', [sys.executable, __file__, '--floor', kind],
+                                 stdout=subprocess.PIPE) for kind in FLOORS}
+        for bare in bares.values():
+            assert bare.stdout.readline().strip() == 'subscribed'
         run.start('probe', [sys.executable, __file__, '--probe', TOPICS[0]],
                   stdout=subprocess.PIPE)
         viewer = run.client(address, modules, TOPICS)
         counted(viewer, TOPICS)
         before = report(viewer)['counts']
-        counts_bare = [bare_count(bare)]
-        measured = (('bridge', bridge), ('bare', bare))
+        counts_bare = [bare_count(bares['events'])]
+        measured = (('bridge', bridge), *bares.items())
         start_cpu = {name: cpu_seconds(p.pid) for name, p in measured}
         start_machine, start_wall = machine_cpu_seconds(), time.monotonic()
         time.sleep(args.seconds)
         end_cpu = {name: cpu_seconds(p.pid) for name, p in measured}
         end_machine, wall = machine_cpu_seconds(), time.monotonic() - start_wall
         after = report(viewer)
-        counts_bare.append(bare_count(bare))
+        counts_bare.append(bare_count(bares['events']))
     finally:
         outputs = run.stop()
     received_bare = counts_bare[1] - counts_bare[0]
@@ -291,7 +299,7 @@ def cpu_repeat(args, env, modules, folder):
     latency_dds = [latency for _, latency in dds_seen[TOPICS[0]]]
     return {
         'bridge': 100.0 * (end_cpu['bridge'] - start_cpu['bridge']) / wall,
-        'bare': 100.0 * (end_cpu['bare'] - start_cpu['bare']) / wall,
+        **{kind: 100.0 * (end_cpu[kind] - start_cpu[kind]) / wall for kind in FLOORS},
         'client_messages': sum(after['counts'].values()) - sum(before.values()),
         'bare_messages': received_bare,
         'latency_client': (statistics.median(latency_client),
@@ -313,7 +321,7 @@ def stall(args, env, modules, folder):
         run.start('images', [sys.executable, __file__, '--images', str(args.big_size),
                              str(args.big_rate)])
         bridge, address = run.bridge('--topics', *topics, '--client-queue',
-                                     str(args.client_queue))
+                                     str(args.client_queue), *send_period(args))
         run.start('probe', [sys.executable, __file__, '--probe', *topics],
                   stdout=subprocess.PIPE)
         reader = run.client(address, modules, topics)
@@ -368,13 +376,15 @@ def main():
     parser.add_argument('--big-size', type=int, default=65536, help='image bytes')
     parser.add_argument('--big-rate', type=float, default=100.0, help='images, Hz')
     parser.add_argument('--client-queue', type=int, default=DEFAULT_CLIENT_QUEUE)
-    parser.add_argument('--floor', action='store_true', help=argparse.SUPPRESS)
+    parser.add_argument('--send-period', type=float, default=None,
+                        help='the bridge\'s --send-period (default: its own)')
+    parser.add_argument('--floor', choices=FLOORS, help=argparse.SUPPRESS)
     parser.add_argument('--probe', nargs='+', help=argparse.SUPPRESS)
     parser.add_argument('--images', nargs=2, type=float, help=argparse.SUPPRESS)
     parser.add_argument('--sdk-alone', nargs=2, type=float, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.floor:
-        return floor()
+        return floor(args.floor)
     if args.probe:
         return probe(args.probe)
     if args.images:
@@ -392,22 +402,28 @@ def main():
             result = cpu_repeat(args, env, modules, folder)
             results.append(result)
             print(f'repeat {index + 1}: bridge {result["bridge"]:.1f} % CPU, bare '
-                  f'{result["bare"]:.1f} %, ratio {result["bridge"] / result["bare"]:.2f}; '
+                  f'{result["events"]:.1f} % (events) / {result["single"]:.1f} % (single), '
+                  f'ratios {result["bridge"] / result["events"]:.2f} / '
+                  f'{result["bridge"] / result["single"]:.2f}; '
                   f'client got {result["client_messages"]} messages, bare '
                   f'{result["bare_messages"]}; latency through the bridge median '
                   f'{result["latency_client"][0]:.2f} ms, p99 {result["latency_client"][1]:.2f}'
                   f' ms (DDS alone {result["latency_dds"][0]:.2f} / '
                   f'{result["latency_dds"][1]:.2f} ms); machine {result["machine_busy"]:.0f} %'
                   ' busy', flush=True)
-        ratios = [r['bridge'] / r['bare'] for r in results]
-        print(f'\nCPU bridge / bare raw subscription, median of {len(ratios)}: '
-              f'{statistics.median(ratios):.2f} ({min(ratios):.2f}..{max(ratios):.2f}); goal '
-              '<= 1.5')
+        print()
+        for kind in FLOORS:
+            ratios = [r['bridge'] / r[kind] for r in results]
+            print(f'CPU bridge / bare raw subscription on the {kind} executor, median of '
+                  f'{len(ratios)}: {statistics.median(ratios):.2f} ({min(ratios):.2f}..'
+                  f'{max(ratios):.2f}); goal <= 1.5')
+        busy = [r['machine_busy'] for r in results]
+        print(f'machine {min(busy):.0f}-{max(busy):.0f} % busy')
         for key, name in (('latency_client', 'through the bridge'), ('latency_dds', 'DDS')):
             print(f'latency {name}: median {statistics.median(r[key][0] for r in results):.2f}'
                   f' ms, p99 {statistics.median(r[key][1] for r in results):.2f} ms')
         sdk = run_sdk_alone(args, env, modules, folder)
-        per_message = [(r['bridge'] - r['bare']) / 100.0 * args.seconds / r['client_messages']
+        per_message = [(r['bridge'] - r['events']) / 100.0 * args.seconds / r['client_messages']
                        * 1e6 for r in results]
         print(f'the bridge over the bare subscription: {statistics.median(per_message):.0f} us '
               f'of CPU per message; the SDK alone, from a plain loop: {sdk:.0f} us per message')

@@ -31,13 +31,12 @@ from typing import List, Optional
 from qrm_ros.cli.exit_codes import EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_OK
 from qrm_ros.core.names import RECORDER_NODE_NAME
 from qrm_ros.node.recorder import Recorder
-from qrm_ros.node.ros_process import (executor_kind, ExecutorChoiceError, init_rclpy,
-                                      new_executor, RCLError, rcl_error_text,
-                                      spin_until_stopped, StopRequest)
+from qrm_ros.node.ros_process import (ExecutorChoiceError, RCLError, rcl_error_text, run_node,
+                                      start_rclpy)
 from qrm_ros.recording.mcap_recover import recover_command
 from qrm_ros.recording.mcap_run_file import ConfigurationError, RecorderError
 from rclpy.exceptions import NameValidationException, ParameterException
-from rclpy.utilities import remove_ros_args, try_shutdown
+from rclpy.utilities import remove_ros_args
 
 __all__ = ['main']
 
@@ -60,35 +59,17 @@ def _error(text):
 
 def _record(argv):
     """Run the recorder node until SIGINT/SIGTERM; return the exit code."""
-    try:
-        init_rclpy(argv)
-    except RCLError as error:  # a malformed -p or params file, said by rcl
-        _error(rcl_error_text(error))
+    if not start_rclpy(argv, _error):
         return EXIT_BAD_INPUT
-    recorder = executor = None
-    try:
-        with StopRequest() as stop:
-            kind = executor_kind()  # QRM_ROS_EXECUTOR: events (default) or single
-            recorder = Recorder()
-            executor = new_executor(kind)
-            executor.add_node(recorder)
-            spin_until_stopped(executor, stop)
-            recorder.drain(executor)
-            recorder.finish()
-    except (ConfigurationError, ExecutorChoiceError, ParameterException,
-            NameValidationException) as error:
-        _error(error)
-        return EXIT_BAD_INPUT
-    except RecorderError as error:
-        _error(error)
-        return EXIT_FAILURE
-    finally:
-        if executor is not None:
-            executor.shutdown()  # lets go of the node's entities before they are destroyed
-        if recorder is not None:
-            recorder.destroy_node()
-        try_shutdown()
-    return EXIT_OK
+
+    def finish(recorder, executor):
+        recorder.drain(executor)
+        recorder.finish()
+    code = run_node(Recorder, _error, {
+        (ConfigurationError, ExecutorChoiceError, ParameterException,
+         NameValidationException): EXIT_BAD_INPUT,
+        RecorderError: EXIT_FAILURE}, on_stop=finish)
+    return EXIT_OK if code is None else code
 
 
 def main(argv: Optional[List[str]] = None) -> int:

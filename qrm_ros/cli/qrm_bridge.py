@@ -30,16 +30,21 @@ from typing import List, Optional
 from qrm_ros.cli.exit_codes import EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_OK
 from qrm_ros.core.names import BRIDGE_NODE_NAME, BRIDGE_SERVING_PREFIX
 from qrm_ros.node.foxglove_bridge import (BridgeNode, BridgeSettings, DEFAULT_ADDRESS,
-                                          DEFAULT_CLIENT_QUEUE, DEFAULT_PORT)
-from qrm_ros.node.ros_process import (executor_kind, ExecutorChoiceError, init_rclpy,
-                                      new_executor, RCLError, rcl_error_text,
-                                      spin_until_stopped, StopRequest)
-from rclpy.utilities import remove_ros_args, try_shutdown
+                                          DEFAULT_CLIENT_QUEUE, DEFAULT_PORT,
+                                          DEFAULT_SEND_PERIOD)
+from qrm_ros.node.ros_process import (ExecutorChoiceError, RCLError, rcl_error_text, run_node,
+                                      start_rclpy)
+from rclpy.utilities import remove_ros_args
 
 __all__ = ['main']
 
 PORT_RANGE = (0, 65535)
 CLIENT_QUEUE_RANGE = (1, 1_000_000)
+SEND_PERIOD_RANGE = (0.0, 1.0)  # s
+
+
+class CannotServe(RuntimeError):
+    """The server cannot start: the port is taken, or the address is not this machine's."""
 
 
 def _parser():
@@ -61,6 +66,12 @@ def _parser():
                         help='messages a client may fall behind before its oldest are dropped, '
                              f'{CLIENT_QUEUE_RANGE[0]}-{CLIENT_QUEUE_RANGE[1]} (default: '
                              f'{DEFAULT_CLIENT_QUEUE})')
+    parser.add_argument('--send-period', type=float, default=DEFAULT_SEND_PERIOD,
+                        metavar='SECONDS',
+                        help='how often the messages gathered from ROS are handed to the '
+                             f'server, {SEND_PERIOD_RANGE[0]:g}-{SEND_PERIOD_RANGE[1]:g} s '
+                             f'(default: {DEFAULT_SEND_PERIOD:g} s; 0: each as it arrives, '
+                             'at several times the CPU)')
     return parser
 
 
@@ -70,10 +81,13 @@ def _checked(parser, options):
     for name, value, (low, high) in limits:
         if not low <= value <= high:
             parser.error(f'{name} {value} is outside {low}-{high}')  # exit code 2
+    low, high = SEND_PERIOD_RANGE
+    if not low <= options.send_period <= high:  # NaN too
+        parser.error(f'--send-period {options.send_period:g} s is outside {low:g}-{high:g} s')
     if not options.address.strip():
         parser.error('--address is empty')
     return BridgeSettings(options.address.strip(), options.port, options.topics,
-                          options.client_queue)
+                          options.client_queue, options.send_period)
 
 
 def _error(text):
@@ -90,37 +104,23 @@ def main(argv: Optional[List[str]] = None) -> int:
         return EXIT_BAD_INPUT
     parser = _parser()
     settings = _checked(parser, parser.parse_args(own_arguments))
-    try:
-        init_rclpy(command_line)
-    except RCLError as error:  # a malformed -p or params file, said by rcl
-        _error(rcl_error_text(error))
+    if not start_rclpy(command_line, _error):
         return EXIT_BAD_INPUT
-    node = executor = None
-    try:
-        with StopRequest() as stop:
-            try:
-                kind = executor_kind()
-            except ExecutorChoiceError as error:
-                _error(error)
-                return EXIT_BAD_INPUT
-            try:
-                node = BridgeNode(settings)
-            except RuntimeError as error:  # the SDK cannot bind (port taken, bad address)
-                _error(f'cannot serve on {settings.address} port {settings.port}: {error}')
-                return EXIT_FAILURE
-            print(f'{BRIDGE_SERVING_PREFIX}{node.address} (in the Foxglove app: Open '
-                  'connection, Foxglove WebSocket, this address)', flush=True)
-            executor = new_executor(kind)
-            executor.add_node(node)
-            spin_until_stopped(executor, stop)
-    finally:
-        if executor is not None:
-            executor.shutdown()
-        if node is not None:
-            node.close()
-            node.destroy_node()
-        try_shutdown()
-    return EXIT_OK
+
+    def serve():
+        try:
+            return BridgeNode(settings)
+        except RuntimeError as error:  # the SDK cannot bind (port taken, bad address)
+            raise CannotServe(f'cannot serve on {settings.address} port {settings.port}: '
+                              f'{error}') from None
+
+    def say_address(node):
+        print(f'{BRIDGE_SERVING_PREFIX}{node.address} (in the Foxglove app: Open '
+              'connection, Foxglove WebSocket, this address)', flush=True)
+    code = run_node(serve, _error, {ExecutorChoiceError: EXIT_BAD_INPUT,
+                                    CannotServe: EXIT_FAILURE},
+                    on_ready=say_address, on_close=BridgeNode.close)
+    return EXIT_OK if code is None else code
 
 
 if __name__ == '__main__':

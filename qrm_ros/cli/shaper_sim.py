@@ -24,41 +24,23 @@ from typing import List, Optional
 
 from qrm_ros.cli.exit_codes import EXIT_BAD_INPUT, EXIT_OK
 from qrm_ros.core.names import SIM_NODE_NAME
-from qrm_ros.node.ros_process import (executor_kind, init_rclpy, new_executor, RCLError,
-                                      rcl_error_text, spin_until_stopped, StopRequest)
+from qrm_ros.node.ros_process import run_node, start_rclpy
 from qrm_ros.node.shaper_sim import ShaperSimNode
-import rclpy
 
 __all__ = ['main']
 
 
+def _say(text):
+    print(f'{SIM_NODE_NAME}: cannot start: {text}', file=sys.stderr, flush=True)
+
+
 def main(argv: Optional[List[str]] = None) -> int:
     """Run the node until Ctrl-C or SIGTERM; exit 2 on bad start-up arguments or parameters."""
-    try:
-        init_rclpy(argv)  # None: rclpy reads sys.argv
-    except RCLError as error:  # a malformed -p or params file, said by rcl
-        print(f'{SIM_NODE_NAME}: cannot start: {rcl_error_text(error)}', file=sys.stderr)
+    if not start_rclpy(argv, _say):  # None: rclpy reads sys.argv
         return EXIT_BAD_INPUT
-    node = executor = None
-    try:
-        with StopRequest() as stop:
-            try:
-                kind = executor_kind()  # QRM_ROS_EXECUTOR: events (default) or single
-                node = ShaperSimNode()
-            except ValueError as error:
-                # Say which start-up value and why, no traceback (KinematicsError included).
-                print(f'{SIM_NODE_NAME}: cannot start: {error}', file=sys.stderr)
-                return EXIT_BAD_INPUT
-            executor = new_executor(kind)
-            executor.add_node(node)
-            spin_until_stopped(executor, stop)
-    finally:
-        if executor is not None:
-            executor.shutdown()  # lets go of the node's entities before they are destroyed
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return EXIT_OK
+    # Which start-up value and why, no traceback (KinematicsError and a bad executor included).
+    code = run_node(ShaperSimNode, _say, {ValueError: EXIT_BAD_INPUT})
+    return EXIT_OK if code is None else code
 
 
 if __name__ == '__main__':

@@ -145,8 +145,7 @@ class MotorStepper(MovingStroke, PlanViews):
             StrokeSegment(float(geometry.pivot_distance), float(geometry.ram_height)))
         self._equation = EquationOfMotion(geometry, mass, loads, motor, stroke.command)
         COMPILED_MOTOR_KERNEL.start_loading()
-        self.time_resets = 0
-        self.integration_cutoffs = 0
+        self.time_resets = self.integration_cutoffs = 0  # counted, for the node's status
         self._observer: Optional[Observer] = None
         self._functions: Optional[SegmentFunctions] = None
         self._acceleration_now: Optional[float] = None
@@ -246,18 +245,12 @@ class MotorStepper(MovingStroke, PlanViews):
     # Segments -----------------------------------------------------------------------------
 
     def _new_base(self, stamp_ns: int) -> None:
-        """Start a new time base at stamp_ns from the state at the present time (self._time).
-
-        The ramps carry on from where they are: the offset and the speed reference in force,
-        not the segment's start values (a ramping offset must not jump back).
-        """
-        plan = self._plan
-        reference, offset = plan.reference_at(self._time), plan.offset_at(self._time)
+        """Time base anew at stamp_ns; the ramps go on from now, not from the segment's start."""
+        reference, offset = self._plan.reference_at(self._time), self._plan.offset_at(self._time)
         self._stamp_ns = self._base_ns = stamp_ns
         self._time = 0.0
         self._piece = (0.0, 0.0, None)  # type: ignore[assignment]
-        self._start(0.0, self._angle, self._speed, reference, offset, None,
-                    self._stroke.stroke)
+        self._start(0.0, self._angle, self._speed, reference, offset, None, self._stroke.stroke)
 
     def _start(self, time: float, angle: float, speed: float, reference: float, offset: float,
                trigger: Optional[int], stroke: float) -> None:

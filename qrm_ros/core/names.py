@@ -91,6 +91,8 @@ __all__ += ['BRIDGE_DEFAULT_PORT', 'BRIDGE_NODE_NAME', 'BRIDGE_SERVING_PREFIX']
 BRIDGE_NODE_NAME = 'qrm_bridge'
 BRIDGE_SERVING_PREFIX = f'{BRIDGE_NODE_NAME}: serving '
 BRIDGE_DEFAULT_PORT = 8765  # the Foxglove app's default for a Foxglove WebSocket connection
+BRIDGE_CLIENTS_STATUS = f'{BRIDGE_NODE_NAME}: clients'  # the bridge's status on /diagnostics
+__all__ += ['BRIDGE_CLIENTS_STATUS']
 
 # The stroke adjustment (added after the names above; recordings made before it have the
 # five JOINT_NAMES only, and the analysis reads the crank radius's joint when present).

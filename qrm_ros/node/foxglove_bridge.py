@@ -26,40 +26,48 @@ this module only maps the graph onto it:
 - the machine's URDF and link transforms, when nothing in the graph publishes them
   (``bridge_machine``);
 - slow clients: the SDK keeps one bounded queue per client and drops that client's oldest
-  messages when it is full (the others and the graph are never held up); the bridge passes
-  the SDK's notice of it to the log and to the clients' status.
+  messages when it is full (the others and the graph are never held up); the bridge counts
+  the SDK's notices of it per client (``bridge_clients``) and says them in the log, to the
+  clients' status and in the ``qrm_bridge: clients`` status on /diagnostics (once a second).
 """
 
 import logging
 import os
-import threading
 from typing import Dict, List, Optional, Sequence
 
-import foxglove
 from ament_index_python.packages import get_package_share_directory, PackageNotFoundError
+from diagnostic_msgs.msg import DiagnosticArray
+import foxglove
 from foxglove import Context, Parameter, StatusLevel
 from foxglove.websocket import Capability, ChannelView, Client, ClientChannel, ServerListener
 from rcl_interfaces.msg import ParameterEvent
 from rclpy.node import Node
+from std_msgs.msg import Header
 
+from qrm_ros.node.bridge_clients import ClientBook, clients_status
 from qrm_ros.node.bridge_machine import MACHINE_TOPICS, MachineView
 from qrm_ros.node.bridge_parameters import from_ros, NODE_SEPARATOR, ParameterBridge
 from qrm_ros.node.bridge_services import ClientPublishers, PublishRefusal, ServiceBridge
 from qrm_ros.node.bridge_topics import CDR, TopicChannels
 from qrm_ros.core.names import (absolute_topic, BRIDGE_DEFAULT_PORT, BRIDGE_NODE_NAME,
-                                PARAMETER_EVENTS_TOPIC)
+                                DIAGNOSTICS_TOPIC, PARAMETER_EVENTS_TOPIC)
 
 __all__ = ['BridgeNode', 'BridgeSettings', 'DEFAULT_ADDRESS',
-           'DEFAULT_CLIENT_QUEUE', 'DEFAULT_PORT', 'package_asset']
+           'DEFAULT_CLIENT_QUEUE', 'DEFAULT_PORT', 'DEFAULT_SEND_PERIOD', 'package_asset']
 
 DEFAULT_ADDRESS = '127.0.0.1'  # loopback: nothing outside this machine reaches the bridge
 DEFAULT_PORT = BRIDGE_DEFAULT_PORT
 DEFAULT_CLIENT_QUEUE = 1024  # messages per client before its oldest are dropped
+DEFAULT_SEND_PERIOD = 0.01  # s between two hand-overs of the gathered messages to the server
 TICK_PERIOD = 0.05  # s, how soon a client's subscription or advertisement takes effect
 GRAPH_TICKS = 10  # ticks between looks at the graph (0.5 s)
+STATUS_TICKS = 20  # ticks between two clients statuses on /diagnostics (1 s)
 PACKAGE_SCHEME = 'package://'
 SDK_LOGGER = 'foxglove'  # the SDK logs through Python's logging under this name
-SLOW_CLIENT_NOTICE = 'outbox for client'  # the SDK's log text when it drops a client's oldest
+
+
+def _status_id(client_address: str) -> str:
+    return f'{BRIDGE_NODE_NAME} client {client_address}'
 
 
 class BridgeSettings:
@@ -67,8 +75,10 @@ class BridgeSettings:
 
     def __init__(self, address: str = DEFAULT_ADDRESS, port: int = DEFAULT_PORT,
                  topics: Optional[Sequence[str]] = None,
-                 client_queue: int = DEFAULT_CLIENT_QUEUE):
+                 client_queue: int = DEFAULT_CLIENT_QUEUE,
+                 send_period: float = DEFAULT_SEND_PERIOD):
         self.address, self.port, self.client_queue = address, port, client_queue
+        self.send_period = send_period
         self.topics = None if not topics else list(topics)
 
 
@@ -89,7 +99,7 @@ def package_asset(uri: str) -> Optional[bytes]:
 
 
 class _SdkLog(logging.Handler):
-    """The SDK's log into the node's: its warnings and errors, and full client queues."""
+    """The SDK's log into the node's: its warnings and errors; its client notices counted."""
 
     def __init__(self, bridge: 'BridgeNode'):
         super().__init__(logging.INFO)
@@ -97,9 +107,9 @@ class _SdkLog(logging.Handler):
 
     def emit(self, record: logging.LogRecord) -> None:
         text = record.getMessage()
-        if text.startswith(SLOW_CLIENT_NOTICE):
-            self._bridge.slow_client(text[len(SLOW_CLIENT_NOTICE):].split()[0])
-        elif record.levelno >= logging.WARNING:
+        if self._bridge.client_book.read(text):
+            return
+        if record.levelno >= logging.WARNING:
             self._bridge.get_logger().warning(f'server: {text}')
 
 
@@ -152,12 +162,11 @@ class BridgeNode(Node):
     def __init__(self, settings: BridgeSettings, **kwargs):
         super().__init__(BRIDGE_NODE_NAME, **kwargs)
         self.settings = settings
-        self.slow_client_notices: Dict[str, int] = {}  # client address -> notices from the SDK
-        self._lock = threading.Lock()
-        self._slow_pending: List[str] = []
+        self.client_book = ClientBook()  # client address -> the SDK's notices (any thread)
+        self._said_clients: Dict[str, bool] = {}  # address -> connected, as last said
         self._foxglove_context = Context()
         self.topic_channels = TopicChannels(self, self._foxglove_context, settings.topics,
-                                            self.get_logger().warning)
+                                            self.get_logger().warning, settings.send_period)
         self.parameters = ParameterBridge(self, lambda text: self.report(text))
         self.client_publishers = ClientPublishers(self, self._topic_types)
         self._sdk_log = _SdkLog(self)
@@ -175,6 +184,7 @@ class BridgeNode(Node):
         self.service_bridge = ServiceBridge(self, self.server.add_services,
                                             self.server.remove_services,
                                             self.get_logger().warning)
+        self._diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, 10)
         self.create_subscription(ParameterEvent, PARAMETER_EVENTS_TOPIC,
                                  self._on_parameter_event, 100)
         # The machine's URDF and transforms: served unless --topics leaves them out.
@@ -198,19 +208,41 @@ class BridgeNode(Node):
         self.get_logger().warning(text)
         self.server.publish_status(text, level)
 
-    def slow_client(self, client_address: str) -> None:
-        """Note the SDK's notice; said at the next tick (not from inside the SDK's send)."""
-        with self._lock:
-            self.slow_client_notices[client_address] = (
-                self.slow_client_notices.get(client_address, 0) + 1)
-            self._slow_pending.append(client_address)
+    @property
+    def slow_client_notices(self) -> Dict[str, int]:
+        """Client address -> the SDK's full-queue notices for it (gone clients included)."""
+        return {a: n for a, n in self.client_book.notices().items() if n}
 
-    def _say_slow_clients(self) -> None:
-        with self._lock:
-            pending, self._slow_pending = self._slow_pending, []
-        for client_address in pending:
-            self.report(f'client {client_address} falls behind: its oldest messages are '
-                        f'dropped (queue of {self.settings.client_queue} messages per client)')
+    def _say_clients(self) -> None:
+        """Say the SDK's notices (on the executor's thread, not inside the SDK's send)."""
+        notices = self.client_book.notices()
+        for address in self.client_book.take_pending():
+            count = notices.get(address, 0)
+            text = (f'client {address} falls behind: its oldest messages are dropped (queue of '
+                    f'{self.settings.client_queue} messages per client; {count} full-queue '
+                    f'notice{"s" if count != 1 else ""} so far)')
+            self.get_logger().warning(text)
+            self.server.publish_status(text, StatusLevel.Warning, id=_status_id(address))
+        for address, record in self.client_book.snapshot().items():
+            if self._said_clients.get(address) == record.connected:
+                continue
+            if record.connected:
+                self.get_logger().info(f'client {address} connected')
+            else:
+                self.get_logger().info(f'client {address} left ({record.full_queue_notices} '
+                                       'full-queue notices)')
+                self.server.remove_status([_status_id(address)])
+            self._said_clients[address] = record.connected
+
+    def _publish_clients_status(self) -> None:
+        self._diagnostics.publish(DiagnosticArray(
+            header=Header(stamp=self.get_clock().now().to_msg()),
+            status=[clients_status(self.client_book, self.settings.client_queue,
+                                   self.get_fully_qualified_name())]))
+        gone = [a for a, connected in self._said_clients.items() if not connected]
+        self.client_book.forget(gone)  # reported once as gone: forgotten now
+        for address in gone:
+            del self._said_clients[address]
 
     def _foreign_publishers(self, topic: str) -> list:
         return [info for info in self.get_publishers_info_by_topic(topic)
@@ -222,8 +254,9 @@ class BridgeNode(Node):
 
     def _tick(self) -> None:
         self._ticks += 1
-        if self._slow_pending:
-            self._say_slow_clients()
+        self._say_clients()
+        if self._ticks % STATUS_TICKS == 0:
+            self._publish_clients_status()
         if self._ticks % GRAPH_TICKS == 0:
             self._look_at_graph()
         elif self.topic_channels.changed.is_set():

@@ -32,6 +32,11 @@ supported"); this package's nodes have none. And it calls a subscription callbac
 the message info with one argument, the (message, info) pair, where the other executors pass
 two (a two-parameter callback then fails: "SystemError: null argument to internal routine");
 MESSAGE_INFO_SIGNATURE and message_and_info make a callback that works on both.
+
+The long-running commands (shaper_sim, mcap_recorder, qrm_bridge) start and stop alike:
+start_rclpy refuses a malformed command line in one line, and run_node makes the node, spins
+it until a stop signal, and tears everything down in order, turning the errors the command
+names into a one-line message and its exit code.
 """
 
 import gc
@@ -39,15 +44,19 @@ import inspect
 import os
 import re
 import signal
+from typing import Callable, Mapping, Optional, Sequence, Tuple, Type, TypeVar, Union
 
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
+from rclpy.utilities import try_shutdown
 
 __all__ = ['EXECUTOR_VARIABLE', 'EXECUTORS', 'ExecutorChoiceError', 'IDLE_WAKEUP',
            'MESSAGE_INFO_SIGNATURE', 'RCLError', 'StopRequest', 'executor_kind', 'init_rclpy',
-           'message_and_info', 'new_executor', 'rcl_error_text', 'spin_until_stopped']
+           'message_and_info', 'new_executor', 'rcl_error_text', 'run_node', 'spin_until_stopped',
+           'start_rclpy']
 
 RCLError = _rclpy.RCLError  # rcl failures (bad arguments, invalid context); as rclpy.action
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
@@ -147,3 +156,60 @@ def new_executor(kind=None, context=None):
 def message_and_info(arguments):
     """Return (message, info) from a MESSAGE_INFO_SIGNATURE callback's arguments, any executor."""
     return arguments if len(arguments) == 2 else arguments[0]
+
+
+def start_rclpy(argv: Optional[Sequence[str]], say: Callable[[str], None]) -> bool:
+    """init_rclpy(argv) (None: sys.argv); on a malformed -p or params file say rcl's reason."""
+    try:
+        init_rclpy(argv)
+    except RCLError as error:
+        say(rcl_error_text(error))
+        return False
+    return True
+
+
+MadeNode = TypeVar('MadeNode', bound=Node)
+Refusals = Mapping[Union[Type[BaseException], Tuple[Type[BaseException], ...]], int]
+
+
+def run_node(make_node: Callable[[], MadeNode], say: Callable[[str], None],
+             refusals: Refusals, *, on_ready: Optional[Callable[[MadeNode], None]] = None,
+             on_stop: Optional[Callable[[MadeNode, object], None]] = None,
+             on_close: Optional[Callable[[MadeNode], None]] = None) -> Optional[int]:
+    """
+    Make the node (rclpy started), spin it until Ctrl-C or SIGTERM, tear it all down.
+
+    refusals: exception type(s) -> exit code, the first that matches wins; such an error,
+    from the executor's choice (QRM_ROS_EXECUTOR), the node's making, its spinning or on_stop,
+    is said in one line and its code returned. None when the node ran and stopped cleanly.
+    on_ready(node) runs once the node is made, on_stop(node, executor) after the stop
+    request (still spinnable: e.g. to drain), on_close(node) before the node is destroyed.
+    rclpy is shut down in any case.
+    """
+    refused = tuple(kind for kinds in refusals
+                    for kind in (kinds if isinstance(kinds, tuple) else (kinds,)))
+    node: Optional[MadeNode] = None
+    executor = None
+    try:
+        with StopRequest() as stop:
+            kind = executor_kind()  # QRM_ROS_EXECUTOR: events (default) or single
+            node = make_node()
+            if on_ready is not None:
+                on_ready(node)
+            executor = new_executor(kind)
+            executor.add_node(node)
+            spin_until_stopped(executor, stop)
+            if on_stop is not None:
+                on_stop(node, executor)
+    except refused as error:
+        say(str(error))
+        return next(code for kinds, code in refusals.items() if isinstance(error, kinds))
+    finally:
+        if executor is not None:
+            executor.shutdown()  # lets go of the node's entities before they are destroyed
+        if node is not None:
+            if on_close is not None:
+                on_close(node)
+            node.destroy_node()
+        try_shutdown()
+    return None

@@ -21,13 +21,14 @@ would, killing it only if it does not stop. The test's own node is the one that 
 topics, for the player's publishers, for the messages to arrive.
 """
 
+import contextlib
 import os
 import shutil
 import signal
 import subprocess
 import sys
 import time
-from typing import Any, Callable, List, Mapping, Optional, Sequence, Union
+from typing import Any, Callable, Iterator, List, Mapping, Optional, Sequence, Union
 
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -138,13 +139,31 @@ class RosProcess:
         self.stop()
 
 
+def _start_command(name: str, arguments: Sequence[str] = (),
+                   environ: Optional[Mapping[str, str]] = None) -> RosProcess:
+    """Start a command of the package (found as _command finds it) with these arguments."""
+    return RosProcess([_command(name), *arguments], environ)
+
+
 def start_shaper_sim(parameters: Optional[Mapping[str, Any]] = None,
                      environ: Optional[Mapping[str, str]] = None) -> RosProcess:
     """Start shaper_sim with start-up parameters (e.g. {'coupling_offset': 0.01})."""
-    arguments = [_command('shaper_sim'), '--ros-args']
+    arguments = ['--ros-args']
     for name, value in (parameters or {}).items():
         arguments += ['-p', f'{name}:={_parameter_text(value)}']
-    return RosProcess(arguments, environ)
+    return _start_command('shaper_sim', arguments, environ)
+
+
+@contextlib.contextmanager
+def _lent_executor(node: Node) -> Iterator[SingleThreadedExecutor]:
+    """Lend the node an executor of its own context, for the while (nothing else spun)."""
+    executor = SingleThreadedExecutor(context=node.context)
+    executor.add_node(node)
+    try:
+        yield executor
+    finally:
+        executor.remove_node(node)
+        executor.shutdown()
 
 
 def spin_until(node: Node, predicate: Callable[[], bool], timeout: float = 30.0,
@@ -155,28 +174,18 @@ def spin_until(node: Node, predicate: Callable[[], bool], timeout: float = 30.0,
     The node is spun by an executor of its own context for the while (not spun elsewhere).
     """
     deadline = time.monotonic() + timeout
-    executor = SingleThreadedExecutor(context=node.context)
-    executor.add_node(node)
-    try:
+    with _lent_executor(node) as executor:
         while not predicate():
             if time.monotonic() > deadline:
                 raise TimeoutError(f'timed out after {timeout:g} s waiting for {what}')
             executor.spin_once(timeout_sec=IDLE_SPIN)
-    finally:
-        executor.remove_node(node)
-        executor.shutdown()
 
 
 def _spin_ready(node: Node, spins: int) -> None:
     """Run up to `spins` of the node's ready callbacks, one per spin, without waiting."""
-    executor = SingleThreadedExecutor(context=node.context)
-    executor.add_node(node)
-    try:
+    with _lent_executor(node) as executor:
         for _ in range(spins):
             executor.spin_once(timeout_sec=0.0)
-    finally:
-        executor.remove_node(node)
-        executor.shutdown()
 
 
 def wait_for_topics(node: Node, topics: Sequence[str], timeout: float = 30.0) -> None:
@@ -201,7 +210,7 @@ class McapReplay:
         """clock: publish /clock at this rate (Hz) from the recorded time; None: no /clock."""
         self.recording = recording
         self.run: Run = open_run(recording)
-        arguments = [_command('mcap_player'), recording, '--start-paused', '--rate', repr(rate),
+        arguments = [recording, '--start-paused', '--rate', repr(rate),
                      '--start-offset', repr(start_offset)]
         if clock is not None:
             arguments += ['--clock', repr(clock)]
@@ -209,7 +218,7 @@ class McapReplay:
                              else {absolute_topic(t) for t in topics})
         if topics is not None:
             arguments += ['--topics', *self.topics]
-        self.process = RosProcess(arguments, environ)
+        self.process = _start_command('mcap_player', arguments, environ)
 
     def messages(self, topic: str) -> List[bytes]:
         """Return the serialized messages the replay plays on a topic, in order."""

@@ -282,6 +282,8 @@ def test_the_urdf_is_served_as_an_asset_and_nothing_outside_the_share_folder(run
 @pytest.mark.parametrize('arguments, words', [
     (['--port', '70000'], '--port 70000 is outside 0-65535'),
     (['--client-queue', '0'], '--client-queue 0 is outside 1-1000000'),
+    (['--send-period', '2'], '--send-period 2 s is outside 0-1 s'),
+    (['--send-period', 'nan'], '--send-period nan s is outside 0-1 s'),
 ])
 def test_bad_options_exit_2_with_one_line(arguments, words):
     result = subprocess.run([installed_executable('qrm_bridge'), *arguments],
