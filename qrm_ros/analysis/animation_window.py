@@ -204,7 +204,7 @@ def read_tour(result: Analysis, offsets: int = 4, fps: float = 20.0,
 
     The frames show what ``animation.offset_tour_samples`` picks from the whole run: the
     last ``revolutions`` of each of ``tour_segments``' segments, in real time at fps (stamps
-    never fall within a segment: a step back splits it). None of it grows with the run.
+    never step back within a segment: a step back splits it). None of it grows with the run.
     """
     recording = result.recording
     # Where each segment lies in the whole run (a whole-run analysis' segments index it).
