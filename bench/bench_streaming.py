@@ -21,9 +21,11 @@ decode, segment, measure; what qrm_analyze does) and the bare baseline, rosbags'
 reading and deserializing the same joint states. Prints medians of each process's peak
 memory (VmHWM) and of its time (imports excluded), and the ratios: 8 h against 1 h in
 memory (target <= 1.2x, and < 300 MB) and in time per hour (<= 1.1x), and the analysis
-against the bare read (<= 1.0x).
+against the bare read (<= 1.0x). With --main, also the main job's report (``qrm_main.report``:
+the streamed analysis, its figures and the offset tour, which read only what they draw):
+its peak memory at each length.
 
-    python3 dev.py run python bench/bench_streaming.py [--hours 1 8] [--repeats 3]
+    python3 dev.py run python bench/bench_streaming.py [--hours 1 8] [--repeats 3] [--main]
 """
 
 import argparse
@@ -47,6 +49,14 @@ if which == 'ours':
     from qrm_ros.analysis.streamed_run import analyse_file
     start = time.perf_counter()
     pairs = sum(row['stroke_pairs'] for row in analyse_file(path, progress_stream=None).rows)
+elif which == 'main':  # the main job's report: the analysis, figures and offset tour
+    import contextlib, io, json as results, os, tempfile
+    from qrm_ros.cli import qrm_main
+    start = time.perf_counter()
+    with tempfile.TemporaryDirectory() as folder, contextlib.redirect_stdout(io.StringIO()):
+        qrm_main.report(path, folder)
+        with open(os.path.join(folder, 'results.json')) as document:
+            pairs = sum(s['stroke_pairs'] for s in results.load(document)['segments'])
 else:
     from rosbags.highlevel import AnyReader
     start = time.perf_counter()
@@ -80,7 +90,11 @@ def main():
     parser.add_argument('--hours', type=float, nargs='+', default=[1.0, 8.0],
                         help='run lengths [h]; the first is the reference')
     parser.add_argument('--repeats', type=int, default=3, help='interleaved repeats')
+    parser.add_argument('--main', action='store_true',
+                        help="also the main job's report (qrm_main: the analysis, its figures "
+                             'and offset tour): its peak memory at each length')
     args = parser.parse_args()
+    kinds = ('bare', 'ours') + (('main',) if args.main else ())
     with tempfile.TemporaryDirectory() as folder:
         paths = {}
         for hours in args.hours:
@@ -90,14 +104,14 @@ def main():
             print(f'{hours:g} h: wrote {messages} joint states '
                   f'({os.path.getsize(paths[hours]) / 1e6:.0f} MB) in '
                   f'{time.perf_counter() - start:.0f} s', flush=True)
-        found = {(hours, who): [] for hours in args.hours for who in ('ours', 'bare')}
+        found = {(hours, who): [] for hours in args.hours for who in kinds}
         for repeat in range(args.repeats):
             for hours in args.hours:
-                for who in (('ours', 'bare') if repeat % 2 else ('bare', 'ours')):
+                for who in (kinds[::-1] if repeat % 2 else kinds):
                     seconds, peak, count = measure(who, paths[hours])
                     found[hours, who].append((seconds, peak))
                     print(f'repeat {repeat + 1}, {hours:g} h, {who}: {seconds:.2f} s, peak '
-                          f'{peak / 1e6:.0f} MB ({count} {"pairs" if who == "ours" else "read"})',
+                          f'{peak / 1e6:.0f} MB ({count} {"read" if who == "bare" else "pairs"})',
                           flush=True)
     reference = args.hours[0]
     base_time = _median([s for s, _ in found[reference, 'ours']]) / reference
@@ -114,6 +128,14 @@ def main():
               f'{_median([p for _, p in bare]) / 1e6:.0f} MB; ratio analysis / bare read median '
               f'{_median(ratios):.2f}x (min {min(ratios):.2f}, max {max(ratios):.2f}; target '
               '<= 1.0x)')
+    if args.main:
+        main_peak = _median([p for _, p in found[reference, 'main']])
+        for hours in args.hours:
+            runs = found[hours, 'main']
+            peak = _median([p for _, p in runs])
+            print(f'{hours:g} h: main job report (analysis, figures, tour) median '
+                  f'{_median([s for s, _ in runs]):.2f} s, peak {peak / 1e6:.0f} MB '
+                  f'({peak / main_peak:.2f}x the {reference:g} h run\'s)')
 
 
 if __name__ == '__main__':

@@ -48,6 +48,7 @@ DEFERRED_IMPORTS = {
     'qrm_ros.analysis.figures': 'matplotlib: loaded only by a command that draws',
     'qrm_ros.analysis.gearbox_figure': 'matplotlib: loaded only by a command that draws',
     'qrm_ros.analysis.animation': 'matplotlib: loaded only by a command that animates',
+    'qrm_ros.analysis.animation_window': 'matplotlib: loaded only by a command that animates',
     'qrm_ros.analysis.fleet_figure': 'matplotlib: loaded only when a fleet report is written',
 }
 MAX_MODULE_LINES = 600

@@ -46,7 +46,8 @@ __all__ = ['AnimationError', 'FORMATS', 'FramePlan', 'MAX_FRAMES', 'MAX_GIF_FPS'
            'MP4_MISSING', 'animate_plan', 'check_offsets', 'check_output', 'check_rates',
            'frame_plan', 'gif_delay',
            'offset_tour_samples', 'ratio_text', 'read_efforts', 'recorded_cutting_length',
-           'render_frames', 'segment_at', 'write_animation', 'write_offset_tour']
+           'render_frames', 'segment_at', 'tour_segments', 'write_animation', 'write_frames',
+           'write_offset_tour']
 
 # Frames at most, by format: a GIF is assembled in memory (Pillow keeps every frame, 0.5 MB
 # each, until written); an MP4 streams, but two hours is surely a mistaken span (a clock
@@ -303,7 +304,8 @@ def check_output(path: str) -> str:
     return extension
 
 
-def _write(frames, path, fps, total, progress_stream=None):
+def write_frames(frames: Iterable[np.ndarray], path: str, fps: float, total: int,
+                 progress_stream: Optional[TextIO] = None) -> int:
     """Write the RGB frames to path, all or nothing; return how many were written."""
     writer = _GifWriter if check_output(path) == '.gif' else _Mp4Writer
     progress = None
@@ -371,7 +373,7 @@ def animate_plan(geometry: kin.Geometry, samples: Samples, plan: FramePlan, resu
     try:
         frames = (rgb for _, rgb in render_frames(figure, samples, plan.sample,
                                                   segment_at(result), efforts))
-        return _write(frames, path, fps, plan.sample.size, progress_stream)
+        return write_frames(frames, path, fps, plan.sample.size, progress_stream)
     finally:
         figure.close()
 
@@ -381,6 +383,35 @@ def largest_crank_radius(samples: Samples, indices: np.ndarray) -> Optional[floa
     if samples.crank_radius is None or not np.size(indices):
         return None
     return float(np.max(samples.crank_radius[indices]))
+
+
+def tour_segments(result: Analysis, offsets: int = 4) -> List[int]:
+    """
+    Return the indices (into result.segments) of the segments an offset tour shows.
+
+    At each recorded stroke (crank radius), at most ``offsets``, spread over the offsets
+    recorded there (first and last included); at each its turning segment with the most
+    stroke pairs; in recording order.
+    """
+    chosen: Dict[Tuple[float, Optional[float]], Tuple[int, Dict[str, Any]]] = {}
+    for index, (segment, row) in enumerate(zip(result.segments, result.rows)):
+        key = (segment.offset, segment.crank_radius)
+        held = chosen.get(key)
+        if segment.input_speed != 0.0 and (
+                held is None or row['stroke_pairs'] >= held[1]['stroke_pairs']):
+            chosen[key] = (index, row)
+    strokes: Dict[Optional[float], List[int]] = {}
+    for index, _ in chosen.values():
+        strokes.setdefault(result.segments[index].crank_radius, []).append(index)
+    picked: List[int] = []
+    for at_stroke in strokes.values():
+        at_stroke.sort()  # segments are in recording order
+        if len(at_stroke) > offsets:
+            picks = np.unique(np.round(np.linspace(0, len(at_stroke) - 1,
+                                                   offsets)).astype(int))
+            at_stroke = [at_stroke[i] for i in picks]
+        picked.extend(at_stroke)
+    return sorted(picked)
 
 
 def offset_tour_samples(result: Analysis, offsets: int = 4, fps: float = 20.0,
@@ -394,27 +425,8 @@ def offset_tour_samples(result: Analysis, offsets: int = 4, fps: float = 20.0,
     time at fps, in recording order. Empty when nothing turns.
     """
     samples = result.recording.samples
-    chosen: Dict[Tuple[float, Optional[float]], Tuple[Any, Dict[str, Any]]] = {}
-    for segment, row in zip(result.segments, result.rows):
-        key = (segment.offset, segment.crank_radius)
-        held = chosen.get(key)
-        if segment.input_speed != 0.0 and (
-                held is None or row['stroke_pairs'] >= held[1]['stroke_pairs']):
-            chosen[key] = (segment, row)
-    strokes: Dict[Optional[float], List[Any]] = {}
-    for segment, _ in chosen.values():
-        strokes.setdefault(segment.crank_radius, []).append(segment)
-    segments = []
-    for at_stroke in strokes.values():
-        at_stroke.sort(key=lambda s: s.start)
-        if len(at_stroke) > offsets:
-            picks = np.unique(np.round(np.linspace(0, len(at_stroke) - 1,
-                                                   offsets)).astype(int))
-            at_stroke = [at_stroke[i] for i in picks]
-        segments.extend(at_stroke)
-    segments.sort(key=lambda s: s.start)
     indices = []
-    for segment in segments:
+    for segment in (result.segments[index] for index in tour_segments(result, offsets)):
         times = samples.time[segment.start:segment.end]
         duration = revolutions * 2 * math.pi / abs(segment.input_speed)
         start = max(float(times.min()), float(times.max()) - duration)
@@ -442,7 +454,7 @@ def write_offset_tour(result: Analysis, path: str, offsets: int = 4, fps: float 
     try:
         frames = (rgb for _, rgb in render_frames(figure, samples, indices,
                                                   segment_at(result), efforts))
-        _write(frames, path, fps, indices.size)
+        write_frames(frames, path, fps, indices.size)
     finally:
         figure.close()
     return path

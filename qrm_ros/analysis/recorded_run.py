@@ -90,6 +90,8 @@ class RunExtent(NamedTuple):
     samples: int  # samples used
     time_span: float  # s, from the earliest to the latest sample
     efforts_recorded: bool  # whether any sample carries efforts
+    # Each segment's [start, end) sample indices in the whole run (its samples are excerpts).
+    segment_spans: Tuple[Tuple[int, int], ...] = ()
 
 
 class Recording(NamedTuple):

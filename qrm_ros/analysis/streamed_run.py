@@ -291,6 +291,7 @@ def analyse_file(path: str, geometry_overrides: Optional[Dict[str, Optional[floa
         path, opened.geometry, samples, run.problem if run.truncated else None, tuple(losses),
         checks.messages_in_file(run), checks.read, checks.repeated, opened.drive,
         opened.drive_problem, tuple(survey.drives[1:]), cast_int(survey.origin_ns),
-        RunExtent(checks.used, survey.latest - survey.earliest, survey.efforts_recorded))
+        RunExtent(checks.used, survey.latest - survey.earliest, survey.efforts_recorded,
+                  tuple((segment.start, segment.end) for segment in stream.segments)))
     recording = with_recovery_losses(recording, run.metadata)
     return Analysis(recording, segments, stream.rows, stream.transitions)

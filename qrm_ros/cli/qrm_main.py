@@ -305,17 +305,18 @@ def report(recording, folder):
     """
     Analyse the recording; print the table, write results and figures into folder.
 
-    Returns what the analysis lacks (lines; empty when the recording was read whole).
+    The recording is streamed (analyse_file), and the figures and the tour read only what
+    they draw: memory independent of the run's length. Returns what the analysis lacks
+    (lines; empty when the recording was read whole).
     """
-    loaded = analysis.read_recording(recording)
-    result = analysis.analyse(loaded)
+    result = analysis.analyse_file(recording)
     print()
     print(analysis.format_table(result))
     figures = analysis.write_outputs(  # all or none
         result, os.path.join(folder, 'results.csv'), os.path.join(folder, 'results.json'),
         os.path.join(folder, 'figures'))
     tour = _write_tour(result, os.path.join(folder, 'figures', TOUR_FILE))
-    missing = analysis.incompleteness(loaded)
+    missing = analysis.incompleteness(result.recording)
     for line in missing:
         print(f'qrm_main: warning: {line}', file=sys.stderr)
     print()
@@ -331,9 +332,10 @@ def report(recording, folder):
 
 def _write_tour(result, path):
     """Write the linkage at a few offsets beside the figures; a failure only warns."""
-    from qrm_ros.analysis import animation  # matplotlib: only once there is something to draw
+    # matplotlib: only once there is something to draw
+    from qrm_ros.analysis import animation, animation_window
     try:
-        return animation.write_offset_tour(result, path)
+        return animation_window.write_window_tour(result, path)
     except (OSError, animation.AnimationError) as error:
         print(f'qrm_main: warning: no animation written: {error}', file=sys.stderr)
         return None

@@ -20,6 +20,7 @@ import pytest
 
 from qrm_ros.analysis import animation
 from qrm_ros.analysis import animation_window
+from qrm_ros.analysis import measurement
 from qrm_ros.analysis import recorded_run
 from qrm_ros.analysis import streamed_run
 from qrm_ros.core import kinematics as kin
@@ -75,3 +76,86 @@ def test_only_the_window_is_kept_however_long_the_run(tmp_path):
     for name, column in zip(short.samples._fields, short.samples):
         other = getattr(long.samples, name)
         assert (column is None and other is None) or np.array_equal(column, other), name
+
+
+def _whole_run_tour(path, out):
+    result = measurement.analyse(recorded_run.read_recording(str(path)))
+    assert animation.write_offset_tour(result, str(out)) == str(out)
+    return out.read_bytes()
+
+
+def _window_tour(path, out, trace_bins):
+    result = streamed_run.analyse_file(str(path), progress_stream=None)
+    assert animation_window.write_window_tour(result, str(out), trace_bins=trace_bins) == str(out)
+    return out.read_bytes()
+
+
+@pytest.fixture(scope='module')
+def five_offsets_run(tmp_path_factory):
+    """A run at five offsets (the tour shows four), its joint states carrying efforts."""
+    path = tmp_path_factory.mktemp('tour') / 'five_offsets.mcap'
+    write_run(path, kin.Geometry.paper(), [-0.01, -0.005, 0.0, 0.005, 0.01], hold=1.5,
+              effort=made_up_efforts)
+    return path
+
+
+@pytest.mark.parametrize('name', ['five_offsets', 'efforts', 'no_efforts'])
+def test_streamed_offset_tour_is_the_whole_run_tour_byte_for_byte(
+        tmp_path, request, name):
+    path = {'five_offsets': lambda: request.getfixturevalue('five_offsets_run'),
+            'efforts': lambda: request.getfixturevalue('run_with_efforts'),
+            'no_efforts': lambda: os.path.join(TEST_DATA, 'offset_and_speed_change.mcap'),
+            }[name]()
+    whole = _whole_run_tour(path, tmp_path / 'whole.gif')
+    # a trace not thinned (a bin per sample): the same picture, frame for frame
+    assert _window_tour(path, tmp_path / 'window.gif', trace_bins=10 ** 9) == whole
+
+
+def test_the_thinned_trace_keeps_each_bins_extremes_however_the_blocks_fall():
+    generator = np.random.default_rng(7)
+    size, bin_size = 5003, 37
+    time = np.cumsum(generator.uniform(0.0, 0.02, size)) - 3.0
+    time[2000:2100] -= 1.0  # a clock jump back: the least time is not the first
+    velocity, torque = generator.normal(size=size), generator.normal(size=size)
+    torque[100:300] = np.nan  # messages without efforts
+    samples = recorded_run.Samples(time, *[np.zeros(size)] * 5, velocity, np.zeros(size),
+                                   np.zeros(size), torque)
+    expected = []
+    for start in range(0, size, bin_size):
+        chosen = set()
+        for column in (time, velocity, torque):
+            part = column[start:start + bin_size]
+            if np.isfinite(part).any():
+                chosen |= {start + int(np.nanargmin(part)), start + int(np.nanargmax(part))}
+        expected += sorted(chosen)
+    for cuts in ([], [1, 36, 37, 38, 2500, 5000], sorted(generator.choice(size, 60, False))):
+        envelope = animation_window.TraceEnvelope(bin_size)
+        for low, high in zip([0, *cuts], [*cuts, size]):
+            envelope.add(low, recorded_run.Samples._make(
+                None if column is None else column[low:high] for column in samples))
+        drawn_time, drawn_velocity, drawn_torque = envelope.trace()
+        np.testing.assert_array_equal(drawn_time, time[expected])
+        np.testing.assert_array_equal(drawn_velocity, velocity[expected])
+        np.testing.assert_array_equal(drawn_torque, torque[expected])
+
+
+def test_the_tour_reads_the_same_few_samples_however_long_the_run(tmp_path):
+    tours = []
+    for hold in (3.0, 30.0):  # the same offsets, held ten times as long
+        path = tmp_path / f'run_{hold:g}.mcap'
+        write_run(path, kin.Geometry.paper(), [0.0, 0.01], hold=hold, effort=made_up_efforts)
+        result = streamed_run.analyse_file(str(path), progress_stream=None)
+        tours.append(animation_window.read_tour(result, trace_bins=20))
+        whole = recorded_run.read_recording(str(path)).samples
+        time, velocity, torque = tours[-1].trace
+        assert time.size <= 6 * 20 < whole.time.size / 5
+        # the time panel spans the whole run and the whole swing of each trace
+        for drawn, recorded in ((time, whole.time), (velocity, whole.ram_velocity),
+                                (torque, whole.input_torque)):
+            assert (drawn.min(), drawn.max()) == (recorded.min(), recorded.max())
+        assert tours[-1].efforts_everywhere
+    short, long = tours
+    # one revolution of each offset at 100 Hz (its ends rounded), and the sample before it
+    for tour in tours:
+        assert 2 * 101 <= tour.samples.time.size <= 2 * 102
+    assert short.frames.size == long.frames.size == 2 * 21

@@ -22,8 +22,9 @@ import math
 import numpy as np
 import pytest
 
+from qrm_ros.analysis import animation_window
 from qrm_ros.analysis import recorded_run
-from qrm_ros.analysis.animation import offset_tour_samples, render_frames
+from qrm_ros.analysis.animation import offset_tour_samples, render_frames, write_offset_tour
 from qrm_ros.analysis.linkage_figure import LinkageFigure
 from qrm_ros.analysis.measurement import analyse, measure_segment, segment_geometry
 from qrm_ros.analysis.recorded_run import read_recording
@@ -186,3 +187,14 @@ def test_a_recorded_stroke_change_is_read_and_streamed_alike(tmp_path):
         pytest.approx(float(PAPER.ram_stroke), rel=1e-12), pytest.approx(0.06, rel=1e-12)]
     assert whole.rows == streamed.rows and whole.transitions == streamed.transitions
     assert 'a stroke change' in whole.transitions[0]['change']
+
+
+def test_the_streamed_offset_tour_is_the_whole_run_tour_at_each_stroke(tmp_path):
+    """qrm_main's tour read from the file alone draws what the whole-run tour draws."""
+    path = str(tmp_path / 'stroke.mcap')
+    write_six_joint_run(path, stroke_change_samples())
+    assert write_offset_tour(analyse(read_recording(path)), str(tmp_path / 'whole.gif'))
+    streamed = analyse_file(path, {}, progress_stream=None)
+    assert animation_window.write_window_tour(streamed, str(tmp_path / 'window.gif'),
+                                              trace_bins=10 ** 9)  # every sample drawn
+    assert (tmp_path / 'window.gif').read_bytes() == (tmp_path / 'whole.gif').read_bytes()

@@ -22,8 +22,10 @@ stopping the others; Ctrl-C stops every worker.
 """
 
 import glob
+import io
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -32,6 +34,9 @@ import time
 
 import pytest
 
+from qrm_ros.analysis import fleet
+from qrm_ros.analysis import fleet_figure
+from qrm_ros.analysis import streamed_run
 from qrm_ros.cli import exit_codes
 from qrm_ros.cli import qrm_analyze
 from repo_paths import TEST_DATA
@@ -101,6 +106,33 @@ def test_a_fleet_gives_the_same_report_serially_in_a_pool_and_on_a_dask_cluster(
     assert (reports['serial'] / 'fleet_time_ratio_error.png').stat().st_size > 0
     assert document['status'] == {'complete': len(GOLDEN), 'incomplete': 0, 'refused': 1,
                                   'failed': 0}
+
+
+def test_a_single_threaded_process_forks_its_workers_any_other_spawns_them():
+    probe = ('import sys, threading, time\n'
+             'from qrm_ros.analysis import fleet\n'
+             'print(fleet.start_method())\n'
+             'if sys.argv[1] == "thread":\n'
+             '    threading.Thread(target=time.sleep, args=(5,), daemon=True).start()\n'
+             'else:\n'
+             '    import rclpy  # noqa: F401 - DDS may run threads of its own\n'
+             'print(fleet.start_method())\n')
+    for other in ('thread', 'ros'):
+        done = subprocess.run([sys.executable, '-c', probe, other], capture_output=True,
+                              text=True, check=True)
+        assert done.stdout.split() == ['fork', 'spawn'], other
+
+
+def test_forked_and_spawned_workers_give_the_same_fleet_report(fleet_folder, tmp_path,
+                                                               capsys, monkeypatch):
+    reports = []
+    for method in ('fork', 'spawn'):
+        monkeypatch.setattr(fleet, 'start_method', lambda chosen=method: chosen)
+        code, _, err = run_main([fleet_folder, '--output-dir', tmp_path / method, '--jobs', '2'],
+                                capsys)
+        assert code == exit_codes.EXIT_BAD_INPUT, err  # the worst file: one is not MCAP
+        reports.append((tmp_path / method / 'fleet.json').read_bytes())
+    assert reports[0] == reports[1]
 
 
 def test_each_runs_results_are_those_of_the_run_alone(fleet_folder, tmp_path, capsys):
@@ -216,3 +248,46 @@ def test_ctrl_c_cancels_the_fleet_on_a_dask_cluster(tmp_path):
             time.sleep(0.05)
         assert not any(observer.processing().values()), 'tasks still running'
         assert len(observer.scheduler_info()['workers']) == 2  # the cluster itself goes on
+
+
+class Terminal(io.StringIO):
+    def isatty(self):
+        return True
+
+
+def test_one_progress_bar_over_the_files_on_a_terminal(tmp_path, monkeypatch):
+    terminal = Terminal()
+    monkeypatch.setattr(sys, 'stderr', terminal)
+    monkeypatch.setattr(streamed_run, 'PROGRESS_MIN_MESSAGES', 1)  # a file's own bar if any
+    code = qrm_analyze.main([*GOLDEN[:3], '--jobs', '1'])
+    assert code == exit_codes.EXIT_OK, terminal.getvalue()
+    shown = terminal.getvalue()
+    counts = re.findall(r'analysing: +\d+%\|[^|]*\| (\d+)/(\d+) ', shown)
+    assert counts and {total for _, total in counts} == {'3'}  # the files, counted
+    assert 'reading joint states' not in shown  # no file draws its own bar
+
+
+def test_the_fleet_figure_draws_each_segments_time_ratio_error(tmp_path, capsys, monkeypatch):
+    figures = []
+    close = fleet_figure.plt.close
+
+    def kept(figure):
+        figures.append(figure)
+        close(figure)
+    monkeypatch.setattr(fleet_figure.plt, 'close', kept)
+    out_dir = tmp_path / 'out'
+    code, _, err = run_main([*GOLDEN, '--output-dir', out_dir, '--jobs', '1'], capsys)
+    assert code == exit_codes.EXIT_OK, err
+    (figure,) = figures
+    drawn = {line.get_label(): (list(line.get_xdata()), list(line.get_ydata()))
+             for line in figure.axes[0].get_lines() if line.get_gid() == 'recording'}
+    expected = {}
+    for path in GOLDEN:  # each run's own results.json, written beside the figure
+        segments = json.loads((out_dir / os.path.basename(path)[:-5] / 'results.json')
+                              .read_text())['segments']
+        measured = [s for s in segments if s['time_ratio_relative_error'] is not None]
+        if measured:
+            expected[os.path.basename(path)] = (
+                [s['offset_over_pivot_distance'] for s in measured],
+                [s['time_ratio_relative_error'] for s in measured])
+    assert drawn == expected and len(drawn) >= 2
