@@ -37,7 +37,8 @@ from qrm_ros.core.exports import declared_exports, lazy_attributes
 if TYPE_CHECKING:  # the one list of what this package exports (qrm_ros.core.exports)
     from qrm_ros.analysis.measurement import analyse, Analysis
     from qrm_ros.analysis.recorded_run import AnalysisError, read_recording, Recording
-    from qrm_ros.analysis.report import format_table, incompleteness, to_document, write_outputs
+    from qrm_ros.analysis.report import (format_table, incompleteness, shortfalls, to_document,
+                                         write_outputs)
     from qrm_ros.analysis.streamed_run import analyse_file
 
 EXPORTED_FROM = declared_exports(__file__)  # name -> the module that defines it

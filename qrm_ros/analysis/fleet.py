@@ -36,14 +36,16 @@ from typing import Any, Callable, Dict, Iterable, Iterator, List, NamedTuple, Op
 from qrm_ros.analysis.measurement import Analysis, finite_or_none
 from qrm_ros.analysis.recorded_drive import drive_values
 from qrm_ros.analysis.recorded_run import AnalysisError
-from qrm_ros.analysis.report import incompleteness, write_csv_to, write_json_to
+from qrm_ros.analysis.report import shortfalls, write_csv_to, write_json_to
 from qrm_ros.analysis.streamed_run import analyse_file
 from qrm_ros.core import kinematics as kin
 from qrm_ros.recording.atomic_files import staged_outputs
 
 RUN_SUFFIX = '.mcap'
-# A file's status in the fleet: analysed whole, analysed but incomplete, refused (cannot be
-# analysed: the reason is in its row), or failed (an unexpected error).
+# A file's status in the fleet: analysed whole, analysed but incomplete (data lost or left
+# out, theory missing, figures the sampling cannot support: report.shortfalls, said in its
+# row), refused (cannot be analysed: the reason is in its row), or failed (an unexpected
+# error).
 COMPLETE, INCOMPLETE, REFUSED, FAILED = 'complete', 'incomplete', 'refused', 'failed'
 FLEET_FIELDS = ('file', 'status', 'problem', *kin.Geometry.field_names(), 'drive', 'duration',
                 'samples', 'segments', 'stroke_pairs', 'worst_time_ratio_error',
@@ -57,7 +59,7 @@ class FileResult(NamedTuple):
     path: str
     status: str
     analysis: Optional[Analysis]
-    problem: Optional[str]  # the refusal or failure, one line; None when analysed
+    problem: Optional[str]  # the refusal, failure or shortfalls, one line; None: complete
 
 
 def find_runs(paths: Sequence[str]) -> List[str]:
@@ -97,8 +99,9 @@ def analyse_run(path: str, geometry_overrides: Optional[Dict[str, Optional[float
     except Exception as error:  # noqa: B902 - one bad file must not stop the fleet
         return FileResult(path, FAILED, None, f'internal failure ({type(error).__name__}: '
                                               f'{error})')
-    complete = analysis.recording.complete
-    return FileResult(path, COMPLETE if complete else INCOMPLETE, analysis, None)
+    lacking = sum(shortfalls(analysis), [])  # the single file's rule: exit 3 if any
+    return FileResult(path, INCOMPLETE if lacking else COMPLETE, analysis,
+                      '; '.join(lacking) or None)
 
 
 def _ignore_interrupts() -> None:
@@ -208,8 +211,6 @@ def fleet_row(result: FileResult) -> Dict[str, Any]:
                worst_speed_ratio_error=_worst(rows, 'speed_ratio'),
                lost_messages=sum(loss.messages or 0 for loss in recording.losses),
                losses=len(recording.losses))
-    if result.status == INCOMPLETE:
-        row['problem'] = '; '.join(incompleteness(recording))
     return finite_or_none(row)
 
 

@@ -243,6 +243,17 @@ def incompleteness(recording: Recording) -> List[str]:
     return lines
 
 
+def shortfalls(analysis: Analysis) -> Tuple[List[str], List[str]]:
+    """
+    Return what an analysis lacks: (what the data lacks, what the sampling cannot support).
+
+    One rule for every command that reports an analysis (qrm_analyze, its fleet, qrm_main):
+    either list non-empty means exit 3; both empty, the figures stand as printed.
+    """
+    return (incompleteness(analysis.recording) + misplaced_stamp_lines(analysis)
+            + theory_shortfalls(analysis), unsupported_by_sampling(analysis))
+
+
 def to_document(analysis: Analysis) -> Dict[str, Any]:
     """Return the JSON document of an analysis (no NaN or infinity: null instead)."""
     recording = analysis.recording

@@ -35,9 +35,7 @@ from typing import List, Optional, Sequence
 
 from qrm_ros.analysis import fleet
 from qrm_ros.analysis.recorded_run import AnalysisError, usable_cores
-from qrm_ros.analysis.report import (format_table, incompleteness, misplaced_stamp_lines,
-                                     theory_shortfalls, unsupported_by_sampling,
-                                     write_outputs)
+from qrm_ros.analysis.report import format_table, shortfalls, write_outputs
 from qrm_ros.analysis.streamed_run import analyse_file
 from qrm_ros.cli.arguments import add_geometry_override_arguments, geometry_overrides
 from qrm_ros.cli.exit_codes import (EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_INCOMPLETE,
@@ -102,7 +100,6 @@ def _main(args: argparse.Namespace) -> int:
     except AnalysisError as error:
         print(f'qrm_analyze: error: {error}', file=sys.stderr)
         return EXIT_BAD_INPUT
-    recording = result.recording
     print(format_table(result))
     try:
         figure_paths = write_outputs(result, args.csv, args.json, args.plot)
@@ -112,9 +109,7 @@ def _main(args: argparse.Namespace) -> int:
         return EXIT_FAILURE
     for path in figure_paths:
         print(f'figure: {path}')
-    lines = (incompleteness(recording) + misplaced_stamp_lines(result)
-             + theory_shortfalls(result))
-    unsupported = unsupported_by_sampling(result)
+    lines, unsupported = shortfalls(result)
     for line in lines + unsupported:
         print(f'qrm_analyze: warning: {line}', file=sys.stderr)
     if lines:
@@ -186,7 +181,7 @@ def _fleet_main(args: argparse.Namespace) -> int:
         if result.status in (fleet.REFUSED, fleet.FAILED):
             print(f'qrm_analyze: error: {result.problem}', file=sys.stderr)
         elif result.analysis is not None:
-            for line in incompleteness(result.analysis.recording):
+            for line in sum(shortfalls(result.analysis), []):
                 print(f'qrm_analyze: warning: {line}', file=sys.stderr)
     if args.output_dir is not None:
         try:

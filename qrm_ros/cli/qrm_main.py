@@ -307,7 +307,7 @@ def report(recording, folder):
 
     The recording is streamed (analyse_file), and the figures and the tour read only what
     they draw: memory independent of the run's length. Returns what the analysis lacks
-    (lines; empty when the recording was read whole).
+    (lines, as qrm_analyze says them; empty when every figure stands as printed).
     """
     result = analysis.analyse_file(recording)
     print()
@@ -316,7 +316,8 @@ def report(recording, folder):
         result, os.path.join(folder, 'results.csv'), os.path.join(folder, 'results.json'),
         os.path.join(folder, 'figures'))
     tour = _write_tour(result, os.path.join(folder, 'figures', TOUR_FILE))
-    missing = analysis.incompleteness(result.recording)
+    lacking, unsupported = analysis.shortfalls(result)
+    missing = lacking + unsupported
     for line in missing:
         print(f'qrm_main: warning: {line}', file=sys.stderr)
     print()
@@ -378,8 +379,8 @@ def main(argv: Optional[List[str]] = None) -> int:
     except KeyboardInterrupt:  # Ctrl-C while analysing
         print('qrm_main: interrupted', file=sys.stderr)
         return EXIT_INTERRUPTED
-    if missing:  # analysed, but the recording was damaged or incomplete
-        print(f'qrm_main: the results in {folder} cover only what was readable',
+    if missing:  # analysed, but something is lacking (the lines above say what)
+        print(f'qrm_main: the results in {folder} are not complete (see the warnings above)',
               file=sys.stderr)
         return EXIT_INCOMPLETE
     return EXIT_OK

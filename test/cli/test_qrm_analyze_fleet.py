@@ -39,8 +39,9 @@ from qrm_ros.analysis import fleet_figure
 from qrm_ros.analysis import streamed_run
 from qrm_ros.cli import exit_codes
 from qrm_ros.cli import qrm_analyze
+from qrm_ros.core.geometry import Geometry
 from repo_paths import TEST_DATA
-from synthetic_run import write_truncated_run
+from synthetic_run import write_run, write_truncated_run
 
 GOLDEN = sorted(glob.glob(os.path.join(TEST_DATA, '*.mcap')))
 
@@ -291,3 +292,22 @@ def test_the_fleet_figure_draws_each_segments_time_ratio_error(tmp_path, capsys,
                 [s['offset_over_pivot_distance'] for s in measured],
                 [s['time_ratio_relative_error'] for s in measured])
     assert drawn == expected and len(drawn) >= 2
+
+
+def test_a_run_whose_figures_the_sampling_cannot_support_is_incomplete_in_the_fleet(
+        tmp_path, capsys):
+    """The fleet's status is the single file's exit rule (report.shortfalls), not losses only."""
+    coarse = tmp_path / 'coarse.mcap'
+    write_run(coarse, Geometry.paper(), [0.01], hold=20.0, rate=10.0)
+    alone, _, _ = run_main([coarse], capsys)
+    out_dir = tmp_path / 'out'
+    code, out, err = run_main([coarse, GOLDEN[1], '--jobs', '1', '--output-dir', out_dir],
+                              capsys)
+    assert alone == code == exit_codes.EXIT_INCOMPLETE, err
+    rows = {os.path.basename(row['file']): row for row in json.loads(
+        (out_dir / 'fleet.json').read_text())['recordings']}
+    assert rows['coarse.mcap']['status'] == 'incomplete'
+    assert 'not supported to 0.001 by the sampling' in rows['coarse.mcap']['problem']
+    assert rows['coarse.mcap']['lost_messages'] == 0
+    assert rows[os.path.basename(GOLDEN[1])]['status'] == 'complete'
+    assert 'by the sampling' in err

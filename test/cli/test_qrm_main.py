@@ -174,3 +174,14 @@ def test_a_failure_while_running_exits_1_with_one_line(tmp_path, capsys):
     assert len(errors) == 1 and 'shaper_sim exited (2)' in errors[0], err
     (folder,) = tmp_path.iterdir()
     assert 'publish_rate' in (folder / 'shaper_sim.log').read_text()
+
+
+def test_the_report_says_figures_the_sampling_cannot_support(tmp_path, capsys):
+    """qrm_main's report lacks what qrm_analyze's exit 3 lacks (report.shortfalls)."""
+    from synthetic_run import write_run
+    coarse = tmp_path / 'coarse.mcap'
+    write_run(coarse, kin.Geometry.paper(), [0.01], hold=20.0, rate=10.0)
+    missing = qrm_main.report(str(coarse), str(tmp_path))
+    err = capsys.readouterr().err
+    assert missing and all('by the sampling' in line for line in missing)
+    assert all(f'qrm_main: warning: {line}' in err for line in missing)
