@@ -52,8 +52,10 @@ MEASURED_FIGURES = ('cutting_time', 'return_time', 'time_ratio', 'peak_cutting_s
                     ) + PairEffortsMeasured._fields
 SAMPLE_FIELDS = ('ram_position', 'ram_velocity', 'offset', 'offset_rate', 'input_speed',
                  'input_torque', 'offset_force')
-# Kept beside them: the crank radius in force and its rate (the stroke adjustment).
-STROKE_SAMPLE_FIELDS = ('crank_radius', 'crank_radius_rate')
+# Kept beside them: the crank radius in force and its rate (the stroke adjustment), and the
+# speed the drive is set to (under a motor its speed reference: the speed itself fluctuates
+# by nature, so a pair is steady in speed when the setting held).
+STROKE_SAMPLE_FIELDS = ('crank_radius', 'crank_radius_rate', 'setting_speed')
 _THEORY_CACHE_LIMIT = 64
 
 
@@ -74,7 +76,7 @@ class PairReport(NamedTuple):
     coupling_offset: float   # m, in force at the pair's end
     input_speed: float       # rad/s, in force at the pair's end
     offset_steady: bool      # the offset did not move during the pair
-    input_speed_steady: bool
+    input_speed_steady: bool  # the speed setting (a motor's reference) held during the pair
     measured: Dict[str, float]
     theory: Dict[str, float]  # empty at zero speed; keys end in '_theory'
     crank_radius: float = math.nan  # m, in force at the pair's end
@@ -142,18 +144,22 @@ class StrokeMonitor:
     def collect(self, stamp_ns: int, ram_position: float, ram_velocity: float, offset: float,
                 offset_rate: float, input_speed: float, input_torque: float,
                 offset_force: float, crank_radius: Optional[float] = None,
-                crank_radius_rate: float = 0.0) -> Optional[CompletedSamples]:
+                crank_radius_rate: float = 0.0, setting_speed: Optional[float] = None
+                ) -> Optional[CompletedSamples]:
         """
         Take one sample; return the samples of the pairs it completed, to ``measure``.
 
-        crank_radius (m; None: the geometry's) and its rate (m/s): the stroke in force.
+        crank_radius (m; None: the geometry's) and its rate (m/s): the stroke in force;
+        setting_speed (rad/s; None: input_speed): the speed the drive is set to.
         """
         self._stamp_ns.append(stamp_ns)
         if crank_radius is None:
             crank_radius = float(self._geometry.crank_radius)
+        if setting_speed is None:
+            setting_speed = input_speed
         for name, value in zip(SAMPLE_FIELDS + STROKE_SAMPLE_FIELDS, (
                 ram_position, ram_velocity, offset, offset_rate, input_speed, input_torque,
-                offset_force, crank_radius, crank_radius_rate)):
+                offset_force, crank_radius, crank_radius_rate, setting_speed)):
             self._columns[name].append(value)
         if len(self._stamp_ns) > BUFFER_LIMIT:
             self._keep_from(len(self._stamp_ns) - BUFFER_LIMIT // 2)
@@ -215,6 +221,8 @@ class StrokeMonitor:
         offsets = columns['offset'][first:last + 1]
         speeds = columns['input_speed'][first:last + 1]
         offset, speed = float(offsets[-1]), float(speeds[-1])
+        settings = (speeds if columns.get('setting_speed') is None
+                    else columns['setting_speed'][first:last + 1])
         radii = columns.get('crank_radius')
         radius = (float(self._geometry.crank_radius) if radii is None
                   else float(radii[last]))
@@ -232,7 +240,7 @@ class StrokeMonitor:
             coupling_offset=offset, input_speed=speed,
             offset_steady=bool(offsets.min() == offsets.max()
                                and not columns['offset_rate'][first:last].any()),
-            input_speed_steady=bool(speeds.min() == speeds.max()),
+            input_speed_steady=bool(settings.min() == settings.max()),
             measured={name: float(figures[name][index]) for name in MEASURED_FIGURES},
             theory=self.theory(offset, speed, geometry) if speed != 0.0 else {},
             crank_radius=radius, stroke_length=float(geometry.ram_stroke),

@@ -40,14 +40,14 @@ from qrm_ros.node.shaper_diagnostics import stroke_pair_status
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.publisher import Publisher
 
-__all__ = ['PAIR_STEP_SHARE', 'StrokePairReports']
+__all__ = ['PAIR_STEP_SHARE', 'StrokePairReports', 'setting_speed']
 
 # Stroke-pair steps run after a tick while less than this fraction of the timer's period has
 # gone since the tick began: the rest absorbs the host's noise.
 PAIR_STEP_SHARE = 0.5
 
 
-def _setting_speed(stepper) -> float:
+def setting_speed(stepper) -> float:
     """Return the speed a steady pair runs at: the drive's, or the motor's reference."""
     if isinstance(stepper, MotorStepper):
         return stepper.speed_reference
@@ -94,7 +94,7 @@ class StrokePairReports:
                      stamp_ns: int) -> None:
         """Note the setting in force at stamp_ns (a change starts a new steady span)."""
         # The parameter sets compare by identity: any change of them makes new ones.
-        setting = (stepper, mass, loads, motor, stepper.offset, _setting_speed(stepper),
+        setting = (stepper, mass, loads, motor, stepper.offset, setting_speed(stepper),
                    stepper.geometry)
         if setting != self._setting:
             self._setting, self._setting_since_ns = setting, stamp_ns

@@ -137,3 +137,26 @@ def test_motor_drive_pairs_carry_the_steady_speed_fluctuation_theory(harness):
         assert report[f'{name}_theory'] == value, name
     # The node's own pairs, measured from its 100 Hz samples, show that fluctuation.
     assert report['speed_fluctuation'] == pytest.approx(steady.fluctuation, rel=0.05)
+
+
+def test_motor_drive_pairs_are_steady_in_speed_while_the_reference_holds(harness):
+    """The shaft's speed fluctuates by nature; steady in speed means the setting held."""
+    h = harness(spin_shaper=False, drive='motor', cutting_force=400.0, ram_friction=20.0,
+                cutting_length=0.15)
+    stamp = tick_until(h, 5 * NS, lambda: len(pair_reports(h.diagnostics)) >= 2,
+                       'two stroke pairs', timeout=120.0)
+    held = pair_reports(h.diagnostics)
+    assert all(r['input_speed_steady'] == 'true' for r in held), held
+    assert len({r['input_speed'] for r in held}) > 1  # the speed does fluctuate
+    # A speed command ramps the reference: the pairs it spans are not steady in speed.
+    assert h.shaper.set_parameters([Parameter('input_speed', value=3 * math.pi)])[0].successful
+    ramp_start = stamp / NS
+    ramp_end = ramp_start + math.pi / h.shaper.stepper.input_acceleration_limit
+
+    def spanning():
+        return [r for r in pair_reports(h.diagnostics)
+                if r['pair_start'] < ramp_end and r['pair_end'] > ramp_start]
+    tick_until(h, stamp, lambda: spanning() and pair_reports(h.diagnostics)[-1]['pair_start']
+               > ramp_end, 'a pair after the ramp', timeout=120.0)
+    assert all(r['input_speed_steady'] == 'false' for r in spanning())
+    assert pair_reports(h.diagnostics)[-1]['input_speed_steady'] == 'true'
