@@ -184,20 +184,33 @@ def _main_job_rows(text):
 
 
 def test_the_readme_main_job_table_shows_the_closed_form():
-    """The README's example run: its theory columns are the core's, its errors the rows' own."""
-    from qrm_ros.cli.qrm_main import DEFAULT_OFFSETS_MM
+    """
+    The README's example run: its theory columns are the core's, its errors the rows' own.
+
+    The default schedule, then the short stroke (offset 0, then the long stroke's time ratio
+    held); each figure's sampling bound covers its error.
+    """
+    import dataclasses
+    from qrm_ros.cli.qrm_main import DEFAULT_OFFSETS_MM, SHORT_STROKE_MM
     from qrm_ros.core import Geometry, peak_speed_ratio, speed_ratio, time_ratio
+    from qrm_ros.core.offset_inverses import offset_for_time_ratio
     geometry = Geometry.paper()
+    stroke = SHORT_STROKE_MM * 1e-3  # its crank radius written out (doc/mechanism.md)
+    short = dataclasses.replace(geometry, crank_radius=stroke * geometry.pivot_distance
+                                / math.sqrt(4.0 * geometry.ram_height ** 2 + stroke ** 2))
+    held = float(offset_for_time_ratio(short, time_ratio(geometry, 0.0)))
+    expected = ([(geometry, mm * 1e-3) for mm in DEFAULT_OFFSETS_MM]
+                + [(short, 0.0), (short, held)])
     rows = list(_main_job_rows(_read('README.md')))
-    assert [row[0][0] for row in rows] == [round(mm, 2) for mm in DEFAULT_OFFSETS_MM], (
-        'the README shows the default schedule')
-    for ((_shown_mm, ratio_h, input_speed, _pairs), columns), offset_mm in zip(
-            rows, DEFAULT_OFFSETS_MM):
-        offset = offset_mm * 1e-3
-        assert ratio_h == pytest.approx(offset / geometry.pivot_distance, abs=5e-6)
+    assert [row[0][0] for row in rows] == [round(offset * 1e3, 2) for _, offset in expected], (
+        'the README shows the default schedule, then the short stroke')
+    for ((_shown_mm, ratio_h, input_speed, _pairs), columns), (setting, offset) in zip(
+            rows, expected):
+        assert ratio_h == pytest.approx(offset / setting.pivot_distance, abs=5e-6)
         assert input_speed == pytest.approx(2 * math.pi, abs=5e-5)
-        theories = (time_ratio(geometry, offset), speed_ratio(geometry, offset),
-                    peak_speed_ratio(geometry, offset))
-        for (measured, _spread, shown, error), theory in zip(columns, theories):
+        theories = (time_ratio(setting, offset), speed_ratio(setting, offset),
+                    peak_speed_ratio(setting, offset))
+        for (measured, _spread, shown, error, sampling), theory in zip(columns, theories):
             assert shown == pytest.approx(theory, abs=5e-6)
             assert error == pytest.approx(measured / theory - 1.0, abs=6e-6 + 0.05 * abs(error))
+            assert abs(error) <= sampling
