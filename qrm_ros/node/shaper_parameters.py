@@ -280,24 +280,20 @@ def _judges_changes_only(check):
     return check
 
 
-@_judges_changes_only
-def _offset_by_hand(value, view):
-    target = view.values['cutting_speed_target']
-    if target == 0.0:
-        return None
-    return (f'the offset is commanded by cutting_speed_target = {shown(target)} m/s; set '
-            'cutting_speed_target to 0 to command coupling_offset by hand (or set both in '
-            'one atomic call)')
+def _offset_commanded_by(hold: str, unit: str):
+    """Return the check that refuses a hand-set offset while HOLD (a target) is set."""
+    @_judges_changes_only
+    def commanded(value, view):
+        target = view.values[hold]
+        if target == 0.0:
+            return None
+        return (f'the offset is commanded by {hold} = {shown(target)}{unit}; set {hold} to 0 '
+                'to command coupling_offset by hand (or set both in one atomic call)')
+    return commanded
 
 
-@_judges_changes_only
-def _offset_by_time_ratio(value, view):
-    target = view.values['time_ratio_target']
-    if target == 0.0:
-        return None
-    return (f'the offset is commanded by time_ratio_target = {shown(target)}; set '
-            'time_ratio_target to 0 to command coupling_offset by hand (or set both in one '
-            'atomic call)')
+_offset_by_hand = _offset_commanded_by('cutting_speed_target', ' m/s')
+_offset_by_time_ratio = _offset_commanded_by('time_ratio_target', '')
 
 
 def _stepper_limit(name, default, unit, what, rule):
