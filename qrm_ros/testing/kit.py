@@ -58,22 +58,23 @@ def example_names() -> List[str]:
                   if name.endswith('.mcap'))
 
 
-def example_recording(name: str) -> str:
-    """Return the path of a shipped example run ('steady_offset', ...; example_names())."""
-    path = os.path.join(EXAMPLES_FOLDER, name + '.mcap')
+def _example_file(name: str, suffix: str, what: str) -> str:
+    """Return the path of a shipped example's file; FileNotFoundError names the examples."""
+    path = os.path.join(EXAMPLES_FOLDER, name + suffix)
     if not os.path.isfile(path):
-        raise FileNotFoundError(f'no example run {name!r}: the examples are '
+        raise FileNotFoundError(f'no example {what} {name!r}: the examples are '
                                 f'{", ".join(example_names())}')
     return path
+
+
+def example_recording(name: str) -> str:
+    """Return the path of a shipped example run ('steady_offset', ...; example_names())."""
+    return _example_file(name, '.mcap', 'run')
 
 
 def example_scenario(name: str) -> str:
     """Return the path of the scenario (YAML) a shipped example run was simulated from."""
-    path = os.path.join(EXAMPLES_FOLDER, name + '.yaml')
-    if not os.path.isfile(path):
-        raise FileNotFoundError(f'no example scenario {name!r}: the examples are '
-                                f'{", ".join(example_names())}')
-    return path
+    return _example_file(name, '.yaml', 'scenario')
 
 
 def _command(name: str) -> str:
