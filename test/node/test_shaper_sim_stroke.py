@@ -205,24 +205,9 @@ def test_unreachable_after_a_stroke_change_holds_the_nearest_offset_with_a_warni
         10.0, rel=1e-9)
 
 
-def test_reset_during_a_stroke_change_returns_to_the_stroke_parameter(harness):
-    h = harness(spin_shaper=False, stroke_rate_limit=0.02)
-    now = publish_for(h, 5 * NS, 0.1)
-    set_ok(h, stroke_length=0.1)
-    now = publish_for(h, now, 0.5)
-    assert h.joint_states[-1].velocity[5] < 0.0  # moving
-    response = h.shaper.on_reset(Trigger.Request(), Trigger.Response())
-    assert response.success and 'stroke 0.1 m' in response.message
-    count = len(h.joint_states)
-    publish_for(h, now, 0.05)
-    first = h.joint_states[count]
-    assert first.position[0] == 0.0
-    assert first.position[5] == pytest.approx(radius_for(0.1), rel=1e-14)
-    assert first.velocity[5] == 0.0
-
-
-def test_reset_during_a_stroke_change_under_the_motor_drive(harness):
-    h = harness(spin_shaper=False, drive='motor', stroke_rate_limit=0.02)
+@pytest.mark.parametrize('drive', ['speed', 'motor'])
+def test_reset_during_a_stroke_change_returns_to_the_stroke_parameter(harness, drive):
+    h = harness(spin_shaper=False, drive=drive, stroke_rate_limit=0.02)
     now = publish_for(h, 5 * NS, 0.1)
     set_ok(h, stroke_length=0.1)
     now = publish_for(h, now, 0.5)
