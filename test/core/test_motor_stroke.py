@@ -38,6 +38,8 @@ from qrm_ros.core.motor_stroke import moving_radius_motion_of
 from qrm_ros.core.stroke_adjustment import StrokeRamp
 from qrm_ros.core.stroke_efforts import lever_radius_coefficient
 
+from lagrange_chain import chain_lagrangian, generalised_forces
+
 PAPER = Geometry.paper()
 R1, H_PIVOT, RAM_HEIGHT = 0.025, 0.113, 0.2
 MASS = dyn.MassProperties(input_inertia=0.4, flywheel_inertia=0.5, lever_inertia=0.3,
@@ -50,34 +52,14 @@ def _lagrange():
     """
     Return (Q_theta(q, q', q'', F), p_theta(q, q'), Q_r(q, q', q'', F)) from sympy.
 
-    Q = d/dt dL/d(theta') - dL/d(theta) - F dx/d(theta) for q = (theta, offset, r), written from
-    the positions alone (doc/mechanism.md): phi(theta, offset), psi(phi, r), x = H tan(psi).
+    lagrange_chain's Lagrangian, written from the positions alone (doc/mechanism.md).
     """
-    q = sympy.symbols('theta delta r', real=True)
-    qd = sympy.symbols('theta_d delta_d r_d', real=True)
-    qdd = sympy.symbols('theta_dd delta_dd r_dd', real=True)
-    force = sympy.Symbol('F', real=True)
-    theta, delta, radius = q
-    phi = theta + sympy.atan2(delta * sympy.cos(theta), R1 + delta * sympy.sin(theta))
-    psi = sympy.atan2(radius * sympy.cos(phi), H_PIVOT + radius * sympy.sin(phi))
-    x = RAM_HEIGHT * sympy.tan(psi)
-
-    def rate(expression):
-        return sum(sympy.diff(expression, qi) * qdi for qi, qdi in zip(q, qd))
-    kinetic = (MASS.input_inertia * qd[0] ** 2 + MASS.flywheel_inertia * rate(phi) ** 2
-               + MASS.lever_inertia * rate(psi) ** 2 + MASS.ram_mass * rate(x) ** 2) / 2
-    potential = MASS.lever_mass * MASS.gravity * MASS.lever_com_distance * sympy.cos(psi)
-    lagrangian = kinetic - potential
-    forces = []
-    for coordinate, rate_symbol in ((theta, qd[0]), (radius, qd[2])):
-        momentum = sympy.diff(lagrangian, rate_symbol)
-        momentum_rate = sum(sympy.diff(momentum, qj) * qdj + sympy.diff(momentum, qdj) * qddj
-                            for qj, qdj, qddj in zip(q, qd, qdd))
-        forces.append(momentum_rate - sympy.diff(lagrangian, coordinate)
-                      - force * sympy.diff(x, coordinate))
-    return (sympy.lambdify((*q, *qd, *qdd, force), forces[0], 'math'),
-            sympy.lambdify((*q, *qd), sympy.diff(lagrangian, qd[0]), 'math'),
-            sympy.lambdify((*q, *qd, *qdd, force), forces[1], 'math'))
+    chain = chain_lagrangian(MASS, R1, H_PIVOT, RAM_HEIGHT)
+    q, qd, qdd = chain.coordinates, chain.rates, chain.accelerations
+    force_on_input, force_on_pin = generalised_forces(chain, (0, 2))
+    return (sympy.lambdify((*q, *qd, *qdd, chain.ram_force), force_on_input, 'math'),
+            sympy.lambdify((*q, *qd), sympy.diff(chain.lagrangian, qd[0]), 'math'),
+            sympy.lambdify((*q, *qd, *qdd, chain.ram_force), force_on_pin, 'math'))
 
 
 def _radius_of_stroke():

@@ -38,6 +38,8 @@ from qrm_ros.core.stroke_adjustment import (check_stroke, crank_radius_motion,
 from qrm_ros.core.stroke_efforts import (efforts_with_stroke_screw,
                                          lever_radius_coefficient)
 
+from lagrange_chain import chain_lagrangian, generalised_forces
+
 PAPER = Geometry.paper()
 MASS = dyn.MassProperties(input_inertia=0.01, flywheel_inertia=0.5, lever_inertia=0.3,
                           lever_mass=8.0, lever_com_distance=0.15, ram_mass=20.0)
@@ -141,33 +143,12 @@ def _lagrange_generalised_forces():
     """
     Q = d/dt dL/dq' - dL/dq - F_ext dx/dq for q = (theta, offset, r), derived with sympy.
 
-    Written from doc/mechanism.md's positions alone: phi(theta, offset), psi(phi, r),
-    x = H tan(psi); T and V as doc/dynamics.md. Returns a numeric function of (q, q', q'',
-    F_ext) giving the three forces.
+    lagrange_chain's Lagrangian (doc/mechanism.md's positions alone). Returns a numeric
+    function of (q, q', q'', F_ext) giving the three forces.
     """
-    q = sympy.symbols('theta delta r', real=True)
-    qd = sympy.symbols('theta_d delta_d r_d', real=True)
-    qdd = sympy.symbols('theta_dd delta_dd r_dd', real=True)
-    force = sympy.Symbol('F', real=True)
-    r1, h, height = 0.025, 0.113, 0.2
-    theta, delta, radius = q
-    phi = theta + sympy.atan2(delta * sympy.cos(theta), r1 + delta * sympy.sin(theta))
-    psi = sympy.atan2(radius * sympy.cos(phi), h + radius * sympy.sin(phi))
-    x = height * sympy.tan(psi)
-
-    def rate(expression):
-        return sum(sympy.diff(expression, qi) * qdi for qi, qdi in zip(q, qd))
-    kinetic = (MASS.input_inertia * qd[0] ** 2 + MASS.flywheel_inertia * rate(phi) ** 2
-               + MASS.lever_inertia * rate(psi) ** 2 + MASS.ram_mass * rate(x) ** 2) / 2
-    potential = MASS.lever_mass * MASS.gravity * MASS.lever_com_distance * sympy.cos(psi)
-    lagrangian = kinetic - potential
-    forces = []
-    for qi, qdi in zip(q, qd):
-        momentum = sympy.diff(lagrangian, qdi)
-        momentum_rate = sum(sympy.diff(momentum, qj) * qdj + sympy.diff(momentum, qdj) * qddj
-                            for qj, qdj, qddj in zip(q, qd, qdd))
-        forces.append(momentum_rate - sympy.diff(lagrangian, qi) - force * sympy.diff(x, qi))
-    return sympy.lambdify((*q, *qd, *qdd, force), forces, 'math')
+    chain = chain_lagrangian(MASS, 0.025, 0.113, 0.2)
+    return sympy.lambdify((*chain.coordinates, *chain.rates, *chain.accelerations,
+                           chain.ram_force), generalised_forces(chain), 'math')
 
 
 def test_efforts_with_moving_crank_radius_from_a_symbolic_lagrange_derivation():
