@@ -47,7 +47,7 @@ from qrm_ros.node.parameter_services import ShaperParameterNode, WARNING_PERIOD
 from qrm_ros.node.shaper_diagnostics import DriveStatusReport
 from qrm_ros.node.shaper_parameters import shown
 from qrm_ros.node.state_publishers import MechanismStatePublishers, MIN_PUBLISHER_DEPTH
-from qrm_ros.node.stroke_pair_reports import setting_speed, StrokePairReports
+from qrm_ros.node.stroke_pair_reports import StrokePairReports
 from rclpy.qos import qos_profile_parameters
 from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, Trigger
@@ -307,12 +307,13 @@ class ShaperSimNode(HeldFigures, ShaperParameterNode):
         self._markers.publish_if_due(stamp_ns, None if isinstance(stepper, MotorStepper)
                                      else sample)
         reports = self._pair_reports
-        reports.note_setting(stepper, self._mass, self._loads, self._motor, stamp_ns)
+        speed_setting = reports.note_setting(stepper, self._mass, self._loads, self._motor,
+                                             stamp_ns)
         completed = reports.monitor.collect(stamp_ns, sample.ram_position, sample.ram_velocity,
                                             stepper.offset, stepper.offset_rate,
                                             stepper.input_speed, joint_efforts[0],
                                             joint_efforts[4], stroke.crank_radius, radius_rate,
-                                            setting_speed(stepper))
+                                            speed_setting)
         if completed is not None:
             # What the report depends on is taken now, as it stands at the pair's end.
             reports.queue(completed, self._values['cutting_speed_target'],

@@ -40,14 +40,14 @@ from qrm_ros.node.shaper_diagnostics import stroke_pair_status
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.publisher import Publisher
 
-__all__ = ['PAIR_STEP_SHARE', 'StrokePairReports', 'setting_speed']
+__all__ = ['PAIR_STEP_SHARE', 'StrokePairReports']
 
 # Stroke-pair steps run after a tick while less than this fraction of the timer's period has
 # gone since the tick began: the rest absorbs the host's noise.
 PAIR_STEP_SHARE = 0.5
 
 
-def setting_speed(stepper) -> float:
+def _setting_speed(stepper) -> float:
     """Return the speed a steady pair runs at: the drive's, or the motor's reference."""
     if isinstance(stepper, MotorStepper):
         return stepper.speed_reference
@@ -91,13 +91,19 @@ class StrokePairReports:
         self.monitor.clear()
 
     def note_setting(self, stepper, mass: MassProperties, loads: Loads, motor: MotorDrive,
-                     stamp_ns: int) -> None:
-        """Note the setting in force at stamp_ns (a change starts a new steady span)."""
+                     stamp_ns: int) -> float:
+        """
+        Note the setting in force at stamp_ns (a change starts a new steady span).
+
+        Returns the speed it is set to (rad/s; a motor's reference), which the sample of
+        stamp_ns carries to the stroke monitor.
+        """
         # The parameter sets compare by identity: any change of them makes new ones.
-        setting = (stepper, mass, loads, motor, stepper.offset, setting_speed(stepper),
-                   stepper.geometry)
+        speed = _setting_speed(stepper)
+        setting = (stepper, mass, loads, motor, stepper.offset, speed, stepper.geometry)
         if setting != self._setting:
             self._setting, self._setting_since_ns = setting, stamp_ns
+        return speed
 
     def queue(self, completed: CompletedSamples, target: float, definition: str,
               time_ratio_target: float = 0.0) -> None:
