@@ -30,10 +30,10 @@ from qrm_ros.cli.exit_codes import EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_INCOMPLETE
 from qrm_ros.node.mcap_player import (DEFAULT_CLOCK_RATE, McapPlayer, PLAYER_NODE_NAME,
                                       PlaybackError, PlayOptions)
 from qrm_ros.node.ros_process import (executor_kind, ExecutorChoiceError, init_rclpy,
-                                      new_executor, RCLError, rcl_error_text,
-                                      spin_until_stopped, StopRequest)
+                                      new_executor, own_arguments_of, RCLError,
+                                      rcl_error_text, spin_until_stopped, StopRequest)
 from qrm_ros.recording.bag_reader import open_run, Run, RunFileError
-from rclpy.utilities import remove_ros_args, try_shutdown
+from rclpy.utilities import try_shutdown
 
 __all__ = ['main', 'what_was_not_played']
 
@@ -105,11 +105,15 @@ class _Finished:
         return self.done or bool(self.stop)
 
 
+def _error(text: str) -> None:
+    print(f'{PLAYER_NODE_NAME}: error: {text}', file=sys.stderr)
+
+
 def _play(argv: List[str], args: argparse.Namespace, run: Run) -> int:
     try:
         init_rclpy(argv)
     except RCLError as error:
-        print(f'{PLAYER_NODE_NAME}: error: {rcl_error_text(error)}', file=sys.stderr)
+        _error(rcl_error_text(error))
         return EXIT_BAD_INPUT
     options = PlayOptions(args.rate, args.loop, args.topics, args.start_offset, args.delay,
                           args.clock, args.start_paused)
@@ -131,7 +135,7 @@ def _play(argv: List[str], args: argparse.Namespace, run: Run) -> int:
             finished.done = True
             thread.join()
     except RCLError as error:
-        print(f'{PLAYER_NODE_NAME}: error: {rcl_error_text(error)}', file=sys.stderr)
+        _error(rcl_error_text(error))
         return EXIT_FAILURE
     finally:
         if executor is not None:
@@ -155,10 +159,8 @@ def main(argv: Optional[List[str]] = None) -> int:
     argv: the whole command line, program name first, as sys.argv (None: sys.argv).
     """
     command_line = sys.argv if argv is None else argv
-    try:
-        own_arguments = remove_ros_args(command_line)[1:]
-    except RCLError as error:
-        print(f'{PLAYER_NODE_NAME}: error: {rcl_error_text(error)}', file=sys.stderr)
+    own_arguments = own_arguments_of(command_line, _error)
+    if own_arguments is None:
         return EXIT_BAD_INPUT
     args = _parser().parse_args(own_arguments)
     try:

@@ -31,12 +31,11 @@ from typing import List, Optional
 from qrm_ros.cli.exit_codes import EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_OK
 from qrm_ros.core.names import RECORDER_NODE_NAME
 from qrm_ros.node.recorder import Recorder
-from qrm_ros.node.ros_process import (ExecutorChoiceError, RCLError, rcl_error_text, run_node,
+from qrm_ros.node.ros_process import (ExecutorChoiceError, own_arguments_of, run_node,
                                       start_rclpy)
 from qrm_ros.recording.mcap_recover import recover_command
 from qrm_ros.recording.mcap_run_file import ConfigurationError, RecorderError
 from rclpy.exceptions import NameValidationException, ParameterException
-from rclpy.utilities import remove_ros_args
 
 __all__ = ['main']
 
@@ -79,10 +78,8 @@ def main(argv: Optional[List[str]] = None) -> int:
     argv: the whole command line, program name first, as sys.argv (None: sys.argv).
     """
     command_line = sys.argv if argv is None else argv
-    try:
-        own_arguments = remove_ros_args(command_line)[1:]
-    except RCLError as error:
-        _error(rcl_error_text(error))
+    own_arguments = own_arguments_of(command_line, _error)
+    if own_arguments is None:
         return EXIT_BAD_INPUT
     parser, options = _options(own_arguments)
     if options.recover:

@@ -32,9 +32,8 @@ from qrm_ros.core.names import BRIDGE_NODE_NAME, BRIDGE_SERVING_PREFIX
 from qrm_ros.node.foxglove_bridge import (BridgeNode, BridgeSettings, DEFAULT_ADDRESS,
                                           DEFAULT_CLIENT_QUEUE, DEFAULT_PORT,
                                           DEFAULT_SEND_PERIOD)
-from qrm_ros.node.ros_process import (ExecutorChoiceError, RCLError, rcl_error_text, run_node,
+from qrm_ros.node.ros_process import (ExecutorChoiceError, own_arguments_of, run_node,
                                       start_rclpy)
-from rclpy.utilities import remove_ros_args
 
 __all__ = ['main']
 
@@ -97,10 +96,8 @@ def _error(text):
 def main(argv: Optional[List[str]] = None) -> int:
     """Serve until Ctrl-C or SIGTERM; argv is the whole command line (None: sys.argv)."""
     command_line = sys.argv if argv is None else argv
-    try:
-        own_arguments = remove_ros_args(command_line)[1:]
-    except RCLError as error:
-        _error(rcl_error_text(error))
+    own_arguments = own_arguments_of(command_line, _error)
+    if own_arguments is None:
         return EXIT_BAD_INPUT
     parser = _parser()
     settings = _checked(parser, parser.parse_args(own_arguments))

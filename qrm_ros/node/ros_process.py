@@ -44,14 +44,14 @@ import inspect
 import os
 import re
 import signal
-from typing import Callable, Mapping, Optional, Sequence, Tuple, Type, TypeVar, Union
+from typing import Callable, List, Mapping, Optional, Sequence, Tuple, Type, TypeVar, Union
 
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
-from rclpy.utilities import try_shutdown
+from rclpy.utilities import remove_ros_args, try_shutdown
 
 __all__ = ['EXECUTOR_VARIABLE', 'EXECUTORS', 'ExecutorChoiceError', 'IDLE_WAKEUP',
            'MESSAGE_INFO_SIGNATURE', 'RCLError', 'StopRequest', 'executor_kind', 'init_rclpy',
@@ -166,6 +166,19 @@ def start_rclpy(argv: Optional[Sequence[str]], say: Callable[[str], None]) -> bo
         say(rcl_error_text(error))
         return False
     return True
+
+
+def own_arguments_of(command_line: Sequence[str], say: Callable[[str], None]
+                     ) -> Optional[List[str]]:
+    """Return a command's own arguments (ROS's and the program name removed), or None.
+
+    None: rcl refused the ROS arguments (a malformed -p, say); its reason has been said.
+    """
+    try:
+        return remove_ros_args(list(command_line))[1:]
+    except RCLError as error:
+        say(rcl_error_text(error))
+        return None
 
 
 MadeNode = TypeVar('MadeNode', bound=Node)
