@@ -24,7 +24,7 @@ recorded geometry and drive, with the relative error.
 import contextlib
 import dataclasses
 import math
-from typing import Any, Dict, List, NamedTuple, Optional, Tuple
+from typing import Any, Callable, Dict, List, NamedTuple, Optional, Tuple
 
 import numpy as np
 from scipy import interpolate
@@ -38,9 +38,15 @@ from qrm_ros.core.effort_theory import (EFFORT_FIGURES, Setting,
                                         steady_effort_theory_and_problem, THEORY_FIGURES,
                                         ZERO_CAN_BE_EXACT)
 from qrm_ros.core.joint_consistency import misplaced_stamps
+from qrm_ros.core.effort_sampling_bounds import (EFFORT_BOUNDED_FIGURES,
+                                                 effort_sampling_bounds, steady_efforts)
+from qrm_ros.core.piecewise_efforts import workpiece_edge_times
 from qrm_ros.core.sampling_bounds import (BOUNDED_FIGURES, figure_sampling_bounds,
                                           steady_motion)
 from qrm_ros.core.strokes import find_stroke_pairs, measure_pair_efforts
+
+# Every figure given a bound from the sampling: the stroke's, then the drive's.
+ALL_BOUNDED_FIGURES = BOUNDED_FIGURES + EFFORT_BOUNDED_FIGURES
 
 # Steps are rounded up to a power of this before their bounds are worked out.
 _STEP_ROUNDING = 1.01
@@ -149,18 +155,44 @@ def measure_segment(samples: Samples, segment: Segment, geometry: kin.Geometry,
     for name, values in measured.items():
         _measured_and_theory(row, name, values, theory[name])
     _measure_efforts(row, samples, span, pairs, geometry, drive)
-    _add_sampling_bounds(row, samples, span, pairs, geometry)
+    _add_sampling_bounds(row, samples, span, pairs, geometry, drive)
     return row
 
 
+def _effort_bounds_per_step(row: Dict[str, Any], samples: Samples, span: slice,
+                            geometry: kin.Geometry, drive: Optional[Drive], speed: float,
+                            motion: Any) -> Callable[[float], Dict[str, Optional[float]]]:
+    """
+    Return step (s) -> the effort figures' bounds (core.effort_sampling_bounds).
+
+    Only the ideal speed drive's efforts are bounded (its theory is exact); the motor's
+    steady running is simulated, so its figures have none. A constant recorded speed
+    (the speed drive, or a file older than the drive parameters) measures Cs exactly: 0.
+    """
+    recorded = samples.input_speed[span]
+    constant = recorded.size > 0 and bool(np.all(recorded == recorded[0]))
+    fluctuation = 0.0 if constant and (drive is None or drive.motor is None) else None
+    theory = {name: row.get(f'{name}_theory') for name in EFFORT_FIGURES}
+    efforts = None
+    if drive is not None and drive.motor is None and motion is not None:
+        efforts = steady_efforts(geometry, drive.mass, drive.loads, row['offset'], speed)
+
+    def bounds(step: float) -> Dict[str, Optional[float]]:
+        found = effort_sampling_bounds(efforts, motion, theory, speed, step)
+        found['speed_fluctuation'] = fluctuation
+        return found
+    return bounds
+
+
 def _add_sampling_bounds(row: Dict[str, Any], samples: Samples, span: slice, pairs: Any,
-                         geometry: kin.Geometry) -> None:
+                         geometry: kin.Geometry, drive: Optional[Drive] = None) -> None:
     """
     Add each figure's bound from the sampling alone (core.sampling_bounds), or None.
 
     Each pair is bounded at its own longest step (a late sample spoils only its pair), and
     the mean over the pairs by the mean of their bounds; steps are rounded up to 1 % so
-    that a long run needs only a few bounds worked out.
+    that a long run needs only a few bounds worked out. The effort figures likewise
+    (core.effort_sampling_bounds).
     """
     time = samples.time[span]
     recorded = np.abs(samples.input_speed[span])
@@ -175,11 +207,12 @@ def _add_sampling_bounds(row: Dict[str, Any], samples: Samples, span: slice, pai
                       for first, last in zip(pairs.first_sample, pairs.last_sample)])
     with np.errstate(divide='ignore'):  # a step of 0 s gets no bound
         rounded = np.power(_STEP_ROUNDING, np.ceil(np.log(steps) / np.log(_STEP_ROUNDING)))
-    per_step = {step: figure_sampling_bounds(geometry, row['offset'], speed, step, motion,
-                                             theory) if theory is not None
-                else dict.fromkeys(BOUNDED_FIGURES)
+    effort_bounds = _effort_bounds_per_step(row, samples, span, geometry, drive, speed, motion)
+    per_step = {step: {**(figure_sampling_bounds(geometry, row['offset'], speed, step, motion,
+                                                 theory) if theory is not None
+                          else dict.fromkeys(BOUNDED_FIGURES)), **effort_bounds(step)}
                 for step in np.unique(rounded)}
-    for name in BOUNDED_FIGURES:
+    for name in ALL_BOUNDED_FIGURES:
         bounds = [per_step[step][name] for step in rounded]
         known = [bound for bound in bounds if bound is not None]
         row[f'{name}_sampling_bound'] = (float(np.mean(known)) if known and len(known) ==
@@ -194,8 +227,11 @@ def _measure_efforts(row: Dict[str, Any], samples: Samples, span: slice, pairs: 
         samples)
     force = samples.offset_force if samples.offset_force is not None else _not_recorded(
         samples)
+    edges = None if drive is None else workpiece_edge_times(
+        time, samples.ram_position[span], samples.ram_velocity[span], pairs.cutting_start,
+        pairs.cutting_end, drive.loads.cutting_length)
     measured = measure_pair_efforts(time, samples.input_speed[span], torque[span], force[span],
-                                    pairs)
+                                    pairs, edges)
     row['stroke_pairs_with_efforts'] = int(np.count_nonzero(
         np.isfinite(measured.energy_per_pair)))
     theory, row['effort_theory_problem'] = (

@@ -26,9 +26,9 @@ import os
 from typing import Any, Dict, List, Optional, Tuple
 
 from qrm_ros.analysis.joint_state_decoding import JOINT_STATES_TOPIC
-from qrm_ros.analysis.measurement import Analysis, finite_or_none
+from qrm_ros.analysis.measurement import ALL_BOUNDED_FIGURES, Analysis, finite_or_none
 from qrm_ros.analysis.recorded_run import IN_EFFORTS, IN_FILE, IN_MESSAGE, Recording
-from qrm_ros.core.sampling_bounds import BOUNDED_FIGURES, SUPPORTED_RELATIVE_ERROR
+from qrm_ros.core.sampling_bounds import SUPPORTED_RELATIVE_ERROR
 from qrm_ros.recording.atomic_files import staged_outputs
 
 # Below this, the between-sample interpolation can miss sharp speed peaks (large offsets).
@@ -102,18 +102,33 @@ def _sampling_column(row: Dict[str, Any], name: str) -> str:
 
 
 def sampling_relative_bound(row: Dict[str, Any], name: str) -> Optional[float]:
-    """Return a figure's sampling bound over its theory (its measured value if no theory)."""
+    """
+    Return a figure's sampling bound over its theory (its measured value if no theory).
+
+    A bound of 0 is 0 whatever the figure; a work or power whose theory is 0 (no loads) is
+    compared with the work the RMS torque would do over the pair (or its power).
+    """
     bound = row.get(f'{name}_sampling_bound')
     reference = row.get(f'{name}_theory') or row.get(f'{name}_measured')
+    if bound == 0.0:
+        return 0.0
+    if row.get(f'{name}_theory') == 0.0 and name in _WORK_FIGURES:
+        rms = row.get('rms_input_torque_theory') or 0.0
+        reference = rms * (2 * math.pi if name == 'energy_per_pair'
+                           else abs(row['input_speed']))
     if bound is None or not reference:
         return None
     return bound / abs(reference)
 
 
+# Figures that are work done, whose theory is 0 without loads.
+_WORK_FIGURES = ('energy_per_pair', 'mean_input_power')
+
+
 def unsupported_by_sampling(analysis: Analysis) -> List[str]:
     """One line per figure kind that the sampling cannot support to SUPPORTED_RELATIVE_ERROR."""
     lines = []
-    for name in BOUNDED_FIGURES:
+    for name in ALL_BOUNDED_FIGURES:
         worst: List[Tuple[float, Dict[str, Any]]] = []
         for row in analysis.rows:
             if row.get(f'{name}_measured') is None:
@@ -156,7 +171,13 @@ FIGURE_WORDS = {'time_ratio': 'the time ratio TR', 'speed_ratio': 'the speed rat
                 'peak_speed_ratio': 'the peak speed ratio', 'cutting_time': 'the cutting time',
                 'return_time': 'the return time', 'peak_cutting_speed': 'the peak cutting speed',
                 'peak_return_speed': 'the peak return speed',
-                'flywheel_speed_swing': 'the flywheel speed swing'}
+                'flywheel_speed_swing': 'the flywheel speed swing',
+                'peak_input_torque': 'the peak input torque',
+                'rms_input_torque': 'the RMS input torque',
+                'mean_input_power': 'the mean input power',
+                'energy_per_pair': 'the energy per stroke pair',
+                'peak_offset_force': 'the peak offset force',
+                'speed_fluctuation': 'the input speed fluctuation Cs'}
 
 
 # Rows of the effort block: figure, what it is [unit], value format.
@@ -192,7 +213,7 @@ def _effort_lines(analysis: Analysis) -> List[str]:
     for row in analysis.rows:
         lines.append(f'  offset {row["offset"] * 1e3:.2f} mm at {row["input_speed"]:.4f} rad/s, '
                      f'{row["stroke_pairs_with_efforts"]} of {row["stroke_pairs"]} stroke pairs '
-                     'with efforts:        measured       theory     error')
+                     'with efforts:        measured       theory     error sampling')
         for name, title, spec in _EFFORT_ROWS:
             mean, spread = row[f'{name}_measured'], row[f'{name}_measured_std']
             measured = '-' if mean is None else f'{format(mean, spec)} ± {spread:.1e}'
@@ -201,7 +222,7 @@ def _effort_lines(analysis: Analysis) -> List[str]:
             else:
                 error = _fmt(row[f'{name}_relative_error'], '+9.1e')
             lines.append(f'    {title:<32} {measured:>20} {_fmt(row[name + "_theory"], spec)} '
-                         f'{error}')
+                         f'{error} {_sampling_column(row, name)}')
         if row.get('effort_theory_problem'):
             lines.append(f'    theory missing: {row["effort_theory_problem"]}')
     return lines

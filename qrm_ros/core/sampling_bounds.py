@@ -29,7 +29,7 @@ within a bounded grid, the bound is None: the sampling supports no figure. numpy
 """
 
 import math
-from typing import Dict, NamedTuple, Optional, Tuple
+from typing import Dict, List, NamedTuple, Optional, Tuple
 
 import numpy as np
 from scipy.ndimage import maximum_filter1d
@@ -39,8 +39,9 @@ from qrm_ros.core.mechanism_state import (input_angle_for_flywheel_angle,
                                           reversal_flywheel_angles, state)
 from qrm_ros.core.steady_figures import steady_theory, SteadyTheory
 
-__all__ = ['BOUNDED_FIGURES', 'figure_sampling_bounds', 'GAP_PERIODS', 'steady_motion',
-           'SteadyMotion', 'SUPPORTED_RELATIVE_ERROR']
+__all__ = ['BOUNDED_FIGURES', 'figure_sampling_bounds', 'GAP_PERIODS', 'MARGIN',
+           'position_error_near', 'reversal_shifts', 'steady_motion', 'SteadyMotion',
+           'SUPPORTED_RELATIVE_ERROR']
 
 # A step between samples longer than this many median steps is a gap (a pause, a stalled
 # timer, ticks not published, a clock jump): no stroke pair is taken as steady across one.
@@ -59,7 +60,7 @@ _FIRST_GRID, _LAST_GRID = 1024, 1 << 17
 _AGREEMENT = 1e-3
 # The grid's maxima are raised (its values at a reversal or a crossing lowered) by this
 # factor: a maximum between grid points is not missed.
-_MARGIN = 1.05
+MARGIN = 1.05
 
 
 class SteadyMotion(NamedTuple):
@@ -141,10 +142,10 @@ class _Local:
 
     def around(self, values: np.ndarray, index: int) -> float:
         picked = np.arange(index - self.reach, index + self.reach + 1) % self.points
-        return float(np.max(np.abs(values[picked]))) * _MARGIN
+        return float(np.max(np.abs(values[picked]))) * MARGIN
 
     def everywhere(self, values: np.ndarray) -> np.ndarray:
-        return maximum_filter1d(np.abs(values), 2 * self.reach + 1, mode='wrap') * _MARGIN
+        return maximum_filter1d(np.abs(values), 2 * self.reach + 1, mode='wrap') * MARGIN
 
 
 def _extreme_shift(speed: np.ndarray, error: np.ndarray, where: np.ndarray,
@@ -187,6 +188,35 @@ def figure_sampling_bounds(geometry: Geometry, offset: float, input_speed: float
             for name, value in bounds.items()}
 
 
+def reversal_shifts(motion: SteadyMotion, input_speed: float,
+                    sample_interval: float) -> List[Optional[float]]:
+    """
+    How far (s) the stroke finder can put each reversal of motion.reversals from the true one.
+
+    At most 2 e / |a| (e the interpolant's velocity error, a the acceleration there) while
+    the acceleration stays above |a| / 2 over that shift and the shift is below the step;
+    None where that fails (doc/analysis.md).
+    """
+    w, h, x = abs(input_speed), sample_interval, motion.ram
+    local = _Local(motion, 2.0 * w * h)
+    velocity_error = _VELOCITY_CONSTANT * h ** 3 * w ** 4 * local.everywhere(x[4])
+    shifts: List[Optional[float]] = []
+    for index in motion.reversals.tolist():
+        acceleration = w * w * abs(x[2][index]) / MARGIN
+        shift = 2.0 * velocity_error[index] / acceleration
+        steady = w ** 3 * local.around(x[3], index) * shift <= 0.5 * acceleration
+        shifts.append(float(shift) if steady and shift <= h else None)
+    return shifts
+
+
+def position_error_near(motion: SteadyMotion, input_speed: float, sample_interval: float,
+                        index: int) -> float:
+    """Bound (m) of the interpolant's ram position error within two steps of grid point index."""
+    w, h = abs(input_speed), sample_interval
+    return (_POSITION_CONSTANT * h ** 4 * w ** 4
+            * _Local(motion, 2.0 * w * h).around(motion.ram[4], index))
+
+
 def _fill(bounds: Dict[str, Optional[float]], theory: SteadyTheory, input_speed: float,
           h: float, motion: SteadyMotion) -> None:
     w = abs(input_speed)
@@ -195,12 +225,7 @@ def _fill(bounds: Dict[str, Optional[float]], theory: SteadyTheory, input_speed:
     local = _Local(motion, 2.0 * w * h)
     velocity_error = _VELOCITY_CONSTANT * h ** 3 * w ** 4 * local.everywhere(x[4])
     position_error = _POSITION_CONSTANT * h ** 4 * w ** 4 * local.everywhere(x[4])
-    shifts = []
-    for index in motion.reversals.tolist():
-        acceleration = w * w * abs(x[2][index]) / _MARGIN
-        shift = 2.0 * velocity_error[index] / acceleration
-        steady = w ** 3 * local.around(x[3], index) * shift <= 0.5 * acceleration
-        shifts.append(shift if steady and shift <= h else None)
+    shifts = reversal_shifts(motion, input_speed, h)
     if None not in shifts:
         stroke_error = float(sum(shifts))  # type: ignore[arg-type]
         bounds['cutting_time'] = bounds['return_time'] = stroke_error
@@ -224,7 +249,7 @@ def _fill(bounds: Dict[str, Optional[float]], theory: SteadyTheory, input_speed:
     mid: Dict[bool, Tuple[float, Optional[float]]] = {}
     crossings = np.nonzero((x[0] >= 0.0) != (np.roll(x[0], -1) >= 0.0))[0]
     for index in crossings.tolist():
-        crossing_speed = speed[index] / _MARGIN
+        crossing_speed = speed[index] / MARGIN
         shift = 2.0 * position_error[index] / crossing_speed
         bend = w * w * local.around(x[2], index)
         error = (velocity_error[index] + bend * shift

@@ -28,9 +28,11 @@ pair of thousands of samples), so that a node's timer can measure between its ti
 plain functions run the same steps at once.
 """
 
-from typing import Generator, NamedTuple, Sequence, Tuple, TypeVar, Union
+from typing import Generator, NamedTuple, Optional, Sequence, Tuple, TypeVar, Union
 
 import numpy as np
+
+from qrm_ros.core.piecewise_efforts import piecewise_figures
 
 __all__ = ['PairEffortsMeasured', 'StrokePairs', 'find_reversals', 'find_stroke_pairs',
            'measure_pair_efforts', 'pair_effort_steps', 'run_steps', 'stroke_pair_steps']
@@ -254,20 +256,28 @@ def _window_extremes(t, f, start, end):
 
 
 def measure_pair_efforts(time: ArrayLike, input_speed: ArrayLike, input_torque: ArrayLike,
-                         offset_force: ArrayLike, pairs: StrokePairs) -> PairEffortsMeasured:
+                         offset_force: ArrayLike, pairs: StrokePairs,
+                         workpiece_edges: Optional[ArrayLike] = None) -> PairEffortsMeasured:
     """
     Measure the effort figures of each pair in pairs (find_stroke_pairs, same samples).
 
-    Between samples every signal is taken as linear (trapezoid integrals, the pair's ends
-    interpolated), so a load switch between two samples costs an error of order its jump x
-    the sample spacing: these are measurements, compared with the exact theory of
-    qrm_ros.core.dynamics. The mean input speed is the angle swept over the pair's time.
+    Without workpiece_edges, every signal is taken as linear between samples (trapezoid
+    integrals, the pair's ends interpolated), so a load switch between two samples costs an
+    error of order its jump x the sample spacing. With them (s: piecewise_efforts.
+    workpiece_edge_times, empty for a run without a workpiece), the torque and offset force
+    are split there and at the pair's reversals and taken piece by piece
+    (core.piecewise_efforts: fourth order within a piece, a jump's one-sided limits kept);
+    a pair with a piece too short for that keeps the linear measure. These are
+    measurements, compared with the exact theory of qrm_ros.core.dynamics. The mean input
+    speed is the angle swept over the pair's time.
     """
-    return run_steps(pair_effort_steps(time, input_speed, input_torque, offset_force, pairs))
+    return run_steps(pair_effort_steps(time, input_speed, input_torque, offset_force, pairs,
+                                       workpiece_edges))
 
 
 def pair_effort_steps(time: ArrayLike, input_speed: ArrayLike, input_torque: ArrayLike,
-                      offset_force: ArrayLike, pairs: StrokePairs
+                      offset_force: ArrayLike, pairs: StrokePairs,
+                      workpiece_edges: Optional[ArrayLike] = None
                       ) -> Steps[PairEffortsMeasured]:
     """measure_pair_efforts in steps."""
     t = np.asarray(time, dtype=float)
@@ -295,6 +305,21 @@ def pair_effort_steps(time: ArrayLike, input_speed: ArrayLike, input_torque: Arr
     force_high, force_low = _window_extremes(t, force, start, end)
     yield
     speed_high, speed_low = _window_extremes(t, speed, start, end)
+    if workpiece_edges is not None:
+        yield
+        switches = np.concatenate([start, pairs.cutting_end, end,
+                                   np.asarray(workpiece_edges, dtype=float)])
+        with np.errstate(all='ignore'):
+            pieces = piecewise_figures(t, switches, start, end, (torque * speed,
+                                                                 torque * torque),
+                                       (torque, force))
+        fine = ~pieces.sparse
+        energy = np.where(fine, pieces.integrals[0], energy)
+        torque_squared = np.where(fine, pieces.integrals[1], torque_squared)
+        torque_high = np.where(fine, pieces.highest[0], torque_high)
+        torque_low = np.where(fine, pieces.lowest[0], torque_low)
+        force_high = np.where(fine, pieces.highest[1], force_high)
+        force_low = np.where(fine, pieces.lowest[1], force_low)
     with np.errstate(divide='ignore', invalid='ignore'):
         return PairEffortsMeasured(
             peak_input_torque=np.maximum(torque_high, -torque_low),

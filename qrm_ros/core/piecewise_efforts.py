@@ -1,0 +1,222 @@
+# Copyright 2026 qrm_ros developers
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""
+Sampled efforts integrated and searched for their peaks piece by piece between load switches.
+
+The ram's load switches at every stroke reversal and, while the tool cuts, where it meets
+and leaves the workpiece (doc/dynamics.md); between two switches every effort is a smooth
+function of time. Taken as linear across a switch, a jump between two samples costs the
+trapezoid rule and the sampled maximum an error of the jump's size: first order in the
+sample step. Here the samples are split at the switches found from the recorded motion
+(the reversals by the stroke finder, the workpiece's edges where the ram's cubic Hermite
+interpolant crosses them), and within each piece every sample interval is given the cubic
+through the four samples of the piece nearest to it (fewer if the piece has fewer), which
+also carries the piece to its ends: fourth order in the step inside a piece, and a peak at
+a jump is the piece's one-sided limit there, not the last sample before it. Pure numpy.
+"""
+
+from typing import NamedTuple, Sequence, Tuple, Union
+
+import numpy as np
+
+__all__ = ['MIN_PIECE_SAMPLES', 'PieceIntegrals', 'piecewise_figures', 'STENCIL_POINTS',
+           'workpiece_edge_times']
+
+ArrayLike = Union[Sequence[float], np.ndarray]
+# Samples each interval's polynomial goes through (a cubic).
+STENCIL_POINTS = 4
+# A piece with fewer samples takes the line through its two nearest samples instead: a
+# cubic through a few samples far apart overshoots more than a line.
+MIN_PIECE_SAMPLES = 6
+# Newton iterations on the Hermite cubic for an edge crossing (from the chord's guess).
+_NEWTON_ITERATIONS = 8
+# Gauss-Legendre rule on [0, 1], exact for the cubics integrated (and their squares' parts).
+_GAUSS_NODES, _GAUSS_WEIGHTS = np.polynomial.legendre.leggauss(3)
+_GAUSS_NODES = 0.5 * (_GAUSS_NODES + 1.0)
+_GAUSS_WEIGHTS = 0.5 * _GAUSS_WEIGHTS
+# A cubic on [0, 1] from its values at 0, 1/3, 2/3, 1: its coefficients c0 + c1 u + ...
+_THIRDS = np.linspace(0.0, 1.0, 4)
+_TO_COEFFICIENTS = np.linalg.inv(np.vander(_THIRDS, 4, increasing=True))
+
+
+def _hermite(s, step, x0, x1, v0, v1):
+    """Position and its derivative in s of the cubic Hermite interpolant (s in [0, 1])."""
+    s2, s3 = s * s, s * s * s
+    position = ((2 * s3 - 3 * s2 + 1) * x0 + (s3 - 2 * s2 + s) * step * v0
+                + (-2 * s3 + 3 * s2) * x1 + (s3 - s2) * step * v1)
+    slope = ((6 * s2 - 6 * s) * x0 + (3 * s2 - 4 * s + 1) * step * v0
+             + (-6 * s2 + 6 * s) * x1 + (3 * s2 - 2 * s) * step * v1)
+    return position, slope
+
+
+def workpiece_edge_times(time: ArrayLike, ram_position: ArrayLike, ram_velocity: ArrayLike,
+                         cutting_start: ArrayLike, cutting_end: ArrayLike,
+                         cutting_length: float) -> np.ndarray:
+    """
+    Return the times (s, sorted) where the tool meets or leaves the workpiece while cutting.
+
+    The workpiece spans |x| <= cutting_length / 2 (m); an edge is where the cubic Hermite
+    interpolant of the sampled ram positions and velocities (the stroke finder's) crosses
+    x = +-cutting_length / 2 inside a cutting stroke [cutting_start, cutting_end] (s).
+    """
+    t = np.asarray(time, dtype=float)
+    x = np.asarray(ram_position, dtype=float)
+    v = np.asarray(ram_velocity, dtype=float)
+    start = np.asarray(cutting_start, dtype=float)
+    end = np.asarray(cutting_end, dtype=float)
+    if not (cutting_length > 0.0) or t.size < 2 or start.size == 0:
+        return np.empty(0)
+    found = []
+    for level in (0.5 * cutting_length, -0.5 * cutting_length):
+        above = x >= level
+        k = np.nonzero(above[:-1] != above[1:])[0]
+        step = t[k + 1] - t[k]
+        x0, x1, v0, v1 = x[k] - level, x[k + 1] - level, v[k], v[k + 1]
+        with np.errstate(divide='ignore', invalid='ignore'):
+            s = np.clip(np.nan_to_num(x0 / (x0 - x1), nan=0.5), 0.0, 1.0)
+            for _ in range(_NEWTON_ITERATIONS):
+                position, slope = _hermite(s, step, x0, x1, v0, v1)
+                s = np.clip(s - np.nan_to_num(position / slope), 0.0, 1.0)
+        found.append(t[k] + s * step)
+    edges = np.sort(np.concatenate(found))
+    stroke = np.searchsorted(start, edges, side='right') - 1
+    inside = (stroke >= 0) & (edges < end[np.maximum(stroke, 0)])
+    return edges[inside]
+
+
+class PieceIntegrals(NamedTuple):
+    """Per stroke pair: the integral of each integrand, the max and min of each signal."""
+
+    integrals: Tuple[np.ndarray, ...]
+    highest: Tuple[np.ndarray, ...]
+    lowest: Tuple[np.ndarray, ...]
+    # True where a piece of the pair holds fewer than MIN_PIECE_SAMPLES samples.
+    sparse: np.ndarray
+
+
+def _stencils(t, switches, left, right):
+    """
+    Each interval [left, right]'s samples: (first sample's index, polynomial degree).
+
+    The interval lies inside one piece (between two switches); its polynomial goes through
+    the STENCIL_POINTS samples of that piece nearest to it, centred where the piece
+    allows (a line through two, if the piece holds fewer than MIN_PIECE_SAMPLES). A piece
+    holding no sample borrows the two samples around the interval.
+    """
+    middle = 0.5 * (left + right)
+    piece = np.searchsorted(switches, middle, side='right')
+    sample_piece = np.searchsorted(switches, t, side='right')
+    first = np.searchsorted(sample_piece, piece, side='left')
+    count = np.searchsorted(sample_piece, piece, side='right') - first
+    before = np.searchsorted(t, middle, side='right') - 1  # the sample at or before it
+    degree = np.where(count >= MIN_PIECE_SAMPLES, STENCIL_POINTS, np.minimum(count, 2)) - 1
+    start = np.clip(before - (degree - 1) // 2, first, first + count - 1 - degree)
+    empty = count == 0
+    degree = np.where(empty, 1, degree)
+    start = np.where(empty, np.clip(before, 0, t.size - 2), start)
+    return start, degree
+
+
+def _lagrange(nodes, values, degree, points):
+    """Evaluate each row's Lagrange polynomial (nodes, values: (m, 4)) at points (m, q)."""
+    result = np.zeros(points.shape)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        for j in range(STENCIL_POINTS):
+            basis = np.ones(points.shape)
+            for m in range(STENCIL_POINTS):
+                if m != j:
+                    factor = ((points - nodes[:, m, None])
+                              / (nodes[:, j, None] - nodes[:, m, None]))
+                    basis = basis * np.where((m <= degree)[:, None], factor, 1.0)
+            result += np.where((j <= degree)[:, None], basis * values[:, j, None], 0.0)
+    return result
+
+
+def _cubic_extremes(values_at_thirds):
+    """Max and min over [0, 1] of each row's cubic, given by its values at 0, 1/3, 2/3, 1."""
+    c0, c1, c2, c3 = (values_at_thirds @ _TO_COEFFICIENTS.T).T
+    a, b, c = 3.0 * c3, 2.0 * c2, c1
+    with np.errstate(divide='ignore', invalid='ignore'):
+        root = np.sqrt(np.maximum(b * b - 4.0 * a * c, 0.0))
+        turns = np.stack([(-b + root) / (2.0 * a), (-b - root) / (2.0 * a), -c / b], axis=1)
+    turns[:, :2][np.broadcast_to((a == 0.0)[:, None], (a.size, 2))] = np.nan
+    turns[:, 2][a != 0.0] = np.nan
+    turns = np.where((turns > 0.0) & (turns < 1.0), turns, 0.0)
+    candidates = np.concatenate([values_at_thirds[:, [0, 3]],
+                                 ((c3[:, None] * turns + c2[:, None]) * turns
+                                  + c1[:, None]) * turns + c0[:, None]], axis=1)
+    return np.max(candidates, axis=1), np.min(candidates, axis=1)
+
+
+def piecewise_figures(time: ArrayLike, switches: ArrayLike, pair_start: ArrayLike,
+                      pair_end: ArrayLike, integrands: Sequence[ArrayLike],
+                      signals: Sequence[ArrayLike]) -> PieceIntegrals:
+    """
+    Integrate each integrand and find each signal's max and min over every pair's window.
+
+    time (s, increasing): the samples; switches (s): where the load switches (the pairs'
+    ends among them); the windows [pair_start, pair_end] (s) lie between switches. Each
+    sample interval inside a piece, and each piece's ends beyond its first and last samples,
+    take the cubic through the piece's nearest samples (module docstring).
+    """
+    t = np.asarray(time, dtype=float)
+    start = np.asarray(pair_start, dtype=float)
+    end = np.asarray(pair_end, dtype=float)
+    cut = np.unique(np.asarray(switches, dtype=float))
+    empty = PieceIntegrals(tuple(np.zeros(start.size) for _ in integrands),
+                           tuple(np.full(start.size, -np.inf) for _ in signals),
+                           tuple(np.full(start.size, np.inf) for _ in signals),
+                           np.ones(start.size, dtype=bool))
+    if start.size == 0 or t.size < 2:
+        return empty
+    low, high = float(np.min(start)), float(np.max(end))
+    inside = t[(t > low) & (t < high)]
+    points = np.unique(np.concatenate([inside, cut[(cut >= low) & (cut <= high)],
+                                       [low, high]]))
+    left, right = points[:-1], points[1:]
+    middle = 0.5 * (left + right)
+    pair = np.searchsorted(start, middle, side='right') - 1
+    kept = (pair >= 0) & (middle < end[np.maximum(pair, 0)]) & (right > left)
+    left, right, pair = left[kept], right[kept], pair[kept]
+    first, degree = _stencils(t, cut, left, right)
+    index = np.minimum(first[:, None] + np.arange(STENCIL_POINTS), t.size - 1)
+    origin = left[:, None]
+    nodes = t[index] - origin
+    width = (right - left)[:, None]
+    integrals = []
+    for integrand in integrands:
+        values = np.asarray(integrand, dtype=float)[index]
+        at_nodes = _lagrange(nodes, values, degree, width * _GAUSS_NODES)
+        piece_integral = (width[:, 0] * (at_nodes @ _GAUSS_WEIGHTS))
+        integrals.append(np.bincount(pair, weights=piece_integral, minlength=start.size))
+    highest, lowest = [], []
+    for signal in signals:
+        values = np.asarray(signal, dtype=float)[index]
+        interval_high, interval_low = _cubic_extremes(
+            _lagrange(nodes, values, degree, width * _THIRDS))
+        pair_high = np.full(start.size, -np.inf)
+        pair_low = np.full(start.size, np.inf)
+        np.maximum.at(pair_high, pair, interval_high)
+        np.minimum.at(pair_low, pair, interval_low)
+        highest.append(pair_high)
+        lowest.append(pair_low)
+    pieces = cut[(cut >= low) & (cut <= high)]
+    counts = np.diff(np.searchsorted(t, pieces, side='right'))
+    centre = 0.5 * (pieces[:-1] + pieces[1:])
+    owner = np.searchsorted(start, centre, side='right') - 1
+    sparse = np.zeros(start.size, dtype=bool)
+    few = ((counts < MIN_PIECE_SAMPLES) & (owner >= 0)
+           & (centre < end[np.maximum(owner, 0)]))
+    sparse[owner[few]] = True
+    return PieceIntegrals(tuple(integrals), tuple(highest), tuple(lowest), sparse)
