@@ -41,9 +41,10 @@ from mcap.writer import CompressionType, Writer
 import numpy as np
 from rosbags.typesys import get_typestore, Stores
 
-from qrm_ros.analysis.report import MISSED_STROKE_TURNS
+from qrm_ros.analysis.measurement import ALL_BOUNDED_FIGURES
+from qrm_ros.analysis.report import MISSED_STROKE_TURNS, sampling_relative_bound
 from qrm_ros.core.names import CRANK_RADIUS_JOINT, GEOMETRY_METADATA, JOINT_STATE_TYPE
-from qrm_ros.core.sampling_bounds import BOUNDED_FIGURES, SUPPORTED_RELATIVE_ERROR
+from qrm_ros.core.sampling_bounds import SUPPORTED_RELATIVE_ERROR
 
 JOINT_STATES = '/joint_states'
 ANY_OUTCOME = frozenset({0, 2, 3})
@@ -59,13 +60,14 @@ def assert_supported(segments, constant_speed, context):
     bound of the closed form: the bound is true.
     """
     for segment in segments:
-        for name in BOUNDED_FIGURES:
+        for name in ALL_BOUNDED_FIGURES:
             measured, theory = segment[f'{name}_measured'], segment[f'{name}_theory']
             if measured is None:
                 continue
             bound = segment[f'{name}_sampling_bound']
-            assert bound is not None and bound <= SUPPORTED_RELATIVE_ERROR * abs(
-                theory or measured), (name, segment['offset'], context)
+            relative = sampling_relative_bound(segment, name)
+            assert bound is not None and relative is not None and (
+                relative <= SUPPORTED_RELATIVE_ERROR), (name, segment['offset'], context)
             if constant_speed and theory is not None:
                 assert abs(measured - theory) <= bound + 1e-9 * abs(theory), (
                     name, segment['offset'], measured, theory, bound, context)
@@ -85,11 +87,10 @@ def incomplete_or_unsupported(document):
                  / (2 * math.pi))
         if segment['stroke_pairs'] == 0 and turns >= MISSED_STROKE_TURNS:
             return True
-        for name in BOUNDED_FIGURES:
-            measured, bound = segment[f'{name}_measured'], segment[f'{name}_sampling_bound']
-            reference = abs(segment[f'{name}_theory'] or measured or 0.0)
-            if measured is not None and (bound is None
-                                         or bound > SUPPORTED_RELATIVE_ERROR * reference):
+        for name in ALL_BOUNDED_FIGURES:
+            relative = sampling_relative_bound(segment, name)
+            if segment[f'{name}_measured'] is not None and (
+                    relative is None or relative > SUPPORTED_RELATIVE_ERROR):
                 return True
     return False
 

@@ -24,7 +24,7 @@ recorded geometry and drive, with the relative error.
 import contextlib
 import dataclasses
 import math
-from typing import Any, Callable, Dict, List, NamedTuple, Optional, Tuple
+from typing import Any, Dict, List, NamedTuple, Optional, Tuple
 
 import numpy as np
 from scipy import interpolate
@@ -39,7 +39,8 @@ from qrm_ros.core.effort_theory import (EFFORT_FIGURES, Setting,
                                         ZERO_CAN_BE_EXACT)
 from qrm_ros.core.joint_consistency import misplaced_stamps
 from qrm_ros.core.effort_sampling_bounds import (EFFORT_BOUNDED_FIGURES,
-                                                 effort_sampling_bounds, steady_efforts)
+                                                 effort_sampling_bounds, steady_efforts,
+                                                 switch_shift)
 from qrm_ros.core.piecewise_efforts import workpiece_edge_times
 from qrm_ros.core.sampling_bounds import (BOUNDED_FIGURES, figure_sampling_bounds,
                                           steady_motion)
@@ -50,6 +51,9 @@ ALL_BOUNDED_FIGURES = BOUNDED_FIGURES + EFFORT_BOUNDED_FIGURES
 
 # Steps are rounded up to a power of this before their bounds are worked out.
 _STEP_ROUNDING = 1.01
+# A pair whose longest step exceeds its median step this many times (a late or lost
+# sample) has its effort figures bounded at each stretch's own steps.
+_IRREGULAR_STEPS = 1.5
 
 
 def finite_or_none(value: Any) -> Any:
@@ -154,38 +158,63 @@ def measure_segment(samples: Samples, segment: Segment, geometry: kin.Geometry,
                                             segment.input_speed)._asdict())
     for name, values in measured.items():
         _measured_and_theory(row, name, values, theory[name])
-    _measure_efforts(row, samples, span, pairs, geometry, drive)
-    _add_sampling_bounds(row, samples, span, pairs, geometry, drive)
+    edges = _measure_efforts(row, samples, span, pairs, geometry, drive)
+    _add_sampling_bounds(row, samples, span, pairs, geometry, drive, edges)
     return row
 
 
-def _effort_bounds_per_step(row: Dict[str, Any], samples: Samples, span: slice,
-                            geometry: kin.Geometry, drive: Optional[Drive], speed: float,
-                            motion: Any) -> Callable[[float], Dict[str, Optional[float]]]:
+class _EffortBounds:
     """
-    Return step (s) -> the effort figures' bounds (core.effort_sampling_bounds).
+    The effort figures' bounds of one segment (core.effort_sampling_bounds), per pair.
 
     Only the ideal speed drive's efforts are bounded (its theory is exact); the motor's
     steady running is simulated, so its figures have none. A constant recorded speed
     (the speed drive, or a file older than the drive parameters) measures Cs exactly: 0.
     """
-    recorded = samples.input_speed[span]
-    constant = recorded.size > 0 and bool(np.all(recorded == recorded[0]))
-    fluctuation = 0.0 if constant and (drive is None or drive.motor is None) else None
-    theory = {name: row.get(f'{name}_theory') for name in EFFORT_FIGURES}
-    efforts = None
-    if drive is not None and drive.motor is None and motion is not None:
-        efforts = steady_efforts(geometry, drive.mass, drive.loads, row['offset'], speed)
 
-    def bounds(step: float) -> Dict[str, Optional[float]]:
-        found = effort_sampling_bounds(efforts, motion, theory, speed, step)
-        found['speed_fluctuation'] = fluctuation
+    def __init__(self, row: Dict[str, Any], samples: Samples, span: slice,
+                 geometry: kin.Geometry, drive: Optional[Drive], speed: float,
+                 motion: Any) -> None:
+        recorded = samples.input_speed[span]
+        constant = recorded.size > 0 and bool(np.all(recorded == recorded[0]))
+        self.fluctuation = 0.0 if constant and (drive is None or drive.motor is None) else None
+        self.theory = {name: row.get(f'{name}_theory') for name in EFFORT_FIGURES}
+        self.efforts = None
+        if drive is not None and drive.motor is None and motion is not None:
+            self.efforts = steady_efforts(geometry, drive.mass, drive.loads, row['offset'],
+                                          speed)
+        self.motion, self.speed = motion, speed
+
+    def at_step(self, step: float, interval_steps: Any = None) -> Dict[str, Optional[float]]:
+        """The bounds at a longest step (s), or for one pair's own steps (interval_steps)."""
+        found = effort_sampling_bounds(self.efforts, self.motion, self.theory, self.speed,
+                                       step, interval_steps)
+        found['speed_fluctuation'] = self.fluctuation
         return found
-    return bounds
+
+    def for_pair(self, bounds: Dict[str, Optional[float]], time: np.ndarray, start: float,
+                 switches: np.ndarray) -> Dict[str, Optional[float]]:
+        """
+        Return one pair's bounds: its own steps' if they differ, none if a switch is unsure.
+
+        bounds: at the pair's longest step; time: the pair's samples; start (s): its first
+        reversal; switches (s): its reversals and the workpiece edges found in it.
+        """
+        steps = np.diff(time)
+        if steps.size == 0 or self.efforts is None:
+            return bounds
+        if np.max(steps) > _IRREGULAR_STEPS * np.median(steps):
+            bounds = {**bounds, **self.at_step(float(np.max(steps)),
+                                               (time[:-1] - start, steps))}
+        shift = switch_shift(self.efforts, self.motion, self.speed, float(np.max(steps)))
+        if shift is None or np.min(np.abs(time[:, None] - switches[None, :])) <= shift:
+            bounds = {**bounds, **dict.fromkeys(EFFORT_FIGURES)}
+        return bounds
 
 
 def _add_sampling_bounds(row: Dict[str, Any], samples: Samples, span: slice, pairs: Any,
-                         geometry: kin.Geometry, drive: Optional[Drive] = None) -> None:
+                         geometry: kin.Geometry, drive: Optional[Drive] = None,
+                         edges: Optional[np.ndarray] = None) -> None:
     """
     Add each figure's bound from the sampling alone (core.sampling_bounds), or None.
 
@@ -195,6 +224,7 @@ def _add_sampling_bounds(row: Dict[str, Any], samples: Samples, span: slice, pai
     (core.effort_sampling_bounds).
     """
     time = samples.time[span]
+    edges = np.empty(0) if edges is None else edges
     recorded = np.abs(samples.input_speed[span])
     fastest = max(abs(row['input_speed']), float(np.max(recorded)) if recorded.size else 0.0)
     speed = math.copysign(fastest, row['input_speed'])
@@ -207,21 +237,31 @@ def _add_sampling_bounds(row: Dict[str, Any], samples: Samples, span: slice, pai
                       for first, last in zip(pairs.first_sample, pairs.last_sample)])
     with np.errstate(divide='ignore'):  # a step of 0 s gets no bound
         rounded = np.power(_STEP_ROUNDING, np.ceil(np.log(steps) / np.log(_STEP_ROUNDING)))
-    effort_bounds = _effort_bounds_per_step(row, samples, span, geometry, drive, speed, motion)
+    effort_bounds = _EffortBounds(row, samples, span, geometry, drive, speed, motion)
     per_step = {step: {**(figure_sampling_bounds(geometry, row['offset'], speed, step, motion,
                                                  theory) if theory is not None
-                          else dict.fromkeys(BOUNDED_FIGURES)), **effort_bounds(step)}
+                          else dict.fromkeys(BOUNDED_FIGURES)), **effort_bounds.at_step(step)}
                 for step in np.unique(rounded)}
+    per_pair = [effort_bounds.for_pair(
+        per_step[step], time[first:last + 1], start,
+        np.concatenate([[start, middle, end], edges[(edges > start) & (edges < end)]]))
+        for step, first, last, start, middle, end in zip(
+            rounded, pairs.first_sample, pairs.last_sample, pairs.cutting_start,
+            pairs.cutting_end, pairs.return_end)]
     for name in ALL_BOUNDED_FIGURES:
-        bounds = [per_step[step][name] for step in rounded]
+        bounds = [found[name] for found in per_pair]
         known = [bound for bound in bounds if bound is not None]
         row[f'{name}_sampling_bound'] = (float(np.mean(known)) if known and len(known) ==
                                          len(bounds) else None)
 
 
 def _measure_efforts(row: Dict[str, Any], samples: Samples, span: slice, pairs: Any,
-                     geometry: kin.Geometry, drive: Optional[Drive]) -> None:
-    """Add the drive's figures per pair (efforts, speed fluctuation, flywheel swing) to row."""
+                     geometry: kin.Geometry, drive: Optional[Drive]) -> Optional[np.ndarray]:
+    """
+    Add the drive's figures per pair (efforts, speed fluctuation, flywheel swing) to row.
+
+    Return the workpiece edges found (s), None without the recorded loads.
+    """
     time = samples.time[span]
     torque = samples.input_torque if samples.input_torque is not None else _not_recorded(
         samples)
@@ -257,6 +297,7 @@ def _measure_efforts(row: Dict[str, Any], samples: Samples, span: slice, pairs: 
     swing_theory = (flywheel_speed_swing(geometry, row['offset'])
                     if abs(row['offset']) < geometry.coupling_radius else None)
     _measured_and_theory(row, 'flywheel_speed_swing', swing, swing_theory)
+    return edges
 
 
 def segment_geometry(geometry: kin.Geometry, segment: Segment) -> kin.Geometry:

@@ -59,8 +59,8 @@ from qrm_ros.node.ros_process import StopRequest
 UNITY_SPEED_RATIO_MM = kin.offset_for_speed_ratio(kin.Geometry.paper(), 1.0) * 1e3
 DEFAULT_OFFSETS_MM = [-15.0, UNITY_SPEED_RATIO_MM, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0]
 # Hz: at 100 Hz the peak torque at 15 mm falls between samples beyond what the sampling
-# supports to 1e-3 (the effort figures' bounds); at 500 Hz every figure of the schedule is.
-DEFAULT_PUBLISH_RATE = 500.0
+# supports to 1e-3 (the effort figures' bounds); at 250 Hz every figure of the schedule is.
+DEFAULT_PUBLISH_RATE = 250.0
 # Margin after the recorder's subscription appears before its data is surely flowing.
 RECORDER_SETTLE_TIME = 0.5
 CHILD_STOP_TIMEOUT = 15.0  # s, after SIGINT, before SIGKILL

@@ -20,28 +20,33 @@ function of time. Taken as linear across a switch, a jump between two samples co
 trapezoid rule and the sampled maximum an error of the jump's size: first order in the
 sample step. Here the samples are split at the switches found from the recorded motion
 (the reversals by the stroke finder, the workpiece's edges where the ram's cubic Hermite
-interpolant crosses them), and within each piece every sample interval is given the cubic
-through the four samples of the piece nearest to it (fewer if the piece has fewer), which
-also carries the piece to its ends: fourth order in the step inside a piece, and a peak at
-a jump is the piece's one-sided limit there, not the last sample before it. Pure numpy.
+interpolant crosses them), and within each piece every sample interval is given the
+polynomial through the samples of the piece nearest to it (six, a quintic, for the
+integrals; four, a cubic, for the peaks; a line if the piece has fewer than six), which
+also carries the piece to its ends: sixth and fourth order in the step inside a piece, and
+a peak at a jump is the piece's one-sided limit there, not the last sample before it. Pure
+numpy.
 """
 
 from typing import NamedTuple, Sequence, Tuple, Union
 
 import numpy as np
 
-__all__ = ['MIN_PIECE_SAMPLES', 'PieceIntegrals', 'piecewise_figures', 'STENCIL_POINTS',
-           'workpiece_edge_times']
+__all__ = ['INTEGRAL_POINTS', 'MIN_PIECE_SAMPLES', 'PieceIntegrals', 'piecewise_figures',
+           'STENCIL_POINTS', 'workpiece_edge_times']
 
 ArrayLike = Union[Sequence[float], np.ndarray]
-# Samples each interval's polynomial goes through (a cubic).
+# Samples each interval's polynomial goes through for the peaks (a cubic: its extremes in
+# closed form) and for the integrals (a quintic: two orders more where the samples are
+# dense enough to resolve the pieces).
 STENCIL_POINTS = 4
+INTEGRAL_POINTS = 6
 # A piece with fewer samples takes the line through its two nearest samples instead: a
 # cubic through a few samples far apart overshoots more than a line.
 MIN_PIECE_SAMPLES = 6
 # Newton iterations on the Hermite cubic for an edge crossing (from the chord's guess).
 _NEWTON_ITERATIONS = 8
-# Gauss-Legendre rule on [0, 1], exact for the cubics integrated (and their squares' parts).
+# Gauss-Legendre rule on [0, 1], exact for the quintics integrated.
 _GAUSS_NODES, _GAUSS_WEIGHTS = np.polynomial.legendre.leggauss(3)
 _GAUSS_NODES = 0.5 * (_GAUSS_NODES + 1.0)
 _GAUSS_WEIGHTS = 0.5 * _GAUSS_WEIGHTS
@@ -105,14 +110,14 @@ class PieceIntegrals(NamedTuple):
     sparse: np.ndarray
 
 
-def _stencils(t, switches, left, right):
+def _stencils(t, switches, left, right, points):
     """
     Each interval [left, right]'s samples: (first sample's index, polynomial degree).
 
     The interval lies inside one piece (between two switches); its polynomial goes through
-    the STENCIL_POINTS samples of that piece nearest to it, centred where the piece
-    allows (a line through two, if the piece holds fewer than MIN_PIECE_SAMPLES). A piece
-    holding no sample borrows the two samples around the interval.
+    the points samples of that piece nearest to it, centred where the piece allows (a
+    line through two, if the piece holds fewer than MIN_PIECE_SAMPLES). A piece holding no
+    sample borrows the two samples around the interval.
     """
     middle = 0.5 * (left + right)
     piece = np.searchsorted(switches, middle, side='right')
@@ -120,7 +125,8 @@ def _stencils(t, switches, left, right):
     first = np.searchsorted(sample_piece, piece, side='left')
     count = np.searchsorted(sample_piece, piece, side='right') - first
     before = np.searchsorted(t, middle, side='right') - 1  # the sample at or before it
-    degree = np.where(count >= MIN_PIECE_SAMPLES, STENCIL_POINTS, np.minimum(count, 2)) - 1
+    degree = np.where(count >= max(MIN_PIECE_SAMPLES, points), points,
+                      np.minimum(count, 2)) - 1
     start = np.clip(before - (degree - 1) // 2, first, first + count - 1 - degree)
     empty = count == 0
     degree = np.where(empty, 1, degree)
@@ -129,12 +135,12 @@ def _stencils(t, switches, left, right):
 
 
 def _lagrange(nodes, values, degree, points):
-    """Evaluate each row's Lagrange polynomial (nodes, values: (m, 4)) at points (m, q)."""
+    """Evaluate each row's Lagrange polynomial (nodes, values: (m, k)) at points (m, q)."""
     result = np.zeros(points.shape)
     with np.errstate(divide='ignore', invalid='ignore'):
-        for j in range(STENCIL_POINTS):
+        for j in range(nodes.shape[1]):
             basis = np.ones(points.shape)
-            for m in range(STENCIL_POINTS):
+            for m in range(nodes.shape[1]):
                 if m != j:
                     factor = ((points - nodes[:, m, None])
                               / (nodes[:, j, None] - nodes[:, m, None]))
@@ -168,7 +174,7 @@ def piecewise_figures(time: ArrayLike, switches: ArrayLike, pair_start: ArrayLik
     time (s, increasing): the samples; switches (s): where the load switches (the pairs'
     ends among them); the windows [pair_start, pair_end] (s) lie between switches. Each
     sample interval inside a piece, and each piece's ends beyond its first and last samples,
-    take the cubic through the piece's nearest samples (module docstring).
+    take the polynomial through the piece's nearest samples (module docstring).
     """
     t = np.asarray(time, dtype=float)
     start = np.asarray(pair_start, dtype=float)
@@ -189,17 +195,20 @@ def piecewise_figures(time: ArrayLike, switches: ArrayLike, pair_start: ArrayLik
     pair = np.searchsorted(start, middle, side='right') - 1
     kept = (pair >= 0) & (middle < end[np.maximum(pair, 0)]) & (right > left)
     left, right, pair = left[kept], right[kept], pair[kept]
-    first, degree = _stencils(t, cut, left, right)
-    index = np.minimum(first[:, None] + np.arange(STENCIL_POINTS), t.size - 1)
     origin = left[:, None]
-    nodes = t[index] - origin
     width = (right - left)[:, None]
+    first, degree = _stencils(t, cut, left, right, INTEGRAL_POINTS)
+    index = np.minimum(first[:, None] + np.arange(INTEGRAL_POINTS), t.size - 1)
+    nodes = t[index] - origin
     integrals = []
     for integrand in integrands:
         values = np.asarray(integrand, dtype=float)[index]
         at_nodes = _lagrange(nodes, values, degree, width * _GAUSS_NODES)
         piece_integral = (width[:, 0] * (at_nodes @ _GAUSS_WEIGHTS))
         integrals.append(np.bincount(pair, weights=piece_integral, minlength=start.size))
+    first, degree = _stencils(t, cut, left, right, STENCIL_POINTS)
+    index = np.minimum(first[:, None] + np.arange(STENCIL_POINTS), t.size - 1)
+    nodes = t[index] - origin
     highest, lowest = [], []
     for signal in signals:
         values = np.asarray(signal, dtype=float)[index]
