@@ -43,7 +43,7 @@ from qrm_ros.core.effort_sampling_bounds import (EFFORT_BOUNDED_FIGURES,
                                                  switch_shift)
 from qrm_ros.core.piecewise_efforts import workpiece_edge_times
 from qrm_ros.core.sampling_bounds import (BOUNDED_FIGURES, figure_sampling_bounds,
-                                          steady_motion)
+                                          steady_motion, SUPPORTED_RELATIVE_ERROR)
 from qrm_ros.core.strokes import find_stroke_pairs, measure_pair_efforts
 
 # Every figure given a bound from the sampling: the stroke's, then the drive's.
@@ -53,7 +53,7 @@ ALL_BOUNDED_FIGURES = BOUNDED_FIGURES + EFFORT_BOUNDED_FIGURES
 _STEP_ROUNDING = 1.01
 # A pair whose longest step exceeds its median step this many times (a late or lost
 # sample) has its effort figures bounded at each stretch's own steps.
-_IRREGULAR_STEPS = 1.5
+_IRREGULAR_STEPS = 1.05
 
 
 def finite_or_none(value: Any) -> Any:
@@ -158,9 +158,65 @@ def measure_segment(samples: Samples, segment: Segment, geometry: kin.Geometry,
                                             segment.input_speed)._asdict())
     for name, values in measured.items():
         _measured_and_theory(row, name, values, theory[name])
-    edges = _measure_efforts(row, samples, span, pairs, geometry, drive)
-    _add_sampling_bounds(row, samples, span, pairs, geometry, drive, edges)
+    edges, efforts = _measure_efforts(row, samples, span, pairs, geometry, drive)
+    per_pair = _add_sampling_bounds(row, samples, span, pairs, geometry, drive, edges)
+    _leave_out_unsupported_efforts(row, efforts, per_pair)
     return row
+
+
+# Figures that are work done, whose theory is 0 without loads.
+_WORK_FIGURES = ('energy_per_pair', 'mean_input_power')
+
+
+def relative_bound(row: Dict[str, Any], name: str, bound: Optional[float]) -> Optional[float]:
+    """
+    Return a sampling bound of a figure of row over its theory (its measured value if none).
+
+    A bound of 0 is 0 whatever the figure; a work or power whose theory is 0 (no loads) is
+    compared with the work the RMS torque would do over the pair (or its power).
+    """
+    reference = row.get(f'{name}_theory') or row.get(f'{name}_measured')
+    if bound == 0.0:
+        return 0.0
+    if row.get(f'{name}_theory') == 0.0 and name in _WORK_FIGURES:
+        rms = row.get('rms_input_torque_theory') or 0.0
+        reference = rms * (2 * math.pi if name == 'energy_per_pair'
+                           else abs(row['input_speed']))
+    if bound is None or not reference:
+        return None
+    return bound / abs(reference)
+
+
+def _leave_out_unsupported_efforts(row: Dict[str, Any], efforts: Any,
+                                   per_pair: List[Dict[str, Optional[float]]]) -> None:
+    """
+    Take the effort figures over the pairs whose sampling supports them, if any does.
+
+    A late or lost sample at a sharp peak can leave one pair's efforts unsupported to
+    SUPPORTED_RELATIVE_ERROR while its neighbours' are: the segment's effort figures are
+    then the means over those, and row says how many pairs were left out. If no pair's
+    efforts are supported, all stay in and their bound says so (exit 3).
+    """
+    row['stroke_pairs_left_out_of_efforts'] = 0
+    finite = np.isfinite(efforts.energy_per_pair)
+    supported = finite & np.array([all(
+        (relative := relative_bound(row, name, found[name])) is not None
+        and relative <= SUPPORTED_RELATIVE_ERROR for name in EFFORT_FIGURES)
+        for found in per_pair], dtype=bool)
+    if not supported.any() or supported.sum() == finite.sum():
+        return
+    row['stroke_pairs_left_out_of_efforts'] = int(finite.sum() - supported.sum())
+    row['stroke_pairs_with_efforts'] = int(supported.sum())
+    for name in EFFORT_FIGURES:
+        kept = np.where(supported, getattr(efforts, name), np.nan)
+        _measured_and_theory(row, name, kept, row[f'{name}_theory'])
+        row[f'{name}_sampling_bound'] = float(np.mean(
+            [found[name] for found, used in zip(per_pair, supported) if used]))
+    for name in ZERO_CAN_BE_EXACT:
+        if name in EFFORT_FIGURES:
+            mean, expected = row[f'{name}_measured'], row[f'{name}_theory']
+            row[f'{name}_absolute_error'] = (None if mean is None or expected is None
+                                             else mean - expected)
 
 
 class _EffortBounds:
@@ -184,6 +240,7 @@ class _EffortBounds:
             self.efforts = steady_efforts(geometry, drive.mass, drive.loads, row['offset'],
                                           speed)
         self.motion, self.speed = motion, speed
+        self._shifts: Dict[float, Optional[float]] = {}
 
     def at_step(self, step: float, interval_steps: Any = None) -> Dict[str, Optional[float]]:
         """The bounds at a longest step (s), or for one pair's own steps (interval_steps)."""
@@ -192,13 +249,14 @@ class _EffortBounds:
         found['speed_fluctuation'] = self.fluctuation
         return found
 
-    def for_pair(self, bounds: Dict[str, Optional[float]], time: np.ndarray, start: float,
-                 switches: np.ndarray) -> Dict[str, Optional[float]]:
+    def for_pair(self, step: float, bounds: Dict[str, Optional[float]], time: np.ndarray,
+                 start: float, switches: np.ndarray) -> Dict[str, Optional[float]]:
         """
         Return one pair's bounds: its own steps' if they differ, none if a switch is unsure.
 
-        bounds: at the pair's longest step; time: the pair's samples; start (s): its first
-        reversal; switches (s): its reversals and the workpiece edges found in it.
+        step (s): the pair's longest step, rounded up; bounds: at that step; time: the
+        pair's samples; start (s): its first reversal; switches (s): its reversals and the
+        workpiece edges found in it.
         """
         steps = np.diff(time)
         if steps.size == 0 or self.efforts is None:
@@ -206,7 +264,9 @@ class _EffortBounds:
         if np.max(steps) > _IRREGULAR_STEPS * np.median(steps):
             bounds = {**bounds, **self.at_step(float(np.max(steps)),
                                                (time[:-1] - start, steps))}
-        shift = switch_shift(self.efforts, self.motion, self.speed, float(np.max(steps)))
+        if step not in self._shifts:
+            self._shifts[step] = switch_shift(self.efforts, self.motion, self.speed, step)
+        shift = self._shifts[step]
         if shift is None or np.min(np.abs(time[:, None] - switches[None, :])) <= shift:
             bounds = {**bounds, **dict.fromkeys(EFFORT_FIGURES)}
         return bounds
@@ -214,14 +274,15 @@ class _EffortBounds:
 
 def _add_sampling_bounds(row: Dict[str, Any], samples: Samples, span: slice, pairs: Any,
                          geometry: kin.Geometry, drive: Optional[Drive] = None,
-                         edges: Optional[np.ndarray] = None) -> None:
+                         edges: Optional[np.ndarray] = None
+                         ) -> List[Dict[str, Optional[float]]]:
     """
     Add each figure's bound from the sampling alone (core.sampling_bounds), or None.
 
     Each pair is bounded at its own longest step (a late sample spoils only its pair), and
     the mean over the pairs by the mean of their bounds; steps are rounded up to 1 % so
     that a long run needs only a few bounds worked out. The effort figures likewise
-    (core.effort_sampling_bounds).
+    (core.effort_sampling_bounds). Return each pair's bounds.
     """
     time = samples.time[span]
     edges = np.empty(0) if edges is None else edges
@@ -243,7 +304,7 @@ def _add_sampling_bounds(row: Dict[str, Any], samples: Samples, span: slice, pai
                           else dict.fromkeys(BOUNDED_FIGURES)), **effort_bounds.at_step(step)}
                 for step in np.unique(rounded)}
     per_pair = [effort_bounds.for_pair(
-        per_step[step], time[first:last + 1], start,
+        step, per_step[step], time[first:last + 1], start,
         np.concatenate([[start, middle, end], edges[(edges > start) & (edges < end)]]))
         for step, first, last, start, middle, end in zip(
             rounded, pairs.first_sample, pairs.last_sample, pairs.cutting_start,
@@ -253,14 +314,17 @@ def _add_sampling_bounds(row: Dict[str, Any], samples: Samples, span: slice, pai
         known = [bound for bound in bounds if bound is not None]
         row[f'{name}_sampling_bound'] = (float(np.mean(known)) if known and len(known) ==
                                          len(bounds) else None)
+    return per_pair
 
 
 def _measure_efforts(row: Dict[str, Any], samples: Samples, span: slice, pairs: Any,
-                     geometry: kin.Geometry, drive: Optional[Drive]) -> Optional[np.ndarray]:
+                     geometry: kin.Geometry, drive: Optional[Drive]
+                     ) -> Tuple[Optional[np.ndarray], Any]:
     """
     Add the drive's figures per pair (efforts, speed fluctuation, flywheel swing) to row.
 
-    Return the workpiece edges found (s), None without the recorded loads.
+    Return the workpiece edges found (s; None without the recorded loads) and the pairs'
+    efforts (strokes.PairEffortsMeasured).
     """
     time = samples.time[span]
     torque = samples.input_torque if samples.input_torque is not None else _not_recorded(
@@ -297,7 +361,7 @@ def _measure_efforts(row: Dict[str, Any], samples: Samples, span: slice, pairs: 
     swing_theory = (flywheel_speed_swing(geometry, row['offset'])
                     if abs(row['offset']) < geometry.coupling_radius else None)
     _measured_and_theory(row, 'flywheel_speed_swing', swing, swing_theory)
-    return edges
+    return edges, measured
 
 
 def segment_geometry(geometry: kin.Geometry, segment: Segment) -> kin.Geometry:

@@ -26,7 +26,8 @@ import os
 from typing import Any, Dict, List, Optional, Tuple
 
 from qrm_ros.analysis.joint_state_decoding import JOINT_STATES_TOPIC
-from qrm_ros.analysis.measurement import ALL_BOUNDED_FIGURES, Analysis, finite_or_none
+from qrm_ros.analysis.measurement import (ALL_BOUNDED_FIGURES, Analysis, finite_or_none,
+                                          relative_bound)
 from qrm_ros.analysis.recorded_run import IN_EFFORTS, IN_FILE, IN_MESSAGE, Recording
 from qrm_ros.core.sampling_bounds import SUPPORTED_RELATIVE_ERROR
 from qrm_ros.recording.atomic_files import staged_outputs
@@ -102,27 +103,8 @@ def _sampling_column(row: Dict[str, Any], name: str) -> str:
 
 
 def sampling_relative_bound(row: Dict[str, Any], name: str) -> Optional[float]:
-    """
-    Return a figure's sampling bound over its theory (its measured value if no theory).
-
-    A bound of 0 is 0 whatever the figure; a work or power whose theory is 0 (no loads) is
-    compared with the work the RMS torque would do over the pair (or its power).
-    """
-    bound = row.get(f'{name}_sampling_bound')
-    reference = row.get(f'{name}_theory') or row.get(f'{name}_measured')
-    if bound == 0.0:
-        return 0.0
-    if row.get(f'{name}_theory') == 0.0 and name in _WORK_FIGURES:
-        rms = row.get('rms_input_torque_theory') or 0.0
-        reference = rms * (2 * math.pi if name == 'energy_per_pair'
-                           else abs(row['input_speed']))
-    if bound is None or not reference:
-        return None
-    return bound / abs(reference)
-
-
-# Figures that are work done, whose theory is 0 without loads.
-_WORK_FIGURES = ('energy_per_pair', 'mean_input_power')
+    """Return a figure's sampling bound over its theory (measurement.relative_bound)."""
+    return relative_bound(row, name, row.get(f'{name}_sampling_bound'))
 
 
 def unsupported_by_sampling(analysis: Analysis) -> List[str]:
@@ -214,6 +196,10 @@ def _effort_lines(analysis: Analysis) -> List[str]:
         lines.append(f'  offset {row["offset"] * 1e3:.2f} mm at {row["input_speed"]:.4f} rad/s, '
                      f'{row["stroke_pairs_with_efforts"]} of {row["stroke_pairs"]} stroke pairs '
                      'with efforts:        measured       theory     error sampling')
+        if row.get('stroke_pairs_left_out_of_efforts'):
+            lines.append(f'    ({row["stroke_pairs_left_out_of_efforts"]} more left out: '
+                         'sampled too coarsely around a peak or a switch to support their '
+                         f'efforts to {SUPPORTED_RELATIVE_ERROR:g})')
         for name, title, spec in _EFFORT_ROWS:
             mean, spread = row[f'{name}_measured'], row[f'{name}_measured_std']
             measured = '-' if mean is None else f'{format(mean, spec)} ± {spread:.1e}'

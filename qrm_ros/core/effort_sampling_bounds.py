@@ -306,7 +306,8 @@ def _local_steps(efforts, input_speed, h, interval_steps):
     period = TWO_PI / w
     since = np.mod((efforts.theta - efforts.cutting_start) / input_speed, period)
     index = np.clip(np.searchsorted(starts, since, side='right') - 1, 0, steps.size - 1)
-    return w * widest[index]
+    # Rounded up to 1 % steps: a few distinct reaches for the envelopes.
+    return w * np.power(1.01, np.ceil(np.log(widest[index]) / math.log(1.01)))
 
 
 def _bounds(efforts, motion, theory, input_speed, h, interval_steps=None):
@@ -331,8 +332,12 @@ def _bounds(efforts, motion, theory, input_speed, h, interval_steps=None):
         points = _ORDER[name]
         products = _PEAK_PRODUCTS if points == STENCIL_POINTS else _INTEGRAL_PRODUCTS
         zone = np.clip(np.ceil(distance).astype(int) - 1, 0, products.size - 1)
-        # The polynomial's nodes lie within points steps of any point it is used at.
-        envelope = _envelope(derivative, points * longest, spacing)
+        # The polynomial's nodes lie within points steps of any point it is used at (the
+        # steps near that point: a late sample widens only its neighbours' reach).
+        envelope = np.empty(derivative.size)
+        for reach in np.unique(step):
+            here = step == reach
+            envelope[here] = _envelope(derivative, points * reach, spacing)[here]
         if points == INTEGRAL_POINTS:  # the stretches beyond the samples: integrated below
             products = np.concatenate([[products[1]], products[1:]])
         error[name] = (envelope * step ** points * products[zone]
