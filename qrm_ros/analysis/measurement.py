@@ -331,7 +331,9 @@ def _measure_efforts(row: Dict[str, Any], samples: Samples, span: slice, pairs: 
         samples)
     force = samples.offset_force if samples.offset_force is not None else _not_recorded(
         samples)
-    edges = None if drive is None else workpiece_edge_times(
+    # Piece by piece where the sampling can be bounded (the ideal speed drive); the motor's
+    # efforts, which have no bound, are measured as before (linear between samples).
+    edges = None if drive is None or drive.motor is not None else workpiece_edge_times(
         time, samples.ram_position[span], samples.ram_velocity[span], pairs.cutting_start,
         pairs.cutting_end, drive.loads.cutting_length)
     measured = measure_pair_efforts(time, samples.input_speed[span], torque[span], force[span],
