@@ -243,7 +243,7 @@ class _EffortBounds:
         self._shifts: Dict[float, Optional[float]] = {}
 
     def at_step(self, step: float, interval_steps: Any = None) -> Dict[str, Optional[float]]:
-        """The bounds at a longest step (s), or for one pair's own steps (interval_steps)."""
+        """Return the bounds at a longest step (s), or at one pair's own (interval_steps)."""
         found = effort_sampling_bounds(self.efforts, self.motion, self.theory, self.speed,
                                        step, interval_steps)
         found['speed_fluctuation'] = self.fluctuation

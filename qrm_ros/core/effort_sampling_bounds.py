@@ -58,7 +58,7 @@ EFFORT_BOUNDED_FIGURES = EFFORT_FIGURES + ('speed_fluctuation',)
 
 def _node_products(points: int) -> np.ndarray:
     """
-    max |prod (t - t_i)| / h^points over an interval, by its distance from a piece's end.
+    Return max |prod (t - t_i)| / h^points over an interval, by where it sits in a piece.
 
     Element k: for a point at most k + 1 steps from the end (equal steps h; shorter ones
     only shrink the product). Beyond the last sample (k = 0) the polynomial through the
@@ -215,7 +215,7 @@ def steady_efforts(geometry: Geometry, mass: dyn.MassProperties, loads: dyn.Load
 
 
 def _envelope(values: np.ndarray, half_width: float, spacing: float) -> np.ndarray:
-    """max |values| within half_width (rad) of each grid point, raised by MARGIN."""
+    """Return max |values| within half_width (rad) of each grid point, raised by MARGIN."""
     reach = min(values.size // 2, int(math.ceil(half_width / spacing)) + 1)
     return maximum_filter1d(np.abs(values), 2 * reach + 1, mode='wrap') * MARGIN
 
@@ -228,7 +228,8 @@ def _distance_to_switch(efforts: SteadyEfforts) -> np.ndarray:
 def effort_sampling_bounds(efforts: Optional[SteadyEfforts], motion: Optional[SteadyMotion],
                            theory: Dict[str, Optional[float]], input_speed: float,
                            sample_interval: float,
-                           interval_steps: Optional[Tuple[np.ndarray, np.ndarray]] = None) -> Dict[str, Optional[float]]:
+                           interval_steps: Optional[Tuple[np.ndarray, np.ndarray]] = None
+                           ) -> Dict[str, Optional[float]]:
     """
     Bound of each figure of EFFORT_BOUNDED_FIGURES's error from the sampling, in its unit.
 
@@ -278,8 +279,8 @@ def _switch_shifts(efforts, motion, input_speed, h) -> Optional[Tuple[float, Lis
     reversal = reversal_shifts(motion, input_speed, h)
     if None in reversal:
         return None
-    ends = max(reversal)  # type: ignore[type-var]  # checked: no None
-    shifts = []
+    ends = float(max(value for value in reversal if value is not None))
+    shifts: List[float] = []
     points = motion.theta.size
     for angle, edge, slope in zip(efforts.switches, efforts.is_edge, efforts.ram_slope):
         if not edge:
@@ -296,7 +297,7 @@ def _switch_shifts(efforts, motion, input_speed, h) -> Optional[Tuple[float, Lis
 
 
 def _local_steps(efforts, input_speed, h, interval_steps):
-    """The longest step (rad of input angle) among the stencils reaching each grid point."""
+    """Return the longest step (rad) among the stencils reaching each grid point."""
     w = abs(input_speed)
     if interval_steps is None:
         return np.full(efforts.theta.size, w * h)
@@ -342,10 +343,9 @@ def _bounds(efforts, motion, theory, input_speed, h, interval_steps=None):
             products = np.concatenate([[products[1]], products[1:]])
         error[name] = (envelope * step ** points * products[zone]
                        / math.factorial(points))
+        scaled = envelope * step ** (points + 1)
         beyond[name] = sum(
-            _BEYOND_INTEGRAL * float(np.max((envelope * step ** (points + 1))[gaps[:, k]
-                                                                            <= step + spacing],
-                                            initial=0.0))
+            _BEYOND_INTEGRAL * float(np.max(scaled[gaps[:, k] <= step + spacing], initial=0.0))
             for k in range(efforts.switches.size)) / math.factorial(points) / w
         # A switch found off its place (every sample on its own side: switch_shift): the
         # polynomial carried to it moves by at most the slope times the shift.
