@@ -70,6 +70,8 @@ def default_publish_rate(input_speed: float) -> float:
     """Return the publish rate [Hz] giving DEFAULT_SAMPLES_PER_REVOLUTION at input_speed."""
     wanted = DEFAULT_SAMPLES_PER_REVOLUTION * abs(input_speed) / (2 * math.pi)
     return min(max(wanted, DEFAULT_RATES[0]), DEFAULT_RATES[1])
+
+
 # Margin after the recorder's subscription appears before its data is surely flowing.
 RECORDER_SETTLE_TIME = 0.5
 CHILD_STOP_TIMEOUT = 15.0  # s, after SIGINT, before SIGKILL
