@@ -206,7 +206,6 @@ def _leave_out_unsupported_efforts(row: Dict[str, Any], efforts: Any,
     if not supported.any() or supported.sum() == finite.sum():
         return
     row['stroke_pairs_left_out_of_efforts'] = int(finite.sum() - supported.sum())
-    row['stroke_pairs_with_efforts'] = int(supported.sum())
     for name in EFFORT_FIGURES:
         kept = np.where(supported, getattr(efforts, name), np.nan)
         _measured_and_theory(row, name, kept, row[f'{name}_theory'])

@@ -197,9 +197,9 @@ def _effort_lines(analysis: Analysis) -> List[str]:
                      f'{row["stroke_pairs_with_efforts"]} of {row["stroke_pairs"]} stroke pairs '
                      'with efforts:        measured       theory     error sampling')
         if row.get('stroke_pairs_left_out_of_efforts'):
-            lines.append(f'    ({row["stroke_pairs_left_out_of_efforts"]} more left out: '
-                         'sampled too coarsely around a peak or a switch to support their '
-                         f'efforts to {SUPPORTED_RELATIVE_ERROR:g})')
+            lines.append(f'    ({row["stroke_pairs_left_out_of_efforts"]} of them left out of '
+                         'these figures: sampled too coarsely around a peak or a switch to '
+                         f'support their efforts to {SUPPORTED_RELATIVE_ERROR:g})')
         for name, title, spec in _EFFORT_ROWS:
             mean, spread = row[f'{name}_measured'], row[f'{name}_measured_std']
             measured = '-' if mean is None else f'{format(mean, spec)} ± {spread:.1e}'

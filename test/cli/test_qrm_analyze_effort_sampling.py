@@ -40,10 +40,13 @@ from qrm_ros.core.effort_sampling_bounds import EFFORT_BOUNDED_FIGURES
 from qrm_ros.core.sampling_bounds import SUPPORTED_RELATIVE_ERROR
 from qrm_ros.core.speed_drive import pair_efforts
 from ros_probe import installed_executable
+from synthetic_run import write_run
 
 PAPER = kin.Geometry.paper()
 LOADS = dyn.Loads.small_shaper()
+MASS = dyn.MassProperties.small_shaper()
 OFFSET = 0.012
+OFFSET_LARGE = 0.015
 THEORY_TOLERANCE = 1e-9
 
 
@@ -144,3 +147,48 @@ def test_a_motor_run_has_no_effort_bound_and_exits_3(tmp_path, capsys):
     assert 'the peak input torque is not supported to 0.001 by the sampling' in err
     assert 'cannot be bounded' in err
     assert math.isfinite(segments[0]['time_ratio_sampling_bound'])
+
+
+def _synthetic_recording(tmp_path, rate, offset=0.015, hold=4.6):
+    path = tmp_path / 'run.mcap'
+    write_run(path, PAPER, [offset], hold=hold, rate=rate, mass=MASS, loads=LOADS)
+    return recorded_run.read_recording(str(path))
+
+
+def _without(samples, indices):
+    kept = np.setdiff1d(np.arange(samples.time.size), indices)
+    return recorded_run.Samples(*(None if field is None else field[kept]
+                                  for field in samples))
+
+
+def test_a_pair_sampled_too_coarsely_at_its_peak_is_left_out_of_the_effort_figures(
+        tmp_path):
+    """250 Hz at 15 mm: one lost sample at one pair's torque peak; the others carry it."""
+    whole = _synthetic_recording(tmp_path, 250.0)
+    clean = measurement.analyse(whole).rows[0]
+    assert clean['stroke_pairs_left_out_of_efforts'] == 0
+    torque = np.abs(whole.samples.input_torque)
+    middle = whole.samples.time.size // 2
+    peak = middle + int(np.argmax(torque[middle:middle + 250]))  # the peak of one revolution
+    analysis = measurement.analyse(whole._replace(samples=_without(whole.samples, [peak])))
+    (row,) = analysis.rows
+    assert row['stroke_pairs'] == clean['stroke_pairs']
+    assert row['stroke_pairs_left_out_of_efforts'] == 1
+    assert row['stroke_pairs_with_efforts'] == row['stroke_pairs']
+    assert not report.unsupported_by_sampling(analysis)
+    exact = pair_efforts(PAPER, MASS, LOADS, OFFSET_LARGE, row['input_speed'])
+    for name in ('peak_input_torque', 'rms_input_torque', 'energy_per_pair',
+                 'peak_offset_force'):
+        assert abs(row[f'{name}_measured'] - getattr(exact, name)) <= row[
+            f'{name}_sampling_bound'], name
+        assert row[f'{name}_sampling_bound'] <= SUPPORTED_RELATIVE_ERROR * getattr(exact, name)
+    assert '(1 of them left out of these figures' in report.format_table(analysis)
+
+
+def test_when_no_pair_is_supported_all_stay_in_and_it_is_said(tmp_path):
+    """100 Hz at 15 mm: no pair's efforts are supported; none is left out, exit 3's warning."""
+    analysis = measurement.analyse(_synthetic_recording(tmp_path, 100.0))
+    (row,) = analysis.rows
+    assert row['stroke_pairs_left_out_of_efforts'] == 0
+    warned = '\n'.join(report.unsupported_by_sampling(analysis))
+    assert 'the peak input torque is not supported' in warned
