@@ -59,11 +59,20 @@ from qrm_ros.node.ros_process import StopRequest
 # Both signs, and the offset of equal mid-stroke speeds (SR = 1, paper eq. 26: -r r1 / h).
 UNITY_SPEED_RATIO_MM = kin.offset_for_speed_ratio(kin.Geometry.paper(), 1.0) * 1e3
 DEFAULT_OFFSETS_MM = [-15.0, UNITY_SPEED_RATIO_MM, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0]
-# Hz: at 100 Hz (60 rpm) the peak torque at 15 mm falls between samples beyond what the
-# sampling supports to 1e-3 (the effort figures' bounds); at 250 Hz every figure of the
-# schedule is. Not more: a higher rate makes a loaded machine's late ticks gaps in
-# publication (three steps), which split the settings.
-DEFAULT_PUBLISH_RATE = 250.0
+# Samples per input revolution by default (250 Hz at 60 rpm): at 100 the peak torque at
+# 15 mm falls between samples beyond what the sampling supports to 1e-3 (the effort
+# figures' bounds); at 250 every figure of the schedule is. Never below the node's own
+# 100 Hz, nor above the 1 kHz it keeps up with (beyond, the analysis says what is lacking).
+DEFAULT_SAMPLES_PER_REVOLUTION = 250.0
+DEFAULT_RATES = (100.0, 1000.0)
+
+
+def default_publish_rate(input_speed: float) -> float:
+    """Return the publish rate [Hz] giving DEFAULT_SAMPLES_PER_REVOLUTION at input_speed."""
+    wanted = DEFAULT_SAMPLES_PER_REVOLUTION * abs(input_speed) / (2 * math.pi)
+    return min(max(wanted, DEFAULT_RATES[0]), DEFAULT_RATES[1])
+
+
 # Margin after the recorder's subscription appears before its data is surely flowing.
 RECORDER_SETTLE_TIME = 0.5
 CHILD_STOP_TIMEOUT = 15.0  # s, after SIGINT, before SIGKILL
@@ -107,10 +116,12 @@ def _parser():
                         help='input shaft speed [rad/s] (default: 2 pi = 60 rpm)')
     parser.add_argument('--pairs', type=int, default=3,
                         help='steady stroke pairs to record at each offset (default: 3)')
-    parser.add_argument('--publish-rate', type=float, default=DEFAULT_PUBLISH_RATE,
+    parser.add_argument('--publish-rate', type=float, default=None,
                         help='shaper_sim publish rate [Hz] (default: '
-                        f'{DEFAULT_PUBLISH_RATE:g}: the effort figures at the largest offsets '
-                        'need it to be supported to 1e-3 at 60 rpm)')
+                        f'{DEFAULT_SAMPLES_PER_REVOLUTION:g} samples per input revolution, '
+                        f'within {DEFAULT_RATES[0]:g}-{DEFAULT_RATES[1]:g} Hz: 250 Hz at 60 '
+                        'rpm; the effort figures need that many to be supported to 1e-3 at '
+                        'the largest offsets)')
     parser.add_argument('--offset-rate-limit', type=float, default=0.02,
                         help='offset actuator speed [m/s] (default: 0.02)')
     loads = Loads.small_shaper()
@@ -157,6 +168,8 @@ def validate(options):
     if options.input_speed == 0.0 or not math.isfinite(options.input_speed):
         raise UsageError(f'--input-speed must be finite and non-zero, got '
                          f'{options.input_speed}')
+    if options.publish_rate is None:
+        options.publish_rate = default_publish_rate(options.input_speed)
     geometry = kin.Geometry.paper()  # shaper_sim's default geometry
     try:
         Loads(options.cutting_force, options.ram_friction,
