@@ -290,7 +290,10 @@ def _add_sampling_bounds(row: Dict[str, Any], samples: Samples, span: slice, pai
     speed = math.copysign(fastest, row['input_speed'])
     motion = steady_motion(geometry, row['offset']) if fastest > 0.0 else None
     theory = None
-    if motion is not None:
+    # The kinematic bounds take the motion at a constant input speed: a speed that varies
+    # within the segment (a motor, whose speed drops at each load switch and so bends the
+    # ram's motion there) has none.
+    if motion is not None and recorded.size and bool(np.all(recorded == recorded[0])):
         with contextlib.suppress(kin.KinematicsError):
             theory = kin.steady_theory(geometry, row['offset'], speed)
     steps = np.array([np.max(np.diff(time[first:last + 1]), initial=0.0)

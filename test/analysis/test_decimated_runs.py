@@ -110,3 +110,35 @@ def test_bounds_grow_at_least_as_the_cube_of_the_sample_interval():
         'peak_cutting_speed_sampling_bound']
     assert ratio >= 8.0 * (1 - 1e-9)  # h^3, times the motion's largest derivative near h
     assert np.isfinite(ratio) and math.isfinite(rows[0]['time_ratio_sampling_bound'])
+
+
+def test_a_motor_runs_varying_speed_gets_no_kinematic_bound():
+    """
+    The kinematic bounds are derived at a constant input speed; the small shaper's motor at
+    15 mm swings 30 % in speed within a revolution: its segment gets none.
+    """
+    from qrm_ros.analysis.recorded_drive import Drive
+    from qrm_ros.core import dynamics as dyn
+    from qrm_ros.core.motor_stepper import simulate
+    offset = 0.015
+    drive = Drive(dyn.MassProperties.small_shaper(), dyn.Loads.small_shaper(),
+                  dyn.MotorDrive.small_shaper())
+    run = simulate(PAPER, drive.mass, drive.loads, drive.motor, offset, 2 * math.pi, 6.0,
+                   100.0)
+    steady = run.time > 3.0
+    speed = run.input_speed[steady]
+    assert (speed.max() - speed.min()) / speed.mean() > 0.25
+    motion = kin.state(PAPER, offset, run.input_angle[steady], speed)
+    time = run.time[steady]
+    samples = recorded_run.Samples(
+        time, run.input_angle[steady], speed, np.asarray(motion.flywheel_angle),
+        np.asarray(motion.flywheel_speed), np.asarray(motion.ram_position),
+        np.asarray(motion.ram_velocity), np.full(time.shape, offset), np.zeros(time.shape),
+        run.efforts.input_torque[steady], run.efforts.offset_force[steady])
+    analysis = measurement.analyse(recorded_run.Recording('run', PAPER, samples, None,
+                                                          drive=drive))
+    rows = [row for row in analysis.rows if row['stroke_pairs']]
+    assert rows
+    for row in rows:
+        assert all(row[f'{name}_sampling_bound'] is None for name in BOUNDED_FIGURES)
+    assert report.FIGURE_WORDS['time_ratio'] + ' is not supported' in _warned(analysis)
