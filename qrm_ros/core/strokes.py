@@ -44,6 +44,10 @@ Result = TypeVar('Result')
 Steps = Generator[None, None, Result]
 # Newton iterations of the mid-stroke crossing per step.
 _NEWTON_ITERATIONS_PER_STEP = 2
+# Pairs measured piece by piece in one step, and the samples beyond their ends a stencil
+# may reach (a piece holding no sample borrows its neighbours').
+_PAIRS_PER_STEP = 16
+_BORROWED_SAMPLES = 2
 
 
 def run_steps(steps: Steps[Result]) -> Result:
@@ -306,20 +310,29 @@ def pair_effort_steps(time: ArrayLike, input_speed: ArrayLike, input_torque: Arr
     yield
     speed_high, speed_low = _window_extremes(t, speed, start, end)
     if workpiece_edges is not None:
-        yield
-        switches = np.concatenate([start, pairs.cutting_end, end,
-                                   np.asarray(workpiece_edges, dtype=float)])
-        with np.errstate(all='ignore'):
-            pieces = piecewise_figures(t, switches, start, end, (torque * speed,
-                                                                 torque * torque),
-                                       (torque, force))
-        fine = ~pieces.sparse
-        energy = np.where(fine, pieces.integrals[0], energy)
-        torque_squared = np.where(fine, pieces.integrals[1], torque_squared)
-        torque_high = np.where(fine, pieces.highest[0], torque_high)
-        torque_low = np.where(fine, pieces.lowest[0], torque_low)
-        force_high = np.where(fine, pieces.highest[1], force_high)
-        force_low = np.where(fine, pieces.lowest[1], force_low)
+        edges = np.asarray(workpiece_edges, dtype=float)
+        switches = np.concatenate([start, pairs.cutting_end, end, edges])
+        power, squares = torque * speed, torque * torque
+        # A few pairs at a time, over their own samples (and the neighbours a stencil may
+        # borrow): the memory stays that of a few pairs however long the run.
+        for first in range(0, start.size, _PAIRS_PER_STEP):
+            yield
+            chosen = slice(first, first + _PAIRS_PER_STEP)
+            low = max(0, int(np.searchsorted(t, start[chosen][0])) - _BORROWED_SAMPLES)
+            high = int(np.searchsorted(t, end[chosen][-1])) + _BORROWED_SAMPLES
+            window = slice(low, high)
+            with np.errstate(all='ignore'):
+                pieces = piecewise_figures(t[window], switches, start[chosen], end[chosen],
+                                           (power[window], squares[window]),
+                                           (torque[window], force[window]))
+            fine = ~pieces.sparse
+            for figure, found in ((energy, pieces.integrals[0]),
+                                  (torque_squared, pieces.integrals[1]),
+                                  (torque_high, pieces.highest[0]),
+                                  (torque_low, pieces.lowest[0]),
+                                  (force_high, pieces.highest[1]),
+                                  (force_low, pieces.lowest[1])):
+                figure[chosen] = np.where(fine, found, figure[chosen])
     with np.errstate(divide='ignore', invalid='ignore'):
         return PairEffortsMeasured(
             peak_input_torque=np.maximum(torque_high, -torque_low),
