@@ -34,6 +34,10 @@ from qrm_ros.core.geometry import check_offset, FloatOrArray, Geometry
 __all__ = ['chain_with_stroke_screw', 'efforts_with_stroke_screw', 'lever_radius_coefficient']
 
 
+# The arguments' types on the one-sample path (by type: numpy's float64 takes the other).
+_EIGHT_FLOATS = (float,) * 8
+
+
 @functools.lru_cache(maxsize=8)
 def _masses(mass: MassProperties) -> Dict[str, Any]:
     """Return the masses as a dict, once per (frozen, identity-hashed) object."""
@@ -69,7 +73,8 @@ def chain_with_stroke_screw(geometry: Geometry, mass: MassProperties, offset: Fl
     scalar_fields = _float_fields(geometry)
     if (scalar_fields is not None and type(offset) is float
             and abs(offset) < scalar_fields[0]
-            and all(type(value) is float and math.isfinite(value) for value in arguments)):
+            and tuple(map(type, arguments)) == _EIGHT_FLOATS
+            and all(map(math.isfinite, arguments))):
         # One sample of floats (the node, every tick): math's functions, no array checks.
         return evaluate_chain(SCALAR_OPS, *scalar_fields, _masses(mass), offset, *arguments)
     r1, r, h, height, phase = geometry_fields(geometry)

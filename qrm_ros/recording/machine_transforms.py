@@ -138,6 +138,20 @@ class MachineMessages:
                 rotation=self._quaternion(x=0.0, y=0.0, z=0.0, w=1.0)))
             for joint in self._joints])
         self._moving_lock = threading.Lock()
+        # What a joint value moves in each moving transform, the rest of it kept as built:
+        # a slide's translation (origin + axis * value), a turn's rotation (axis * sin,
+        # cos of half the value), as joint_transform computes them, without a tuple per
+        # joint per joint state.
+        self._movers = []
+        for stamped, joint in zip(self._moving.transforms, self._joints):
+            link = joint_transform(joint)
+            translation, rotation = stamped.transform.translation, stamped.transform.rotation
+            translation.x, translation.y, translation.z = link.translation
+            rotation.x, rotation.y, rotation.z, rotation.w = link.rotation
+            slides = joint.kind == 'prismatic'
+            turns = joint.kind in ('revolute', 'continuous')
+            self._movers.append((slides, *joint.origin, *(joint.axis or (0.0, 0.0, 0.0)),
+                                 translation if slides else rotation if turns else None))
         # Where each moving joint's value is in a joint state in the published order.
         self._published_index = [PUBLISHED_JOINT_NAMES.index(joint.name)
                                  for joint in self._joints]
@@ -218,11 +232,14 @@ class MachineMessages:
                 return None
         if not all(map(math.isfinite, values)):
             return None
+        sine, cosine = math.sin, math.cos
         with self._moving_lock:
             self._moving_stamp.sec, self._moving_stamp.nanosec = sec, nanosec
-            for stamped, joint, value in zip(self._moving.transforms, self._joints, values):
-                link = joint_transform(joint, value)
-                translation, rotation = stamped.transform.translation, stamped.transform.rotation
-                translation.x, translation.y, translation.z = link.translation
-                rotation.x, rotation.y, rotation.z, rotation.w = link.rotation
+            for (slides, x, y, z, ax, ay, az, moved), value in zip(self._movers, values):
+                if slides:
+                    moved.x, moved.y, moved.z = x + ax * value, y + ay * value, z + az * value
+                elif moved is not None:
+                    half_sine = sine(0.5 * value)
+                    moved.x, moved.y, moved.z = ax * half_sine, ay * half_sine, az * half_sine
+                    moved.w = cosine(0.5 * value)
             return bytes(self._store.serialize_cdr(self._moving, TF_MESSAGE_TYPE))
