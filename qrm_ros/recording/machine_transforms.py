@@ -142,16 +142,18 @@ class MachineMessages:
         # a slide's translation (origin + axis * value), a turn's rotation (axis * sin,
         # cos of half the value), as joint_transform computes them, without a tuple per
         # joint per joint state.
-        self._movers = []
+        self._movers: List[Tuple[bool, bool, float, float, float, float, float, float,
+                                 Any]] = []
         for stamped, joint in zip(self._moving.transforms, self._joints):
             link = joint_transform(joint)
             translation, rotation = stamped.transform.translation, stamped.transform.rotation
             translation.x, translation.y, translation.z = link.translation
             rotation.x, rotation.y, rotation.z, rotation.w = link.rotation
             slides = joint.kind == 'prismatic'
-            turns = joint.kind in ('revolute', 'continuous')
-            self._movers.append((slides, *joint.origin, *(joint.axis or (0.0, 0.0, 0.0)),
-                                 translation if slides else rotation if turns else None))
+            turns = joint.kind in ('revolute', 'continuous')  # else it moves nothing
+            self._movers.append((slides, turns, *joint.origin,
+                                 *(joint.axis or (0.0, 0.0, 0.0)),
+                                 translation if slides else rotation))
         # Where each moving joint's value is in a joint state in the published order.
         self._published_index = [PUBLISHED_JOINT_NAMES.index(joint.name)
                                  for joint in self._joints]
@@ -235,10 +237,10 @@ class MachineMessages:
         sine, cosine = math.sin, math.cos
         with self._moving_lock:
             self._moving_stamp.sec, self._moving_stamp.nanosec = sec, nanosec
-            for (slides, x, y, z, ax, ay, az, moved), value in zip(self._movers, values):
+            for (slides, turns, x, y, z, ax, ay, az, moved), value in zip(self._movers, values):
                 if slides:
                     moved.x, moved.y, moved.z = x + ax * value, y + ay * value, z + az * value
-                elif moved is not None:
+                elif turns:
                     half_sine = sine(0.5 * value)
                     moved.x, moved.y, moved.z = ax * half_sine, ay * half_sine, az * half_sine
                     moved.w = cosine(0.5 * value)
