@@ -34,6 +34,7 @@ from qrm_ros.core import names
 from qrm_ros.core.names import absolute_topic, CRANK_RADIUS_JOINT, JOINT_NAMES, JOINT_STATE_TYPE
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
 from qrm_ros.recording.bag_reader import Loss, open_run, Run
+from qrm_ros.recording.typestore import jazzy_typestore
 
 JOINT_STATES_TOPIC = absolute_topic(names.JOINT_STATES_TOPIC)
 PROGRESS_STEP = 5000
@@ -73,12 +74,6 @@ class DecodedPart(NamedTuple):
 
 
 @functools.lru_cache(maxsize=None)
-def jazzy_typestore() -> Any:
-    """Return the Jazzy type store, built once (it compiles a decoder per type on first use)."""
-    from rosbags.typesys import get_typestore, Stores
-    return get_typestore(Stores.ROS2_JAZZY)
-
-
 def _joint_columns(joint_names: Tuple[str, ...]):
     """Columns of JOINT_NAMES in a message's arrays: None if in order, else an index array."""
     if joint_names == JOINT_NAMES:

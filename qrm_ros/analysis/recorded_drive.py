@@ -22,13 +22,13 @@ the theory of the efforts for every part of the run, or say why there is none.
 import json
 from typing import Any, Dict, List, NamedTuple, Optional, Tuple
 
-from qrm_ros.analysis.joint_state_decoding import jazzy_typestore
 from qrm_ros.core import dynamics as dyn
 from qrm_ros.core import kinematics as kin
 from qrm_ros.core.names import (MOTOR_DRIVE, PARAMETER_EVENTS_TOPIC, PARAMETERS_METADATA,
                                 SIM_NODE_NAME, SPEED_DRIVE)
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
 from qrm_ros.recording.bag_reader import Run
+from qrm_ros.recording.typestore import jazzy_typestore
 
 PARAMETER_STRING = 4  # rcl_interfaces/msg/ParameterType.PARAMETER_STRING
 # The node's parameters that make the drive (Drive): its masses, loads and motor, and which.

@@ -17,16 +17,23 @@
 The live job moves to the next offset once the node reports enough steady stroke pairs; a
 scenario is fixed in advance, so each offset is held for the time the actuator takes to get
 there (at offset_rate_limit) plus the pairs asked for and SETTLING_PAIRS more (the pair under
-way when the offset arrives, and one for the motor's speed to settle). The file is the one
-the live job records (the recorder's topics and the linkage markers).
+way when the offset arrives, and one for the motor's speed to settle). The short-stroke
+experiment follows as the live job runs it (main_job_plan), each of its two settings held for
+its longest travel (the offset's, the stroke screw's, the held offset's) and the same pairs.
+The file is the one the live job records (the recorder's topics and the linkage markers).
 """
 
 import argparse
 import math
 import os
+from dataclasses import replace
 from typing import Any, Dict, List
 
+from qrm_ros.cli.main_job_plan import short_stroke_plan, STROKE_RATE_LIMIT
 from qrm_ros.cli.qrm_simulate import simulate
+from qrm_ros.core import kinematics as kin
+from qrm_ros.core.geometry import crank_radius_for_stroke
+from qrm_ros.core.time_ratio_hold import hold_time_ratio
 from qrm_ros.node.main_job_conductor import Interrupted, MainJobError
 from qrm_ros.node.ros_process import StopRequest
 from qrm_ros.node.scenario import Scenario, scenario_from_mapping, ScenarioError
@@ -48,7 +55,10 @@ def offline_scenario(options: argparse.Namespace) -> Scenario:
     for before, offset in zip(offsets, offsets[1:]):
         events.append({'at': at, 'set': {'coupling_offset': offset}})
         at += abs(offset - before) / options.offset_rate_limit + hold
+    if options.short_stroke_mm:
+        at = _short_stroke_events(options, offsets[-1], at, hold, events)
     parameters = {
+        'stroke_rate_limit': STROKE_RATE_LIMIT,
         'coupling_offset': offsets[0], 'input_speed': float(options.input_speed),
         'publish_rate': float(options.publish_rate),
         'offset_rate_limit': float(options.offset_rate_limit),
@@ -56,6 +66,22 @@ def offline_scenario(options: argparse.Namespace) -> Scenario:
         'ram_friction': float(options.ram_friction),
         'cutting_length': float(options.cutting_length), 'drive': options.drive}
     return scenario_from_mapping({'parameters': parameters, 'duration': at, 'events': events})
+
+
+def _short_stroke_events(options: argparse.Namespace, last_offset: float, at: float,
+                         hold: float, events: List[Dict[str, Any]]) -> float:
+    """Add the short-stroke experiment's two settings from time at; return its end (s)."""
+    plan = short_stroke_plan(options.short_stroke_mm, options.cutting_length)
+    long_stroke = kin.Geometry.paper()
+    events.append({'at': at, 'set': {'coupling_offset': 0.0, 'cutting_length': plan.workpiece,
+                                     'stroke_length': plan.stroke}})
+    at += max(abs(last_offset) / options.offset_rate_limit,
+              abs(float(long_stroke.ram_stroke) - plan.stroke) / STROKE_RATE_LIMIT) + hold
+    short = replace(long_stroke, crank_radius=float(crank_radius_for_stroke(
+        plan.stroke, long_stroke.pivot_distance, long_stroke.ram_height)))
+    held = hold_time_ratio(short, plan.time_ratio).offset
+    events.append({'at': at, 'set': {'time_ratio_target': plan.time_ratio}})
+    return at + abs(held) / options.offset_rate_limit + hold
 
 
 def simulate_schedule(options: argparse.Namespace, folder: str, stop: StopRequest) -> str:

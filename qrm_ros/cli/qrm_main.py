@@ -42,6 +42,8 @@ from typing import List, Optional
 
 from qrm_ros import analysis
 from qrm_ros.cli.main_job_offline import simulate_schedule
+from qrm_ros.cli.main_job_plan import (SHORT_STROKE_MM, short_stroke_plan, STROKE_RATE_LIMIT,
+                                       UsageError)
 from qrm_ros.cli.exit_codes import (EXIT_FAILURE, EXIT_INCOMPLETE, EXIT_INTERRUPTED, EXIT_OK,
                                     exit_code_for_signal)
 from qrm_ros.core import kinematics as kin
@@ -49,7 +51,6 @@ from qrm_ros.core.dynamics import DynamicsError, Loads
 from qrm_ros.core.names import (BRIDGE_DEFAULT_PORT, BRIDGE_NODE_NAME, BRIDGE_SERVING_PREFIX,
                                 DRIVES, LINKAGE_MARKERS_TOPIC, RECORDER_NODE_NAME,
                                 SIM_NODE_NAME)
-from qrm_ros.core.stroke_adjustment import largest_stroke
 from qrm_ros.node.main_job_conductor import (Conductor, Interrupted, MainJobError,
                                              START_TIMEOUT)
 from qrm_ros.node.recorder import DEFAULT_TOPICS
@@ -63,14 +64,6 @@ RECORDER_SETTLE_TIME = 0.5
 CHILD_STOP_TIMEOUT = 15.0  # s, after SIGINT, before SIGKILL
 # Beside the figures: one input revolution at each of a few offsets (qrm_ros.analysis.animation).
 TOUR_FILE = 'offset_tour.gif'
-SHORT_STROKE_MM = 60.0  # the paper's short stroke, where offset 0 loses the quick return
-SHORT_STROKE_SLOT = 0.07  # m: shaper_sim's default max_crank_radius
-SHORT_WORKPIECE_SHARE = 0.8  # the workpiece at the short stroke, as a share of it
-STROKE_RATE_LIMIT = 0.1  # m/s: the stroke screw, fast enough for a short job
-
-
-class UsageError(MainJobError):
-    """An option outside what the job accepts (exit code 2)."""
 
 
 def start_child(command_name, ros_arguments, log_path, env, arguments=()):
@@ -164,7 +157,8 @@ def validate(options):
     except DynamicsError as error:
         raise UsageError(f'loads: {error}') from None
     if options.short_stroke_mm:
-        _short_stroke_plan(options)  # refuses a stroke the node would not take
+        # Refuses a stroke the node would not take.
+        short_stroke_plan(options.short_stroke_mm, options.cutting_length)
     for offset_mm in options.offsets_mm:
         try:
             kin.check_offset(geometry, offset_mm / 1e3, geometry.max_safe_offset)
@@ -269,23 +263,10 @@ def _run_schedule(conductor, options, offsets):
         _run_short_stroke(conductor, options, period, recording_since)
 
 
-def _short_stroke_plan(options):
-    """Return (stroke m, workpiece m, time ratio to hold) of the short-stroke experiment."""
-    geometry = kin.Geometry.paper()
-    stroke = options.short_stroke_mm / 1e3
-    largest = largest_stroke(geometry, SHORT_STROKE_SLOT)
-    if not (math.isfinite(stroke) and 0.0 < stroke <= largest):
-        raise UsageError(f'--short-stroke-mm must be in (0, {largest * 1e3:.6g}] mm (the '
-                         f"slot of shaper_sim's max_crank_radius) or 0, got "
-                         f'{options.short_stroke_mm:g}')
-    # The workpiece shortened to fit the stroke; the long stroke's time ratio at offset 0.
-    return (stroke, min(options.cutting_length, SHORT_WORKPIECE_SHARE * stroke),
-            float(kin.time_ratio(geometry, 0.0)))
-
-
 def _run_short_stroke(conductor, options, period, since):
     """Run the paper's short stroke: offset 0 (TR falls toward 1), then the long TR held."""
-    stroke, workpiece, ratio = _short_stroke_plan(options)
+    stroke, workpiece, ratio = short_stroke_plan(options.short_stroke_mm,
+                                                 options.cutting_length)
     timeout = (options.pairs + 3) * period + 20.0
     for what, settings, held in (
             ('offset 0', dict(coupling_offset=0.0, cutting_length=workpiece,

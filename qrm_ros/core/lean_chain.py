@@ -29,8 +29,8 @@ from typing import Callable, Sequence, Tuple
 from qrm_ros.core.dynamics import MassProperties
 from qrm_ros.core.geometry import Geometry
 
-__all__ = ['lean_acceleration_of', 'lean_coefficients', 'lean_constants', 'lean_efforts_of',
-           'lean_ram_motion', 'LeanConstants']
+__all__ = ['coupling_and_crank', 'lean_acceleration_of', 'lean_coefficients', 'lean_constants',
+           'lean_efforts_of', 'lean_ram_motion', 'LeanConstants']
 
 # The constants (lean_constants' tuple; the compiled forms take them as a float64 array).
 LeanConstants = Sequence[float]
@@ -54,6 +54,31 @@ def lean_constants(geometry: Geometry, mass: MassProperties) -> Tuple[float, ...
             2.0 * height, -2.0 * r1)
 
 
+def coupling_and_crank(constants: LeanConstants, radius: float, offset: float,
+                       angle: float) -> Tuple[float, ...]:
+    """
+    Return the coupling's velocity coefficients and the crank's direction at (offset, angle).
+
+    (phi_t, phi_d, phi_tt, phi_td, phi_dd, sin_c, cos_c, tan_l), with the crank radius given
+    (m): the head shared by the lean forms at a still stroke and by the chain written out
+    for a moving one (qrm_ros.core.motor_stroke), so the two cannot drift apart.
+    """
+    r1, h, phase = constants[0], constants[2], constants[4]
+    r1_r1, two_r1, minus_two_r1 = constants[10], constants[11], constants[18]
+    sin_t, cos_t = math.sin(angle), math.cos(angle)
+    n = r1_r1 + offset * offset + two_r1 * offset * sin_t
+    phi_t = r1 * (r1 + offset * sin_t) / n
+    phi_d = r1 * cos_t / n
+    crank_angle = angle + math.atan2(offset * cos_t, r1 + offset * sin_t) + phase
+    sin_c, cos_c = math.sin(crank_angle), math.cos(crank_angle)
+    tan_l = radius * cos_c / (h + radius * sin_c)
+    n2 = n * n
+    phi_tt = r1 * offset * cos_t * (offset * offset - r1_r1) / n2
+    phi_td = -r1 * (sin_t * (r1_r1 + offset * offset) + two_r1 * offset) / n2
+    phi_dd = minus_two_r1 * cos_t * (offset + r1 * sin_t) / n2
+    return phi_t, phi_d, phi_tt, phi_td, phi_dd, sin_c, cos_c, tan_l
+
+
 def lean_coefficients(constants: LeanConstants, offset: float,
                       angle: float) -> Tuple[float, ...]:
     """
@@ -64,20 +89,11 @@ def lean_coefficients(constants: LeanConstants, offset: float,
     part of the chain that hold the configuration alone, shared by ``lean_acceleration_of``
     and ``lean_efforts_of`` (and compiled into them, qrm_ros.core.motor_kernel).
     """
-    (r1, r, h, height, phase, input_inertia, flywheel_inertia, lever_inertia, ram_mass,
-     lever_weight, r1_r1, two_r1, r_h, two_r_h, minus_r, minus_r_h, h_h_r_r, two_height,
-     minus_two_r1) = constants
-    sin_t, cos_t = math.sin(angle), math.cos(angle)
-    n = r1_r1 + offset * offset + two_r1 * offset * sin_t
-    phi_t = r1 * (r1 + offset * sin_t) / n
-    phi_d = r1 * cos_t / n
-    crank_angle = angle + math.atan2(offset * cos_t, r1 + offset * sin_t) + phase
-    sin_c, cos_c = math.sin(crank_angle), math.cos(crank_angle)
-    tan_l = r * cos_c / (h + r * sin_c)
-    n2 = n * n
-    phi_tt = r1 * offset * cos_t * (offset * offset - r1_r1) / n2
-    phi_td = -r1 * (sin_t * (r1_r1 + offset * offset) + two_r1 * offset) / n2
-    phi_dd = minus_two_r1 * cos_t * (offset + r1 * sin_t) / n2
+    (_, r, h, height, _, input_inertia, flywheel_inertia, lever_inertia, ram_mass,
+     lever_weight, _, _, r_h, two_r_h, minus_r, minus_r_h, h_h_r_r, two_height,
+     _) = constants
+    phi_t, phi_d, phi_tt, phi_td, phi_dd, sin_c, cos_c, tan_l = coupling_and_crank(
+        constants, r, offset, angle)
     m = r_h + two_r_h * sin_c
     psi_p = minus_r * (r + h * sin_c) / m
     psi_pp = minus_r_h * cos_c * h_h_r_r / (m * m)

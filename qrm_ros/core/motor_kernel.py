@@ -18,7 +18,8 @@ lean_chain.lean_acceleration_of (the right-hand side's acceleration) and lean_ef
 efforts at a stamp), the same functions compiled for floats (their constants as a float64
 array): about a quarter of their cost in Python, the same numbers bit for bit (no fast-math
 flag, so nothing is fused or reordered; tests hold the forms together). The head they share,
-lean_coefficients, is registered as callable from compiled code and compiled into both.
+lean_coefficients (and its own head, coupling_and_crank), is registered as callable from
+compiled code and compiled into both.
 motor_kernel_loading imports this on a thread of its own and the MotorStepper takes it up
 once loaded (importing numba and loading the cached machine code take about 0.3 s; the first
 import compiles, about 1 s, cached beside this file or in numba's user cache); until then,
@@ -29,8 +30,10 @@ call can start a compilation.
 import numba
 from numba.extending import register_jitable
 
-from qrm_ros.core.lean_chain import lean_acceleration_of, lean_coefficients, lean_efforts_of
+from qrm_ros.core.lean_chain import (coupling_and_crank, lean_acceleration_of, lean_coefficients,
+                                     lean_efforts_of)
 
+register_jitable(coupling_and_crank)
 register_jitable(lean_coefficients)
 
 _ARGUMENTS = '(float64[::1], float64, float64, float64, float64, float64, float64)'

@@ -35,6 +35,7 @@ from typing import Any, Callable, Optional, Sequence, Tuple
 
 from qrm_ros.core import dynamics as dyn
 from qrm_ros.core.geometry import Geometry
+from qrm_ros.core.lean_chain import coupling_and_crank
 from qrm_ros.core.motor_equation import EquationOfMotion
 from qrm_ros.core.ramps import ramp
 from qrm_ros.core.stroke_adjustment import crank_radius_motion, StrokeRamp
@@ -110,20 +111,11 @@ def moving_radius_motion_of(constants: Sequence[float], offset: float, angle: fl
     round-off (a test holds them together) at a fraction of its cost. constants are
     lean_chain.lean_constants' (those of the radius are not used).
     """
-    (r1, _, h, height, phase, input_inertia, flywheel_inertia, lever_inertia, ram_mass,
-     lever_weight, r1_r1, two_r1, _, _, _, _, _, two_height, minus_two_r1) = constants
+    (_, _, h, height, _, input_inertia, flywheel_inertia, lever_inertia, ram_mass,
+     lever_weight, _, _, _, _, _, _, _, two_height, _) = constants
     r = radius
-    sin_t, cos_t = math.sin(angle), math.cos(angle)
-    n = r1_r1 + offset * offset + two_r1 * offset * sin_t
-    phi_t = r1 * (r1 + offset * sin_t) / n
-    phi_d = r1 * cos_t / n
-    crank_angle = angle + math.atan2(offset * cos_t, r1 + offset * sin_t) + phase
-    sin_c, cos_c = math.sin(crank_angle), math.cos(crank_angle)
-    tan_l = r * cos_c / (h + r * sin_c)
-    n2 = n * n
-    phi_tt = r1 * offset * cos_t * (offset * offset - r1_r1) / n2
-    phi_td = -r1 * (sin_t * (r1_r1 + offset * offset) + two_r1 * offset) / n2
-    phi_dd = minus_two_r1 * cos_t * (offset + r1 * sin_t) / n2
+    phi_t, phi_d, phi_tt, phi_td, phi_dd, sin_c, cos_c, tan_l = coupling_and_crank(
+        constants, radius, offset, angle)
     r_r, h_h = r * r, h * h
     m = r_r + h_h + 2.0 * r * h * sin_c
     m2 = m * m

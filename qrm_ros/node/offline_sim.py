@@ -16,7 +16,8 @@ shaper_sim run offline, as fast as the CPU allows: the node itself, ticked by a 
 
 Nothing of the node is copied. The simulator is ShaperSimNode, started with use_sim_time and
 with publishers that write each message, serialized by rclpy, into the run file (the
-recorder's own McapRunFile) instead of sending it over DDS. A loop calls, at each tick's
+recorder's own McapRunFile) instead of sending it over DDS (the slower topics' bytes made the
+exact message DDS would send: recording.typestore.canonical_cdr). A loop calls, at each tick's
 stamp, what the node's timer callback calls at its clock's time (publish_at), so the
 steppers, the efforts, the stroke measurement, the diagnostics and the markers are the
 node's; a scenario's events go in
@@ -40,7 +41,7 @@ from typing import Any, Callable, Dict, NamedTuple, Optional, Sequence
 from qrm_ros.core.motor_kernel_loading import COMPILED_MOTOR_KERNEL
 from qrm_ros.core.motor_stepper import MotorStepper
 from qrm_ros.core.names import (JOINT_STATE_TYPE, JOINT_STATES_TOPIC, LINKAGE_MARKERS_TOPIC,
-                                SPEED_COMMAND_TOPIC)
+                                RAM_TWIST_TOPIC, SPEED_COMMAND_TOPIC)
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
 from qrm_ros.node.recorder import DEFAULT_TOPICS, sim_metadata_records
 from qrm_ros.node.ros_process import init_rclpy
@@ -48,6 +49,7 @@ from qrm_ros.node.scenario import Event, Scenario, ScenarioError
 from qrm_ros.node.shaper_sim import ShaperSimNode
 from qrm_ros.recording.machine_channels import MachineChannels
 from qrm_ros.recording.mcap_run_file import COMPRESSIONS, McapRunFile
+from qrm_ros.recording.typestore import canonical_cdr
 import rclpy
 from rclpy.clock import ClockType, ROSClock
 from rclpy.context import Context
@@ -180,6 +182,8 @@ class Simulation:
         """Give each recorded topic that has a publisher its channel, as the recorder does."""
         node, run_file = self.node, self._run_file
         assert run_file is not None
+        # Written at every tick: rclpy's bytes as they are (their length is exact).
+        every_tick = {node.resolve_topic_name(RAM_TWIST_TOPIC)}
         for topic in topics:
             resolved = node.resolve_topic_name(topic)
             found = node.get_publishers_info_by_topic(resolved)
@@ -191,7 +195,12 @@ class Simulation:
                 next((h for h in hashes if h.startswith('RIHS')), ''))
             joint_states = (found[0].topic_type == JOINT_STATE_TYPE
                             and resolved == node.resolve_topic_name(JOINT_STATES_TOPIC))
-            write = self._write_joint_state if joint_states else self._write
+            if joint_states:
+                write = self._write_joint_state
+            elif resolved in every_tick:
+                write = self._write
+            else:
+                write = functools.partial(self._write_exact, found[0].topic_type)
             for publisher in node.publishers:
                 if isinstance(publisher, RecordingPublisher) and publisher.topic_name == resolved:
                     publisher.write = functools.partial(write, channel)
@@ -199,6 +208,12 @@ class Simulation:
     def _write(self, channel: int, message: Any) -> None:
         now = self._now_ns
         data = message if isinstance(message, bytes) else serialize_message(message)
+        self._run_file.add_message(channel, now, now, data)  # type: ignore[union-attr]
+
+    def _write_exact(self, type_name: str, channel: int, message: Any) -> None:
+        """Write a message of the slower topics as DDS would send it (canonical_cdr)."""
+        now = self._now_ns
+        data = canonical_cdr(serialize_message(message), type_name)
         self._run_file.add_message(channel, now, now, data)  # type: ignore[union-attr]
 
     def _write_joint_state(self, channel: int, message: Any) -> None:

@@ -43,7 +43,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from qrm_ros.core.geometry import Geometry, KinematicsError
 from qrm_ros.recording.machine_channels import MachineChannels
-from qrm_ros.recording.machine_transforms import preload_typestore
+from qrm_ros.recording.typestore import preload_typestore
 from qrm_ros.recording.mcap_run_file import COMPRESSIONS, ConfigurationError, McapRunFile
 from qrm_ros.core.names import (DIAGNOSTICS_TOPIC, GEOMETRY_METADATA, JOINT_STATE_TYPE,
                                 JOINT_STATES_TOPIC, PARAMETER_EVENTS_TOPIC, PARAMETERS_METADATA,

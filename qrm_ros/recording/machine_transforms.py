@@ -35,10 +35,11 @@ from qrm_ros.core.geometry import Geometry
 from qrm_ros.core.names import (CRANK_RADIUS_JOINT, JOINT_STATE_TYPE, PUBLISHED_JOINT_NAMES,
                                 ROBOT_DESCRIPTION_TYPE, TF_MESSAGE_TYPE)
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
+from qrm_ros.recording.typestore import jazzy_typestore
 from qrm_ros.recording.urdf_model import urdf_joints, urdf_text, UrdfJoint
 
 __all__ = ['LinkTransform', 'MachineMessages', 'fixed_transforms', 'joint_transform',
-           'moving_transforms', 'preload_typestore']
+           'moving_transforms']
 
 
 class LinkTransform(NamedTuple):
@@ -84,30 +85,6 @@ def moving_transforms(geometry: Geometry,
             for joint in urdf_joints(geometry).values() if joint.kind != 'fixed']
 
 
-_TYPESTORE: List[Any] = []
-_TYPESTORE_LOCK = threading.Lock()
-
-
-def _jazzy_typestore() -> Any:
-    # rosbags' type store takes about 0.1 s to load (seconds on a loaded machine): loaded once,
-    # when first needed or ahead of time by preload_typestore.
-    with _TYPESTORE_LOCK:
-        if not _TYPESTORE:
-            from rosbags.typesys import get_typestore, Stores
-            _TYPESTORE.append(get_typestore(Stores.ROS2_JAZZY))
-        return _TYPESTORE[0]
-
-
-def preload_typestore() -> None:
-    """
-    Load rosbags' type store on a thread of its own, now.
-
-    The recorder calls it when it starts, so that the load does not stall its subscriptions
-    when the geometry arrives (the import gives up the GIL every few milliseconds).
-    """
-    threading.Thread(target=_jazzy_typestore, name='typestore_preload', daemon=True).start()
-
-
 class MachineMessages:
     """The CDR messages of the machine with one geometry: URDF, fixed and moving transforms."""
 
@@ -118,7 +95,7 @@ class MachineMessages:
         if moving != set(PUBLISHED_JOINT_NAMES):
             raise ValueError(f'the URDF\'s moving joints {sorted(moving)} are not the '
                              f'published ones {sorted(PUBLISHED_JOINT_NAMES)}')
-        self._store = _jazzy_typestore()
+        self._store = jazzy_typestore()
         types = self._store.types
         self._time = types['builtin_interfaces/msg/Time']
         self._header = types['std_msgs/msg/Header']
