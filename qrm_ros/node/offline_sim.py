@@ -29,8 +29,8 @@ machine is written beside the joint states by the recorder's own MachineChannels
 from a live recording: the log time of each message is the simulated time it was sent at,
 not a wall-clock receive time; a stroke pair's report carries its effort theory, worked
 out in the loop's own thread (the live node reports 'pending' while its worker process
-works it out); the transforms of the joint states are written a batch at a time
-(TRANSFORM_BATCH), each at its joint state's log time.
+works it out). The messages reach the file a batch at a time (WRITE_BATCH), in the order
+they were sent.
 """
 
 from collections import deque
@@ -71,12 +71,11 @@ THEORY_TIMEOUT = 120.0
 KERNEL_LOAD_TIMEOUT = 30.0
 # s of log time per chunk, as the recorder's default max_chunk_duration.
 CHUNK_DURATION_NS = NANOSECONDS_PER_SECOND
-# Joint states whose machine transforms are written together: the transforms' code then runs
-# many times in a row, not once between two ticks of the node (which had pushed it out of the
-# processor's caches: 10 us a tick more). Each is written after its joint state, at the same
-# log time, as the recorder writes the transforms of joint states that came before the
-# geometry; MCAP's index and its readers order messages by log time.
-TRANSFORM_BATCH = 64
+# Messages handed to the run file together, with their joint states' machine transforms: the
+# writing code then runs many times in a row, not once between two ticks of the node (which
+# pushed it out of the processor's caches: about 15 us a tick more). The same calls in the
+# same order, so the same file; only later (the node's messages are bytes by then).
+WRITE_BATCH = 128
 
 
 class RecordingPublisher(Publisher):
@@ -132,9 +131,10 @@ class Simulation:
                  topics: Sequence[str] = tuple(DEFAULT_TOPICS), markers: bool = False,
                  compression: str = 'zstd', context: Optional[Context] = None) -> None:
         self.scenario = scenario
-        # (log time, joint state, its stamp's sec and nanosec, names, positions) of the joint
-        # states whose transforms are not written yet (TRANSFORM_BATCH)
-        self._waiting_transforms: List[Tuple[int, bytes, int, int, Any, Any]] = []
+        # (channel, log time, data, transforms) of the messages not handed to the run file yet
+        # (WRITE_BATCH); transforms: None, or a joint state's (sec, nanosec, names, positions)
+        # for its machine transforms (empty: from its bytes)
+        self._writes: List[Tuple[int, int, bytes, Optional[tuple]]] = []
         self._own_context = context is None
         if context is None:
             context = Context()
@@ -218,39 +218,44 @@ class Simulation:
     def _write(self, channel: int, message: Any) -> None:
         now = self._now_ns
         data = message if isinstance(message, bytes) else serialize_message(message)
-        self._run_file.add_message(channel, now, now, data)  # type: ignore[union-attr]
+        self._queue(channel, now, data, None)
 
     def _write_exact(self, type_name: str, channel: int, message: Any) -> None:
         """Write a message of the slower topics as DDS would send it (canonical_cdr)."""
         now = self._now_ns
         data = canonical_cdr(serialize_message(message), type_name)
-        self._run_file.add_message(channel, now, now, data)  # type: ignore[union-attr]
+        self._queue(channel, now, data, None)
 
     def _write_joint_state(self, channel: int, message: Any) -> None:
         now = self._now_ns
         if isinstance(message, bytes):
-            data = message
-            self._run_file.add_message(channel, now, now, data)  # type: ignore[union-attr]
-            self._write_transforms()  # the ones before it first
-            self._machine.joint_state(now, now, data)
+            self._queue(channel, now, message, ())
             return
-        data = serialize_message(message)
-        self._run_file.add_message(channel, now, now, data)  # type: ignore[union-attr]
-        # The machine's transforms from the message's own values (no decoding of data), a
-        # batch at a time. The positions are the message's own array, which the next tick
-        # replaces (rclpy's setter copies what it is given), not changes.
+        # The machine's transforms from the message's own values: no decoding of its bytes.
+        # The positions are the message's own array, which the next tick replaces (rclpy's
+        # setter copies what it is given), not changes.
         stamp = message.header.stamp
-        waiting = self._waiting_transforms
-        waiting.append((now, data, stamp.sec, stamp.nanosec, message.name, message.position))
-        if len(waiting) >= TRANSFORM_BATCH:
-            self._write_transforms()
+        self._queue(channel, now, serialize_message(message),
+                    (stamp.sec, stamp.nanosec, message.name, message.position))
 
-    def _write_transforms(self) -> None:
-        """Write the machine's transforms of the joint states written so far."""
-        waiting, self._waiting_transforms = self._waiting_transforms, []
-        joint_state_values = self._machine.joint_state_values
-        for now, data, sec, nanosec, names, positions in waiting:
-            joint_state_values(now, now, data, sec, nanosec, names, positions)
+    def _queue(self, channel: int, now: int, data: bytes, transforms: Optional[tuple]) -> None:
+        writes = self._writes
+        writes.append((channel, now, data, transforms))
+        if len(writes) >= WRITE_BATCH:
+            self.write_queued()
+
+    def write_queued(self) -> None:
+        """Hand what was sent so far to the run file, each joint state's transforms after it."""
+        writes, self._writes = self._writes, []
+        if self._run_file is None:
+            return
+        add_message, machine = self._run_file.add_message, self._machine
+        for channel, now, data, transforms in writes:
+            add_message(channel, now, now, data)
+            if transforms:
+                machine.joint_state_values(now, now, data, *transforms)
+            elif transforms is not None:
+                machine.joint_state(now, now, data)
 
     def _set_clock(self, stamp_ns: int) -> None:
         self._now_ns = stamp_ns
@@ -331,7 +336,7 @@ class Simulation:
                     break
                 if progress is not None and ticks % progress_every == 0:
                     progress((stamp_ns - start_ns) / NANOSECONDS_PER_SECOND)
-            self._write_transforms()  # the last batch's
+            self.write_queued()  # the last batch
             loop_seconds = time.perf_counter() - started
             set_clock(clock_ns)
             node.wait_for_pair_reports()
@@ -347,14 +352,15 @@ class Simulation:
         node, self._node = self._node, None
         if node is not None:
             node.destroy_node()  # the last pairs are reported into the file first
-        run_file, self._run_file = self._run_file, None
+        run_file = self._run_file
         if run_file is not None:
             try:
                 if keep:
-                    self._write_transforms()  # any left by a caller that did not run()
+                    self.write_queued()  # the last pairs' reports (destroy_node), the rest
                 counts = run_file.topic_counts()
                 run_file.finish()
             finally:
+                self._run_file = None
                 if not keep:
                     _remove(run_file.path)
         if self._own_context:
