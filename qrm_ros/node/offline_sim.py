@@ -358,7 +358,8 @@ class Simulation:
                 if keep:
                     self.write_queued()  # the last pairs' reports (destroy_node), the rest
                 counts = run_file.topic_counts()
-                run_file.finish()
+                if not run_file.failed:  # a failed write has let go of the file already
+                    run_file.finish()
             finally:
                 self._run_file = None
                 if not keep:
