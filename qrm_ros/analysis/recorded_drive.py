@@ -20,6 +20,7 @@ the theory of the efforts for every part of the run, or say why there is none.
 """
 
 import json
+import math
 from typing import Any, Dict, List, NamedTuple, Optional, Tuple
 
 from qrm_ros.core import dynamics as dyn
@@ -50,6 +51,7 @@ class DriveSpan(NamedTuple):
     start_time: float
     drive: Optional[Drive]
     problem: Optional[str]  # why drive is None
+    unreadable: bool = False  # a parameter event could not be read: the data lacks the drive
 
 
 def drive_from_metadata(stored: Optional[Dict[str, str]],
@@ -107,17 +109,26 @@ def drive_changes(run: Run, stored: Optional[Dict[str, str]],
     values, _ = stored_parameters(stored)
     if values is None or PARAMETER_EVENTS_TOPIC not in run.topics():
         return ()
-    spans = []
+    spans: List[DriveSpan] = []
     store = jazzy_typestore()
     for message in run.messages([PARAMETER_EVENTS_TOPIC], on_loss=lambda loss: None):
         try:
             event = store.deserialize_cdr(message.data, message.schema_name)
             changed = [(p.name, parameter_value(p.value)) for p in event.changed_parameters
                        if p.name in DRIVE_PARAMETERS]
-            if event.node.rsplit('/', 1)[-1] != SIM_NODE_NAME or not changed:
-                continue
+            node = event.node.rsplit('/', 1)[-1]
             stamp = event.stamp.sec * NANOSECONDS_PER_SECOND + event.stamp.nanosec
-        except Exception:  # noqa: B902 a damaged event is no change we can know of
+        except Exception as error:  # noqa: B902 any undecodable bytes
+            # Whose change it was, and when, is unknown: from the last change known on, so
+            # is the drive (a later event says only what it changes).
+            since = spans[-1].start_time if spans else -math.inf
+            when = f'{since:.6f} s' if spans else 'the start'
+            spans.append(DriveSpan(since, None, (
+                f'a {PARAMETER_EVENTS_TOPIC} message (log time {message.log_time} ns) could '
+                f'not be read ({error}): the masses, loads and drive from {when} on are '
+                'unknown'), True))
+            return tuple(spans)
+        if node != SIM_NODE_NAME or not changed:
             continue
         values.update(changed)
         drive, problem = drive_of_values(values, geometry)

@@ -137,7 +137,8 @@ class Recording(NamedTuple):
 
     @property
     def complete(self) -> bool:
-        return self.problem is None and not self.losses
+        return (self.problem is None and not self.losses
+                and not any(span.unreadable for span in self.drive_changes))
 
 
 def progress_bar(stream: TextIO, total: int) -> Callable[[int], None]:

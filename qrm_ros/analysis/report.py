@@ -230,6 +230,8 @@ def incompleteness(recording: Recording) -> List[str]:
     lines = []
     if recording.problem:
         lines.append(f'{recording.path} is damaged or truncated: {recording.problem}')
+    lines += [f'{recording.path}: {span.problem}' for span in recording.drive_changes
+              if span.unreadable]
     for loss in recording.losses:
         count = ('an unknown number of' if loss.messages is None else
                  f'{loss.messages}')

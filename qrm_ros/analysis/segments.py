@@ -58,14 +58,30 @@ def setting_speed(samples: Samples, drive: Optional[Drive] = None) -> np.ndarray
     The ideal speed drive runs at it. A motor's speed fluctuates about its reference, but
     its torque is k (reference - speed) (dynamics.md), so the reference is the recorded
     speed plus the recorded input torque over k, exact to round-off at every sample. Where
-    the motor is at its torque limit the reference is unknown (NaN: no steady setting).
+    the motor is at its torque limit the sample does not hold the reference: a span of such
+    samples takes the reference of the samples on both its sides when the two agree (no
+    command came in between), else it has none (NaN: no steady setting).
     """
     if drive is None or drive.motor is None or samples.input_torque is None:
         return samples.input_speed
     torque = samples.input_torque
     reference = samples.input_speed + torque / drive.motor.speed_stiffness
     limited = np.abs(torque) >= drive.motor.max_torque * (1.0 - STEADY_TOLERANCE)
-    return np.where(limited, np.nan, reference)
+    return _through_limits(np.where(limited, np.nan, reference))
+
+
+def _through_limits(reference: np.ndarray) -> np.ndarray:
+    """Fill each run of NaN whose neighbours on both sides agree with their value."""
+    known = np.flatnonzero(~np.isnan(reference))
+    if known.size < 2 or known.size == reference.size:
+        return reference
+    index = np.arange(reference.size)
+    before = np.searchsorted(known, index, side='right') - 1  # the last known at or before
+    inside = (before >= 0) & (before < known.size - 1)  # a known sample after too
+    left = reference[known[np.clip(before, 0, known.size - 1)]]
+    right = reference[known[np.clip(before + 1, 0, known.size - 1)]]
+    agree = inside & (np.abs(left - right) <= STEADY_TOLERANCE * np.maximum(1.0, np.abs(left)))
+    return np.where(np.isnan(reference) & agree, left, reference)
 
 
 def setting_speeds(samples: Samples, drives: Sequence[DriveSpan]

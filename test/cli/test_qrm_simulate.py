@@ -18,6 +18,7 @@ The content itself is checked against a live recording in test/node/test_offline
 """
 
 import errno
+import json
 import math
 import os
 from pathlib import Path
@@ -30,6 +31,7 @@ from qrm_ros.analysis.measurement import analyse
 from qrm_ros.analysis.recorded_run import read_recording
 from qrm_ros.cli import exit_codes, qrm_simulate
 from qrm_ros.core import kinematics as kin
+from damaged_runs import put_together, take_apart
 from ros_probe import installed_executable
 
 
@@ -74,13 +76,19 @@ def test_a_scenario_file_with_an_event(tmp_path):
     assert offsets == [pytest.approx(-0.01), pytest.approx(0.005)]
 
 
-def test_every_message_reads_strictly_and_a_load_change_is_seen(tmp_path):
+def _load_change_run(tmp_path):
+    """A run whose cutting force falls from 400 to 100 N at 6 s (one parameter event)."""
     scenario = tmp_path / 'load.yaml'
     scenario.write_text('parameters: {coupling_offset: 0.005, cutting_force: 400.0}\n'
                         'duration: 12\n'
                         'events:\n  - {at: 6, set: {cutting_force: 100.0}}\n')
     path = tmp_path / 'run.mcap'
     assert _simulate(scenario, '--markers', '-o', path).returncode == exit_codes.EXIT_OK
+    return path
+
+
+def test_every_message_reads_strictly_and_a_load_change_is_seen(tmp_path):
+    path = _load_change_run(tmp_path)
     # rosbags refuses a message with bytes beyond its end (rclpy's serialize_message gave
     # /parameter_events 8 more), so every message of every topic is read here.
     with AnyReader([Path(path)]) as reader:
@@ -92,6 +100,28 @@ def test_every_message_reads_strictly_and_a_load_change_is_seen(tmp_path):
     analysis = analyse(read_recording(str(path), {}))
     assert [segment.drive.loads.cutting_force for segment in analysis.segments] == [400.0, 100.0]
     assert [t['change'] for t in analysis.transitions] == ['cutting_force 400.0 -> 100.0']
+
+
+def test_an_unreadable_parameter_event_leaves_the_drive_unknown_and_is_said(tmp_path):
+    recorded = take_apart(_load_change_run(tmp_path).read_bytes())
+    events = next(i for i, c in recorded.channels.items() if c[0] == '/parameter_events')
+    for message in recorded.messages:
+        if message[0] == events:
+            message[4] = message[4][:24]  # cut short: no decoder reads it
+    damaged = tmp_path / 'damaged.mcap'
+    damaged.write_bytes(put_together(recorded))
+    result = subprocess.run([installed_executable('qrm_analyze'), str(damaged), '--json',
+                             str(tmp_path / 'out.json')], capture_output=True, text=True,
+                            timeout=300)
+    assert result.returncode == exit_codes.EXIT_INCOMPLETE, result.stderr
+    assert 'Traceback' not in result.stderr
+    said = result.stdout + result.stderr
+    assert ('a /parameter_events message (log time' in said
+            and 'the masses, loads and drive from the start on are unknown' in said)
+    document = json.loads((tmp_path / 'out.json').read_text())
+    assert document['complete'] is False
+    assert all(row['peak_input_torque_theory'] is None for row in document['segments'])
+    assert len(document['segments']) == 1  # no change is made up: one setting throughout
 
 
 @pytest.mark.parametrize('args, message', [
