@@ -242,9 +242,9 @@ class Simulation:
         writes = self._writes
         writes.append((channel, now, data, transforms))
         if len(writes) >= WRITE_BATCH:
-            self.write_queued()
+            self._write_queued()
 
-    def write_queued(self) -> None:
+    def _write_queued(self) -> None:
         """Hand what was sent so far to the run file, each joint state's transforms after it."""
         writes, self._writes = self._writes, []
         if self._run_file is None:
@@ -336,7 +336,7 @@ class Simulation:
                     break
                 if progress is not None and ticks % progress_every == 0:
                     progress((stamp_ns - start_ns) / NANOSECONDS_PER_SECOND)
-            self.write_queued()  # the last batch
+            self._write_queued()  # the last batch
             loop_seconds = time.perf_counter() - started
             set_clock(clock_ns)
             node.wait_for_pair_reports()
@@ -356,7 +356,7 @@ class Simulation:
         if run_file is not None:
             try:
                 if keep:
-                    self.write_queued()  # the last pairs' reports (destroy_node), the rest
+                    self._write_queued()  # the last pairs' reports (destroy_node), the rest
                 counts = run_file.topic_counts()
                 if not run_file.failed:  # a failed write has let go of the file already
                     run_file.finish()
