@@ -26,7 +26,12 @@ offset +10 mm, for each drive. Ticks per second of the loop (the set-up apart),
 interleaved over repeats; medians and their spread; the ratio simulator / floor (goal
 >= 0.7 for the speed drive) and how long an hour of machine time at 100 Hz takes.
 
+--breakdown says where a speed-drive tick's CPU time goes instead: the run again with one
+part more left out each time (the stroke-pair measurement, the /tf, the serializing and
+writing, the efforts, the kinematics; each left out by replacing its call), the floors beside.
+
     python3 dev.py run python bench/bench_simulate.py [--repeats 5] [--seconds 120]
+    python3 dev.py run python bench/bench_simulate.py --breakdown [--repeats 3] [--seconds 200]
 """
 
 import argparse
@@ -44,8 +49,10 @@ from rosbags.typesys import get_typestore, Stores
 from sensor_msgs.msg import JointState
 
 from qrm_ros.core.names import PUBLISHED_JOINT_NAMES, TF_MESSAGE_TYPE
-from qrm_ros.node.offline_sim import Simulation
+from qrm_ros.node import shaper_sim
+from qrm_ros.node.offline_sim import RecordingPublisher, Simulation
 from qrm_ros.node.scenario import scenario_from_mapping
+from qrm_ros.recording.machine_channels import MachineChannels
 
 PERIOD_NS = 10_000_000
 
@@ -114,13 +121,79 @@ def simulated(path, seconds, drive):
             summary.ticks / (time.process_time() - cpu_started))
 
 
+# What --breakdown leaves out, one more part in each run: (label, how it is left out).
+LEFT_OUT = ('the stroke-pair measurement and reports', 'the /tf',
+            'the serializing and writing', 'the efforts', 'the kinematics')
+
+
+def _leave_out(simulation, part, undo):
+    """Replace the call of one part of the speed drive's tick by a no-op (undo: put back)."""
+    node = simulation.node
+    if part == 0:  # no samples kept: no pair is ever completed
+        node.stroke_pairs.monitor.collect = lambda *arguments: None
+    elif part == 1:
+        undo.append((MachineChannels, 'joint_state_values', MachineChannels.joint_state_values))
+        MachineChannels.joint_state_values = lambda *arguments: None
+    elif part == 2:
+        for publisher in node.publishers:
+            if isinstance(publisher, RecordingPublisher):
+                publisher.write = None
+    elif part == 3:
+        efforts = shaper_sim.efforts_with_stroke_screw(
+            node.stepper.geometry, node.mass, 0.01, 1.0, 6.28, 0.0, 0.0, 0.0, -100.0, 0.0, 0.0)
+        undo.append((shaper_sim, 'efforts_with_stroke_screw',
+                     shaper_sim.efforts_with_stroke_screw))
+        shaper_sim.efforts_with_stroke_screw = lambda *arguments: efforts
+    else:
+        sample = node.stepper.mechanism_state()
+        node.stepper.mechanism_state = lambda: sample
+
+
+def breakdown(folder, seconds, repeats):
+    """Print the CPU time (us) of a speed-drive tick with ever more parts left out."""
+    labels = ['the whole tick'] + [f'... without {label}' for label in LEFT_OUT]
+    times = {label: [] for label in labels + ['floor', 'floor_no_tf']}
+    path = os.path.join(folder, 'breakdown.mcap')
+    for _ in range(repeats):
+        for index, label in enumerate(labels):
+            simulation = Simulation(scenario_from_mapping({'duration': seconds, 'parameters': {
+                'coupling_offset': 0.01, 'drive': 'speed'}}), path)
+            undo = []
+            try:
+                for part in range(index):
+                    _leave_out(simulation, part, undo)
+                cpu_started = time.process_time()
+                ticks = simulation.run().ticks
+                times[label].append(1e6 * (time.process_time() - cpu_started) / ticks)
+            finally:
+                for owner, name, value in undo:
+                    setattr(owner, name, value)
+            os.unlink(path)
+        for name in ('floor', 'floor_no_tf'):
+            times[name].append(1e6 / floor(path, round(seconds * 100), name == 'floor')[1])
+            os.unlink(path)
+    before = None
+    for label, values in times.items():
+        median = statistics.median(values)
+        step = f'  ({before - median:5.1f} us less)' if before is not None else ''
+        print(f'{label:52s} {median:6.1f} us CPU a tick ({min(values):.1f}..{max(values):.1f})'
+              + (step if label in labels else ''))
+        before = median if label in labels else before
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--repeats', type=int, default=5)
     parser.add_argument('--seconds', type=float, default=120.0,
                         help='machine time per simulated run [s] (motor: a quarter)')
+    parser.add_argument('--breakdown', action='store_true',
+                        help='where a speed-drive tick\'s time goes (see the docstring)')
     args = parser.parse_args()
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'OFF'
+    if args.breakdown:
+        with tempfile.TemporaryDirectory() as folder:
+            breakdown(folder, args.seconds, args.repeats)
+        return
     rates = {'floor': [], 'floor_no_tf': [], 'speed': [], 'motor': []}
     cpu_rates = {name: [] for name in rates}
     with tempfile.TemporaryDirectory() as folder:

@@ -35,6 +35,12 @@ __all__ = ['forward_cut_input_arc', 'input_angle_for_flywheel_angle',
            'reversal_flywheel_angles', 'state']
 
 
+# The types of one sample of scalars (checked by type, not isinstance: numpy's float64 is a
+# float and takes numpy's path).
+_TEN_FLOATS = (float,) * 10
+_PLAIN_NUMBERS = (float, int)
+
+
 class _ScalarMath:
     """math's functions under numpy's names: the same formulas run ~20x faster on floats."""
 
@@ -95,11 +101,11 @@ def state(geometry: Geometry, offset: ArrayLike, input_angle: ArrayLike,
     """
     r1, r, h = geometry.coupling_radius, geometry.crank_radius, geometry.pivot_distance
     # One sample of scalars (the node, every tick) takes math's functions, not numpy's.
-    scalar = all(type(value) is float for value in (
+    scalar = tuple(map(type, (
         offset, input_angle, input_speed, input_acceleration, offset_rate, r1, r, h,
-        geometry.ram_height, geometry.crank_phase)) and all(
-            type(value) in (float, int) for value in (crank_radius_rate,
-                                                      crank_radius_acceleration))
+        geometry.ram_height, geometry.crank_phase))) == _TEN_FLOATS and (
+            type(crank_radius_rate) in _PLAIN_NUMBERS
+            and type(crank_radius_acceleration) in _PLAIN_NUMBERS)
     xp: Any
     if scalar and math.isfinite(offset) and abs(offset) < r1:  # type: ignore
         xp, theta = _ScalarMath, input_angle

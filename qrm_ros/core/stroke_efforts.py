@@ -30,8 +30,13 @@ import numpy as np
 from qrm_ros.core.dynamics import (ARRAY_OPS, Chain, checked_quantity, Efforts, evaluate_chain,
                                    geometry_fields, MassProperties, SCALAR_OPS)
 from qrm_ros.core.geometry import check_offset, FloatOrArray, Geometry
+from qrm_ros.core.lean_chain import lean_constants, lean_efforts_of
 
 __all__ = ['chain_with_stroke_screw', 'efforts_with_stroke_screw', 'lever_radius_coefficient']
+
+
+# The arguments' types on the one-sample path (by type: numpy's float64 takes the other).
+_EIGHT_FLOATS = (float,) * 8
 
 
 @functools.lru_cache(maxsize=8)
@@ -69,7 +74,8 @@ def chain_with_stroke_screw(geometry: Geometry, mass: MassProperties, offset: Fl
     scalar_fields = _float_fields(geometry)
     if (scalar_fields is not None and type(offset) is float
             and abs(offset) < scalar_fields[0]
-            and all(type(value) is float and math.isfinite(value) for value in arguments)):
+            and tuple(map(type, arguments)) == _EIGHT_FLOATS
+            and all(map(math.isfinite, arguments))):
         # One sample of floats (the node, every tick): math's functions, no array checks.
         return evaluate_chain(SCALAR_OPS, *scalar_fields, _masses(mass), offset, *arguments)
     r1, r, h, height, phase = geometry_fields(geometry)
@@ -90,6 +96,10 @@ def efforts_with_stroke_screw(*arguments: Any, **keywords: Any) -> Tuple[Efforts
 
     Arguments as chain_with_stroke_screw's; floats in, floats out.
     """
+    if len(arguments) == 11 and not keywords:  # the node's call, every tick
+        still = _still_stroke_efforts(*arguments)
+        if still is not None:
+            return still
     chain = chain_with_stroke_screw(*arguments, **keywords)
     efforts, force = chain.efforts, chain.crank_radius_force
     if type(force) is float:  # the one-sample path: floats throughout
@@ -98,6 +108,41 @@ def efforts_with_stroke_screw(*arguments: Any, **keywords: Any) -> Tuple[Efforts
         return Efforts(*(float(value) for value in efforts)), float(force)
     shaped = np.broadcast_arrays(*efforts, force)
     return Efforts(*shaped[:5]), shaped[5]
+
+
+@functools.lru_cache(maxsize=8)
+def _lean_constants(geometry: Geometry, mass: MassProperties) -> Optional[Tuple[float, ...]]:
+    """Return lean_chain's constants if the geometry's fields are finite floats, else None."""
+    return None if _float_fields(geometry) is None else lean_constants(geometry, mass)
+
+
+def _still_stroke_efforts(geometry: Geometry, mass: MassProperties, offset: Any,
+                          *arguments: Any) -> Optional[Tuple[Efforts, float]]:
+    """
+    Return efforts_with_stroke_screw's answer by the lean chain where it is the chain's.
+
+    That is one sample of finite floats with the stroke still and no offset acceleration
+    (+0.0): there lean_chain.lean_efforts_of does the chain's operations in its order, less
+    the terms it leaves out (the chain's numbers bit for bit, at under half its cost), and
+    the screw's force is the lever torque times d(psi)/d(r) at the chain's flywheel angle,
+    as the chain computes it. None elsewhere (the chain answers).
+    """
+    constants = _lean_constants(geometry, mass)
+    if (constants is None or type(offset) is not float or not abs(offset) < constants[0]
+            or tuple(map(type, arguments)) != _EIGHT_FLOATS
+            or not all(map(math.isfinite, arguments))):
+        return None
+    (input_angle, input_speed, input_acceleration, offset_rate, offset_acceleration,
+     external_ram_force, crank_radius_rate, crank_radius_acceleration) = arguments
+    if (crank_radius_rate != 0.0 or crank_radius_acceleration != 0.0
+            or offset_acceleration != 0.0 or math.copysign(1.0, offset_acceleration) < 0.0):
+        return None
+    efforts = lean_efforts_of(constants, offset, input_angle, input_speed, input_acceleration,
+                              offset_rate, external_ram_force)
+    r1 = constants[0]
+    flywheel_angle = input_angle + math.atan2(offset * math.cos(input_angle),
+                                              r1 + offset * math.sin(input_angle))
+    return Efforts(*efforts), efforts[2] * lever_radius_coefficient(geometry, flywheel_angle)
 
 
 def lever_radius_coefficient(geometry: Geometry, flywheel_angle: float) -> float:

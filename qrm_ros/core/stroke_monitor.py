@@ -128,6 +128,8 @@ class StrokeMonitor:
         """Forget the samples (after a reset, a pause or a clock jump: no pair spans it)."""
         self._stamp_ns = array('q')
         self._columns = {name: array('d') for name in SAMPLE_FIELDS + STROKE_SAMPLE_FIELDS}
+        # Each column's append, in the fields' order (a sample a tick: no lookups by name).
+        self._appends = [column.append for column in self._columns.values()]
         self._last_velocity_positive: Optional[bool] = None
 
     def __len__(self):
@@ -157,10 +159,10 @@ class StrokeMonitor:
             crank_radius = float(self._geometry.crank_radius)
         if setting_speed is None:
             setting_speed = input_speed
-        for name, value in zip(SAMPLE_FIELDS + STROKE_SAMPLE_FIELDS, (
+        for append, value in zip(self._appends, (
                 ram_position, ram_velocity, offset, offset_rate, input_speed, input_torque,
                 offset_force, crank_radius, crank_radius_rate, setting_speed)):
-            self._columns[name].append(value)
+            append(value)
         if len(self._stamp_ns) > BUFFER_LIMIT:
             self._keep_from(len(self._stamp_ns) - BUFFER_LIMIT // 2)
         positive = ram_velocity >= 0.0

@@ -269,29 +269,33 @@ class ShaperSimNode(HeldFigures, ShaperParameterNode):
             self._pair_reports.clear()
         stroke = stepper.stroke
         radius_rate, radius_acceleration = stroke.crank_radius_rates()
-        positions = array('d', (stepper.input_angle, wrap_angle(sample.flywheel_angle),
-                                sample.lever_angle, sample.ram_position, stepper.offset,
-                                stroke.crank_radius))
-        velocities = array('d', (stepper.input_speed, sample.flywheel_speed,
-                                 sample.lever_speed, sample.ram_velocity, stepper.offset_rate,
-                                 radius_rate))
+        # The stepper's state, read once (a tick reads each several times).
+        input_angle, input_speed = stepper.input_angle, stepper.input_speed
+        offset, offset_rate = stepper.offset, stepper.offset_rate
+        crank_radius = stroke.crank_radius
+        ram_position, ram_velocity = sample.ram_position, sample.ram_velocity
+        positions = array('d', (input_angle, wrap_angle(sample.flywheel_angle),
+                                sample.lever_angle, ram_position, offset, crank_radius))
+        velocities = array('d', (input_speed, sample.flywheel_speed, sample.lever_speed,
+                                 ram_velocity, offset_rate, radius_rate))
         # What drives each joint (N m, N), exact at the stamp. The speed drive supplies the
         # input torque the prescribed motion needs against inertia, gravity and the loads;
         # the motor stepper integrates the motion from the motor's torque and knows them.
         # The stroke screw's force is the lever torque's share through d(psi)/d(r).
-        if isinstance(stepper, MotorStepper):
+        motor = isinstance(stepper, MotorStepper)
+        if motor:
             joint_efforts = array('d', stepper.efforts())
             joint_efforts.append(joint_efforts[2] * lever_radius_coefficient(
                 stepper.geometry, sample.flywheel_angle))
             self._drive_status.update(stepper, stamp_ns)
         else:
             # The workpiece fits the longer of the strokes in force and commanded (rules).
-            ram_force = ram_load_force(self._loads, sample.ram_position, sample.ram_velocity,
+            ram_force = ram_load_force(self._loads, ram_position, ram_velocity,
                                        max(stroke.stroke, stroke.command))
             chain_efforts, screw_force = efforts_with_stroke_screw(
-                stepper.geometry, self._mass, stepper.offset, stepper.input_angle,
-                stepper.input_speed, stepper.input_acceleration, stepper.offset_rate, 0.0,
-                ram_force, radius_rate, radius_acceleration)
+                stepper.geometry, self._mass, offset, input_angle, input_speed,
+                stepper.input_acceleration, offset_rate, 0.0, ram_force, radius_rate,
+                radius_acceleration)
             joint_efforts = array('d', (*chain_efforts, screw_force))
         if not all(map(math.isfinite, positions + velocities + joint_efforts)):
             self.get_logger().error(
@@ -301,18 +305,16 @@ class ShaperSimNode(HeldFigures, ShaperParameterNode):
             self._pair_reports.clear()  # a pair across a gap in publication is not steady
             return False
         self._state_publishers.publish(stamp_ns, self._values['frame_id'], positions,
-                                       velocities, joint_efforts, sample.ram_velocity)
+                                       velocities, joint_efforts, ram_velocity)
         self._published_stamp_ns = stamp_ns
         # The speed drive's sample is the core's state: the markers need not recompute it.
-        self._markers.publish_if_due(stamp_ns, None if isinstance(stepper, MotorStepper)
-                                     else sample)
+        self._markers.publish_if_due(stamp_ns, None if motor else sample)
         reports = self._pair_reports
         speed_setting = reports.note_setting(stepper, self._mass, self._loads, self._motor,
                                              stamp_ns)
-        completed = reports.monitor.collect(stamp_ns, sample.ram_position, sample.ram_velocity,
-                                            stepper.offset, stepper.offset_rate,
-                                            stepper.input_speed, joint_efforts[0],
-                                            joint_efforts[4], stroke.crank_radius, radius_rate,
+        completed = reports.monitor.collect(stamp_ns, ram_position, ram_velocity, offset,
+                                            offset_rate, input_speed, joint_efforts[0],
+                                            joint_efforts[4], crank_radius, radius_rate,
                                             speed_setting)
         if completed is not None:
             # What the report depends on is taken now, as it stands at the pair's end.

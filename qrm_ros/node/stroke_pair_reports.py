@@ -141,6 +141,8 @@ class StrokePairReports:
 
     def wait_for_all(self, timeout: Optional[float] = None) -> None:
         """Report every pair completed so far, now, in this thread (for tests and tools)."""
+        if not self._jobs:
+            return  # a job leaves the queue only once reported: none waits (every tick offline)
         if not self._lock.acquire(timeout=-1 if timeout is None else timeout):
             raise TimeoutError('the stroke pairs are being reported by another caller')
         try:

@@ -29,7 +29,7 @@ rosbags included, reads them as it reads the rest.
 
 import math
 import threading
-from typing import List, Mapping, NamedTuple, Optional, Sequence, Tuple
+from typing import Any, List, Mapping, NamedTuple, Optional, Sequence, Tuple
 
 from qrm_ros.core.geometry import Geometry
 from qrm_ros.core.names import (CRANK_RADIUS_JOINT, JOINT_STATE_TYPE, PUBLISHED_JOINT_NAMES,
@@ -115,6 +115,22 @@ class MachineMessages:
                 rotation=self._quaternion(x=0.0, y=0.0, z=0.0, w=1.0)))
             for joint in self._joints])
         self._moving_lock = threading.Lock()
+        # What a joint value moves in each moving transform, the rest of it kept as built:
+        # a slide's translation (origin + axis * value), a turn's rotation (axis * sin,
+        # cos of half the value), as joint_transform computes them, without a tuple per
+        # joint per joint state.
+        self._movers: List[Tuple[bool, bool, float, float, float, float, float, float,
+                                 Any]] = []
+        for stamped, joint in zip(self._moving.transforms, self._joints):
+            link = joint_transform(joint)
+            translation, rotation = stamped.transform.translation, stamped.transform.rotation
+            translation.x, translation.y, translation.z = link.translation
+            rotation.x, rotation.y, rotation.z, rotation.w = link.rotation
+            slides = joint.kind == 'prismatic'
+            turns = joint.kind in ('revolute', 'continuous')  # else it moves nothing
+            self._movers.append((slides, turns, *joint.origin,
+                                 *(joint.axis or (0.0, 0.0, 0.0)),
+                                 translation if slides else rotation))
         # Where each moving joint's value is in a joint state in the published order.
         self._published_index = [PUBLISHED_JOINT_NAMES.index(joint.name)
                                  for joint in self._joints]
@@ -195,11 +211,14 @@ class MachineMessages:
                 return None
         if not all(map(math.isfinite, values)):
             return None
+        sine, cosine = math.sin, math.cos
         with self._moving_lock:
             self._moving_stamp.sec, self._moving_stamp.nanosec = sec, nanosec
-            for stamped, joint, value in zip(self._moving.transforms, self._joints, values):
-                link = joint_transform(joint, value)
-                translation, rotation = stamped.transform.translation, stamped.transform.rotation
-                translation.x, translation.y, translation.z = link.translation
-                rotation.x, rotation.y, rotation.z, rotation.w = link.rotation
+            for (slides, turns, x, y, z, ax, ay, az, moved), value in zip(self._movers, values):
+                if slides:
+                    moved.x, moved.y, moved.z = x + ax * value, y + ay * value, z + az * value
+                elif turns:
+                    half_sine = sine(0.5 * value)
+                    moved.x, moved.y, moved.z = ax * half_sine, ay * half_sine, az * half_sine
+                    moved.w = cosine(0.5 * value)
             return bytes(self._store.serialize_cdr(self._moving, TF_MESSAGE_TYPE))

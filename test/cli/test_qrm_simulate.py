@@ -17,8 +17,10 @@ qrm_simulate as a user runs it: its file read by the analysis and by rosbags, it
 The content itself is checked against a live recording in test/node/test_offline_sim.py.
 """
 
+import errno
 import json
 import math
+import os
 from pathlib import Path
 import subprocess
 
@@ -27,7 +29,7 @@ from rosbags.highlevel import AnyReader
 
 from qrm_ros.analysis.measurement import analyse
 from qrm_ros.analysis.recorded_run import read_recording
-from qrm_ros.cli import exit_codes
+from qrm_ros.cli import exit_codes, qrm_simulate
 from qrm_ros.core import kinematics as kin
 from damaged_runs import put_together, take_apart
 from ros_probe import installed_executable
@@ -157,3 +159,22 @@ def test_a_progress_bar_when_asked_and_none_off_a_terminal(tmp_path):
     # auto: a bar only on a terminal (here stderr is a pipe), whatever the duration.
     quiet = _simulate('--duration', 3, '-o', tmp_path / 'b.mcap')
     assert quiet.returncode == exit_codes.EXIT_OK and 'simulated' not in quiet.stderr
+
+
+def test_a_write_error_ends_the_run_with_its_reason(tmp_path, monkeypatch, capsys):
+    # The disk fills up: a chunk's sync fails. The run file's one-line reason, exit 1, no file.
+    syncs = []
+    real_fsync = os.fsync
+
+    def filling_fsync(fd):
+        syncs.append(fd)
+        if len(syncs) > 3:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        real_fsync(fd)
+    monkeypatch.setattr(os, 'fsync', filling_fsync)
+    path = tmp_path / 'run.mcap'
+    assert qrm_simulate.main(['--duration', '20', '-o', str(path),
+                              '--progress', 'never']) == exit_codes.EXIT_FAILURE
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and 'No space left on device' in lines[0], lines
+    assert not path.exists()

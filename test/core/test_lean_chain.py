@@ -15,7 +15,7 @@
 The lean chain (the motor stepper's equation of motion) gives the chain's numbers bit for bit.
 
 In its Python form and compiled (qrm_ros.core.motor_kernel), on random states with exact
-zeros among them.
+zeros among them; and as the speed drive's efforts at a still stroke (stroke_efforts).
 """
 
 import numpy as np
@@ -26,6 +26,8 @@ from qrm_ros.core.geometry import Geometry
 from qrm_ros.core.lean_chain import (lean_acceleration_of, lean_constants, lean_efforts_of,
                                      lean_ram_motion)
 from qrm_ros.core.motor_equation import EquationOfMotion
+from qrm_ros.core import stroke_efforts
+from qrm_ros.core.stroke_efforts import chain_with_stroke_screw, efforts_with_stroke_screw
 
 GEOMETRY = Geometry.paper()
 MASS = dyn.MassProperties.small_shaper()
@@ -111,3 +113,46 @@ def test_the_compiled_acceleration_gives_the_python_forms_numbers_bit_for_bit(ma
         arguments = (offset, angle, speed, rate, torque, load)
         assert _bits([compiled(array, *arguments)]) == _bits(
             [lean_acceleration_of(constants, *arguments)])
+
+
+@pytest.mark.parametrize('geometry', [GEOMETRY, Geometry(0.03, 0.06, 0.15, 0.25, 0.3)])
+@pytest.mark.parametrize('mass', LEAN_MASSES)
+def test_the_speed_drives_efforts_at_a_still_stroke_are_the_chains_bit_for_bit(
+        geometry, mass, monkeypatch):
+    # efforts_with_stroke_screw as the node calls it each tick: the lean chain answers where
+    # the stroke is still, with the screw's force; the whole chain everywhere else.
+    chain_calls = []
+
+    def counted_chain(*arguments):
+        chain_calls.append(arguments[-1])
+        return dyn.evaluate_chain(*arguments)
+    monkeypatch.setattr(stroke_efforts, 'evaluate_chain', counted_chain)
+    rng = np.random.default_rng(21)
+    radius = geometry.coupling_radius
+    for index in range(20000):
+        offset = 0.0 if index % 5 == 0 else float(rng.uniform(-0.99, 0.99)) * radius
+        rate = 0.0 if index % 3 == 0 else float(rng.normal(0.0, 0.02))
+        speed = 0.0 if index % 7 == 0 else float(rng.normal(0.0, 20.0))
+        acceleration = 0.0 if index % 7 == 0 else float(rng.normal(0.0, 50.0))
+        load = 0.0 if index % 4 == 0 else float(rng.normal(0.0, 1500.0))
+        angle = float(rng.uniform(-40.0, 40.0))
+        radius_rates = ((0.0, 0.0), (-0.0, 0.0), (0.002, -0.01))[index % 3]
+        arguments = (geometry, mass, offset, angle, speed, acceleration, rate, 0.0, load,
+                     *radius_rates)
+        chain = chain_with_stroke_screw(*arguments)
+        chain_calls.clear()
+        efforts, screw_force = efforts_with_stroke_screw(*arguments)
+        assert len(chain_calls) == (index % 3 == 2)  # the lean chain where the stroke is still
+        assert type(efforts) is dyn.Efforts and type(screw_force) is float
+        assert _bits([*efforts, screw_force]) == _bits([*chain.efforts,
+                                                        chain.crank_radius_force])
+    # What the lean chain leaves out goes to the whole chain: an offset acceleration, -0.0.
+    for offset_acceleration in (0.5, -0.0):
+        arguments = (geometry, mass, 0.01, 1.0, 6.0, 2.0, 0.003, offset_acceleration, -900.0,
+                     0.0, 0.0)
+        chain = chain_with_stroke_screw(*arguments)
+        chain_calls.clear()
+        efforts, screw_force = efforts_with_stroke_screw(*arguments)
+        assert len(chain_calls) == 1
+        assert _bits([*efforts, screw_force]) == _bits([*chain.efforts,
+                                                        chain.crank_radius_force])

@@ -287,6 +287,10 @@ def test_stop_request_finishes_the_file(tmp_path):
         stop=StopAfter())
     assert summary.stopped and summary.ticks == 25
     assert len(_messages(path, '/joint_states')) == 25
+    # Every joint state's transforms too (they are written a batch at a time), at its time.
+    run = open_run(path)
+    assert ([m.log_time for m in run.messages('/tf')]
+            == [m.log_time for m in run.messages('/joint_states')])
 
 
 def test_signal_stops_the_command_cleanly(tmp_path):
