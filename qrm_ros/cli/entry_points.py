@@ -22,6 +22,7 @@ own clean-stop handling (qrm_ros.node.ros_process) once they are up.
 """
 
 import importlib
+import os
 import signal
 import sys
 from typing import List
@@ -41,8 +42,22 @@ def _stopped_while_starting(signal_number, frame):
     raise SystemExit(0)  # nothing was started: a clean, quiet stop
 
 
+def _ament_index_of_this_python() -> None:
+    """
+    Point the ament index at this Python's prefix when nothing else does.
+
+    The ROS 2 wheels install their share folders (message definitions, the package index)
+    into the environment they are installed in; a sourced ROS install sets AMENT_PREFIX_PATH
+    itself, a plain virtual environment does not, and the recorder's schemas need it.
+    """
+    if not os.environ.get('AMENT_PREFIX_PATH') and os.path.isdir(
+            os.path.join(sys.prefix, 'share', 'ament_index')):
+        os.environ['AMENT_PREFIX_PATH'] = sys.prefix
+
+
 def run_command(module_name: str) -> int:
     """Import the command's module with stop signals made quiet, then run its main."""
+    _ament_index_of_this_python()
     previous = {number: signal.signal(number, _stopped_while_starting)
                 for number in (signal.SIGINT, signal.SIGTERM)}
     try:

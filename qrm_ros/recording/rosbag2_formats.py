@@ -63,7 +63,7 @@ def _msg_text(type_name: str, share_directory: Callable[[str], str]) -> Tuple[st
     package, name = match.groups()
     try:
         folder = share_directory(package)
-    except PackageNotFoundError:
+    except (PackageNotFoundError, OSError):  # OSError: AMENT_PREFIX_PATH not set at all
         raise LookupError(f'package {package!r} of {type_name!r} is not in the ament index '
                           '(is AMENT_PREFIX_PATH set?)') from None
     path = os.path.join(folder, 'msg', name + '.msg')

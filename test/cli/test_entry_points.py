@@ -16,8 +16,13 @@ The console scripts' entry points (qrm_ros.cli.entry_points): a stop signal neve
 traceback, even one that arrives inside a C extension's initialisation.
 """
 
+import os
 import subprocess
 import sys
+
+from mcap.reader import make_reader
+
+from ros_probe import installed_executable
 
 
 _STOP_INSIDE_AN_EXTENSION = """
@@ -49,3 +54,42 @@ def test_a_stop_inside_an_extensions_initialisation_is_quiet():
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stderr
     assert result.stdout == '' and 'Traceback' not in result.stderr, result.stderr
+
+
+_PROBE = """
+import os, sys
+from qrm_ros.recording.rosbag2_formats import find_service_definitions
+def main():
+    print(os.environ['AMENT_PREFIX_PATH'] == sys.prefix)
+    print(find_service_definitions('std_srvs/srv/SetBool')[1])
+    return 0
+"""
+
+
+def test_a_command_finds_its_environments_ament_index(tmp_path):
+    """Run with no ROS install sourced, a command uses the index its ROS wheels installed."""
+    (tmp_path / 'probe_ament.py').write_text(_PROBE)
+    environment = {name: value for name, value in os.environ.items()
+                   if name != 'AMENT_PREFIX_PATH'}
+    environment['PYTHONPATH'] = str(tmp_path)
+    result = subprocess.run(
+        [sys.executable, '-c', 'from qrm_ros.cli import entry_points; '
+         'raise SystemExit(entry_points.run_command("probe_ament"))'],
+        capture_output=True, text=True, timeout=60, env=environment)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split() == ['True', 'None']  # the service definitions were found
+
+
+def test_a_command_finds_the_message_definitions_of_its_own_environment(tmp_path):
+    """Run without AMENT_PREFIX_PATH (a plain venv, nothing sourced), a command still works."""
+    environment = {name: value for name, value in os.environ.items()
+                   if name != 'AMENT_PREFIX_PATH'}
+    output = tmp_path / 'run.mcap'
+    result = subprocess.run([installed_executable('qrm_simulate'), '--duration', '1', '-o',
+                             str(output)], capture_output=True, text=True, timeout=120,
+                            env=environment)
+    assert result.returncode == 0, result.stderr
+    assert 'Traceback' not in result.stderr
+    with open(output, 'rb') as stream:
+        schemas = make_reader(stream).get_summary().schemas.values()
+    assert schemas and all(schema.data for schema in schemas)

@@ -75,3 +75,10 @@ def test_the_shaper_services_and_an_empty_request():
 def test_what_cannot_be_found_is_said(type_name, words):
     texts, problem = find_service_definitions(type_name)
     assert texts is None and words in problem
+
+
+def test_an_ament_index_not_set_at_all_is_said():
+    def unset(package):
+        raise OSError("Environment variable 'AMENT_PREFIX_PATH' is not set or empty")
+    text, problem = find_message_definition('std_msgs/msg/String', share_directory=unset)
+    assert text is None and 'is AMENT_PREFIX_PATH set?' in problem
