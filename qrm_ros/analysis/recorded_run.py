@@ -24,7 +24,6 @@ log-time span).
 
 import math
 import os
-import sys
 from typing import Any, Callable, Dict, List, NamedTuple, Optional, Sequence, TextIO, Tuple
 
 import numpy as np
@@ -187,12 +186,17 @@ def open_for_analysis(path: str, geometry_overrides: Optional[Dict[str, Optional
 
 
 def read_recording(path: str, geometry_overrides: Optional[Dict[str, Optional[float]]] = None,
-                   progress_stream: TextIO = sys.stderr) -> Recording:
-    """Read a run file's geometry and joint states; AnalysisError says what is missing."""
+                   progress_stream: Optional[TextIO] = None) -> Recording:
+    """
+    Read a run file's geometry and joint states; AnalysisError says what is missing.
+
+    progress_stream: where a progress bar goes when it is a terminal (None: no bar).
+    """
     run, geometry, stored, drive, drive_problem = open_for_analysis(path, geometry_overrides)
     total = run.message_count(JOINT_STATES_TOPIC)
     progress = None
-    if progress_stream.isatty() and total >= PROGRESS_MIN_MESSAGES:
+    if progress_stream is not None and progress_stream.isatty() and (
+            total >= PROGRESS_MIN_MESSAGES):
         progress = progress_bar(progress_stream, total)  # a bar for a person, on long files
     workers = min(usable_cores(), MAX_WORKERS) if total >= PARALLEL_MIN_MESSAGES else 1
     file_parts = run.parts(workers)

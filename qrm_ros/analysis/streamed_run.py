@@ -26,7 +26,6 @@ revolution; its ``segments`` index them); ``Recording.extent`` tells the whole r
 """
 
 import math
-import sys
 from typing import Any, Callable, Dict, Iterator, List, Optional, TextIO, Tuple
 
 import numpy as np
@@ -260,8 +259,12 @@ def _checked_blocks(opened: OpenedRun, checks: SampleChecks,
 
 
 def analyse_file(path: str, geometry_overrides: Optional[Dict[str, Optional[float]]] = None,
-                 progress_stream: Optional[TextIO] = sys.stderr) -> Analysis:
-    """Read, check and measure a run file in bounded memory; AnalysisError if unusable."""
+                 progress_stream: Optional[TextIO] = None) -> Analysis:
+    """
+    Read, check and measure a run file in bounded memory; AnalysisError if unusable.
+
+    progress_stream: where a progress bar goes when it is a terminal (None: no bar).
+    """
     opened = open_for_analysis(path, geometry_overrides)
     run = opened.run
     total = run.message_count(JOINT_STATES_TOPIC)

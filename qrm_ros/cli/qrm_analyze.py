@@ -96,7 +96,7 @@ def _main(args: argparse.Namespace) -> int:
     (args.run,) = args.run
     overrides = geometry_overrides(args)
     try:
-        result = analyse_file(args.run, overrides)
+        result = analyse_file(args.run, overrides, progress_stream=sys.stderr)
     except AnalysisError as error:
         print(f'qrm_analyze: error: {error}', file=sys.stderr)
         return EXIT_BAD_INPUT

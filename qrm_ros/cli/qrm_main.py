@@ -310,7 +310,7 @@ def report(recording, folder):
     they draw: memory independent of the run's length. Returns what the analysis lacks
     (lines, as qrm_analyze says them; empty when every figure stands as printed).
     """
-    result = analysis.analyse_file(recording)
+    result = analysis.analyse_file(recording, progress_stream=sys.stderr)
     print()
     print(analysis.format_table(result))
     figures = analysis.write_outputs(  # all or none

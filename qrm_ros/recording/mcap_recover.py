@@ -25,7 +25,7 @@ import dataclasses
 import os
 import struct
 import sys
-from typing import BinaryIO, Callable, Dict, Iterator, List, NoReturn, Tuple, TextIO
+from typing import BinaryIO, Callable, Dict, Iterator, List, NoReturn, Optional, Tuple, TextIO
 
 from mcap.exceptions import McapError
 from mcap.records import (Attachment, Channel, Chunk, DataEnd, Footer, Header, McapRecord,
@@ -191,8 +191,15 @@ def _take_chunk(chunk: Chunk, rewriter: _Rewriter) -> None:
 
 
 def recover_command(broken: str, fixed: str, usage_error: Callable[[str], NoReturn],
-                    out: TextIO = sys.stdout, err: TextIO = sys.stderr) -> int:
-    """``mcap_recorder --recover``: 0 done (losses said), 1 nothing readable, 2 bad usage."""
+                    out: Optional[TextIO] = None, err: Optional[TextIO] = None) -> int:
+    """
+    ``mcap_recorder --recover``: 0 done (losses said), 1 nothing readable, 2 bad usage.
+
+    out, err: where it says so (None: this process's standard output and error, as they are
+    when it is called, not when this module was imported).
+    """
+    out = sys.stdout if out is None else out
+    err = sys.stderr if err is None else err
     if not os.path.isfile(broken):
         usage_error(f'--recover: {broken!r} does not exist or is not a file')
     if os.path.exists(fixed) or os.path.abspath(fixed) == os.path.abspath(broken):

@@ -22,8 +22,10 @@ figures draw the same points, from the excerpts it keeps.
 """
 
 import glob
+import io
 import json
 import os
+import sys
 
 import numpy as np
 import pytest
@@ -156,3 +158,13 @@ def test_the_streamed_run_keeps_only_excerpts():
     whole, streamed = _both(path)
     assert streamed.recording.sample_count == whole.recording.samples.time.size
     assert streamed.recording.samples.time.size < whole.recording.samples.time.size / 2
+
+
+def test_the_analysis_binds_no_stream_when_imported(monkeypatch):
+    """A library call touches no stream it was not given (none kept from import time)."""
+    closed = io.StringIO()
+    closed.close()
+    monkeypatch.setattr(sys, 'stderr', closed)
+    for read in (streamed_run.analyse_file,
+                 lambda path: measurement.analyse(recorded_run.read_recording(path))):
+        assert read(GOLDEN[0]).rows

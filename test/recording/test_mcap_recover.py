@@ -131,3 +131,11 @@ def test_a_recovery_that_fails_midway_leaves_no_file(tmp_path, monkeypatch):
     with pytest.raises(OSError):
         recover(str(path), str(fixed))
     assert not fixed.exists()
+
+
+def test_the_command_says_it_on_the_streams_of_the_moment(tmp_path, capsys):
+    """Its defaults are the process's streams when it runs, not those of the import."""
+    path = tmp_path / 'plain.mcap'
+    _run_without_crcs(path)
+    assert recover_command(str(path), str(tmp_path / 'fixed.mcap'), _usage_error) == 0
+    assert 'recovered' in capsys.readouterr().out
