@@ -26,13 +26,14 @@ import numpy as np
 
 from qrm_ros.analysis.recorded_drive import Drive, drive_differences, DriveSpan
 from qrm_ros.analysis.recorded_run import MIN_SEGMENT_SAMPLES, Samples
-from qrm_ros.core.sampling_bounds import GAP_PERIODS
+from qrm_ros.core.sampling_bounds import gap_after
 
 # Samples whose offset and input speed differ by less than this (relative) are one setting.
 STEADY_TOLERANCE = 1e-12
-# GAP_PERIODS: a step between stamps longer than this many median sample periods is a gap
-# (a pause, a clock jump, lost messages): segments end there, so no stroke is measured
-# across it (the node's stroke-pair reports call a pair across one not steady, alike).
+# A step between stamps longer than sampling_bounds.gap_after (three median sample periods,
+# and 50 ms) is a gap (a pause, a clock jump, lost messages): segments end there, so no
+# stroke is measured across it (the node's stroke-pair reports call a pair across one not
+# steady, alike).
 
 
 class Segment(NamedTuple):
@@ -113,11 +114,11 @@ def setting_changes(time: np.ndarray, offset: np.ndarray, speed: np.ndarray, spa
     """
     Return (steps, gap, boundary) between consecutive samples.
 
-    steps: s between stamps; gap: the step is a gap (longer than GAP_PERIODS sample periods
-    of step s, or backwards); boundary: a new run of one setting starts at the later sample.
+    steps: s between stamps; gap: the step is a gap (longer than gap_after of the usual step
+    s, or backwards); boundary: a new run of one setting starts at the later sample.
     """
     steps = np.diff(time)
-    gap = (steps > GAP_PERIODS * step) | (steps < 0)
+    gap = (steps > gap_after(step)) | (steps < 0)
     changed = ((np.abs(np.diff(offset)) > STEADY_TOLERANCE)
                | ~(np.abs(np.diff(speed)) <= STEADY_TOLERANCE * scale) | gap
                | (np.diff(span) != 0))
@@ -163,7 +164,7 @@ def split_segments(samples: Samples, drives: Sequence[DriveSpan] = ()
     (setting_speed: under a motor, its speed reference) and one drive (drives: the masses,
     loads and drive from when on; none: the ideal speed drive, no theory) with the offset
     actuator at rest (a ramp changes the speed at every sample, so its samples never form a
-    run) and no gap between stamps (longer than GAP_PERIODS sample periods, or backwards: a
+    run) and no gap between stamps (longer than sampling_bounds.gap_after, or backwards: a
     pause, a clock jump, lost messages); what lies between segments is a transition,
     excluded from the measurement and reported.
     """

@@ -45,7 +45,8 @@ if TYPE_CHECKING:
                                               offset_for_time_ratio)
     from qrm_ros.core.peak_speeds import peak_ram_speeds, peak_speed_ratio
     from qrm_ros.core.sampling_bounds import (BOUNDED_FIGURES, figure_sampling_bounds,
-                                              GAP_PERIODS, steady_motion, SteadyMotion,
+                                              gap_after, GAP_PERIODS, GAP_SECONDS,
+                                              steady_motion, SteadyMotion,
                                               SUPPORTED_RELATIVE_ERROR)
     from qrm_ros.core.speed_drive import pair_efforts, PairEfforts, peak_input_torque
     from qrm_ros.core.steady_figures import steady_theory, SteadyTheory

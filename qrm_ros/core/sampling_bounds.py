@@ -39,13 +39,19 @@ from qrm_ros.core.mechanism_state import (input_angle_for_flywheel_angle,
                                           reversal_flywheel_angles, state)
 from qrm_ros.core.steady_figures import steady_theory, SteadyTheory
 
-__all__ = ['BOUNDED_FIGURES', 'figure_sampling_bounds', 'GAP_PERIODS', 'MARGIN',
+__all__ = ['BOUNDED_FIGURES', 'figure_sampling_bounds', 'gap_after', 'GAP_PERIODS',
+           'GAP_SECONDS', 'MARGIN',
            'position_error_near', 'reversal_shifts', 'steady_motion', 'SteadyMotion',
            'SUPPORTED_RELATIVE_ERROR']
 
-# A step between samples longer than this many median steps is a gap (a pause, a stalled
-# timer, ticks not published, a clock jump): no stroke pair is taken as steady across one.
+# A step between samples longer than this many median steps, and longer than GAP_SECONDS, is
+# a gap (a pause, a stalled timer, ticks not published, a clock jump): no stroke pair is taken
+# as steady across one (gap_after).
 GAP_PERIODS = 3.0
+# s: a shorter step is a late tick (a loaded machine's scheduler holds a timer back by up to
+# tens of ms), not a stall; at 1 kHz three steps are 3 ms. A late sample widens the sampling
+# bounds near it (they are taken at each pair's own steps), which is what it costs.
+GAP_SECONDS = 0.05
 # A figure whose sampling bound exceeds this fraction of it is not supported by the data.
 SUPPORTED_RELATIVE_ERROR = 1e-3
 # The measured figures given a sampling bound.
@@ -61,6 +67,11 @@ _AGREEMENT = 1e-3
 # The grid's maxima are raised (its values at a reversal or a crossing lowered) by this
 # factor: a maximum between grid points is not missed.
 MARGIN = 1.05
+
+
+def gap_after(usual_step: float) -> float:
+    """Return the step (s) beyond which a step between samples is a gap, at this usual step."""
+    return max(GAP_PERIODS * usual_step, GAP_SECONDS)
 
 
 class SteadyMotion(NamedTuple):

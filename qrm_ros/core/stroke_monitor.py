@@ -33,7 +33,7 @@ from typing import Dict, List, NamedTuple, Optional
 import numpy as np
 
 from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.sampling_bounds import GAP_PERIODS
+from qrm_ros.core.sampling_bounds import gap_after
 from qrm_ros.core.steady_figures import steady_theory, SteadyTheory
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
 from qrm_ros.core.strokes import (pair_effort_steps, PairEffortsMeasured, run_steps, Steps,
@@ -82,7 +82,7 @@ class PairReport(NamedTuple):
     crank_radius: float = math.nan  # m, in force at the pair's end
     stroke_length: float = math.nan  # m, the ram stroke of that crank radius
     stroke_steady: bool = True  # the crank radius did not move during the pair
-    # No gap in the samples during the pair (no step longer than GAP_PERIODS median steps).
+    # No gap in the samples during the pair (no step longer than sampling_bounds.gap_after).
     sampled_without_gap: bool = True
 
     @property
@@ -248,7 +248,7 @@ class StrokeMonitor:
             crank_radius=radius, stroke_length=float(geometry.ram_stroke),
             stroke_steady=stroke_steady,
             sampled_without_gap=not steps.size or bool(
-                np.max(steps) <= GAP_PERIODS * usual_step))
+                np.max(steps) <= gap_after(usual_step)))
 
     def _geometry_of(self, crank_radius: float) -> Geometry:
         """Return the geometry with this crank radius (the same object while it holds)."""

@@ -22,12 +22,14 @@ ratios may differ from theory only by the stroke finder's interpolation error, b
 import json
 import math
 
+import numpy as np
 import pytest
 
 from qrm_ros.analysis import measurement
 from qrm_ros.analysis import recorded_run
 from qrm_ros.analysis import report
 from qrm_ros.core import kinematics as kin
+from qrm_ros.core.sampling_bounds import gap_after, GAP_SECONDS
 from synthetic_run import samples_for, SCHEDULE
 
 PAPER = kin.Geometry.paper()
@@ -121,6 +123,24 @@ def test_a_gap_of_a_few_periods_is_tolerated():
     jittered = _with_jump(steady, 300, 0.019)  # a 2.9-period step: still one segment
     (row,) = measurement.analyse(recorded_run.Recording('late', PAPER, jittered, None)).rows
     assert row['stroke_pairs'] >= 6
+
+
+def test_a_late_tick_at_a_high_rate_is_no_gap():
+    """At 1 kHz three periods are 3 ms; a 20 ms hole (a loaded machine's late timer) is not a
+    stall: one segment, its pairs measured (their sampling bounds widen near it)."""
+    steady = samples_for([0.01], hold=8.0, rate=1000.0)
+    hole = np.arange(3000, 3019)  # 19 ticks not published: a 20 ms step
+    late = steady._make(None if field is None else np.delete(field, hole) for field in steady)
+    assert gap_after(0.001) == GAP_SECONDS > 0.02
+    (row,) = measurement.analyse(recorded_run.Recording('late', PAPER, late, None)).rows
+    assert row['stroke_pairs'] >= 6
+    assert row['time_ratio_measured'] == pytest.approx(kin.time_ratio(PAPER, 0.01),
+                                                       rel=TOLERANCE)
+    # A hole longer than 50 ms is a gap at any rate.
+    hole = np.arange(3000, 3060)
+    stalled = steady._make(None if field is None else np.delete(field, hole) for field in steady)
+    result = measurement.analyse(recorded_run.Recording('stalled', PAPER, stalled, None))
+    assert [t['kind'] for t in result.transitions] == ['gap']
 
 
 def test_json_holds_null_where_a_figure_is_not_finite(capsys):
