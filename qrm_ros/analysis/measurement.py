@@ -271,6 +271,13 @@ class _EffortBounds:
         return bounds
 
 
+# Why a segment whose input speed varies has no sampling bound (the JSON's
+# sampling_bound_problem): a higher rate does not give one.
+VARYING_SPEED = ('the input speed varies within the segment (the motor drive): the sampling '
+                 'bounds hold at a constant input speed, and no bound is worked out for a '
+                 'varying one')
+
+
 def _add_sampling_bounds(row: Dict[str, Any], samples: Samples, span: slice, pairs: Any,
                          geometry: kin.Geometry, drive: Optional[Drive] = None,
                          edges: Optional[np.ndarray] = None
@@ -293,7 +300,9 @@ def _add_sampling_bounds(row: Dict[str, Any], samples: Samples, span: slice, pai
     # The kinematic bounds take the motion at a constant input speed: a speed that varies
     # within the segment (a motor, whose speed drops at each load switch and so bends the
     # ram's motion there) has none.
-    if motion is not None and recorded.size and bool(np.all(recorded == recorded[0])):
+    varies = bool(recorded.size) and not bool(np.all(recorded == recorded[0]))
+    row['sampling_bound_problem'] = VARYING_SPEED if varies else None
+    if motion is not None and not varies:
         with contextlib.suppress(kin.KinematicsError):
             theory = kin.steady_theory(geometry, row['offset'], speed)
     steps = np.array([np.max(np.diff(time[first:last + 1]), initial=0.0)

@@ -110,10 +110,15 @@ def sampling_relative_bound(row: Dict[str, Any], name: str) -> Optional[float]:
 def unsupported_by_sampling(analysis: Analysis) -> List[str]:
     """One line per figure kind that the sampling cannot support to SUPPORTED_RELATIVE_ERROR."""
     lines = []
+    problems = {row.get('sampling_bound_problem') for row in analysis.rows}
+    for problem in sorted(str(problem) for problem in problems if problem):
+        rows = [row for row in analysis.rows if row.get('sampling_bound_problem') == problem]
+        lines.append(f'no figure of {len(rows)} of {len(analysis.rows)} segments is supported '
+                     f'to {SUPPORTED_RELATIVE_ERROR:g} by the sampling: {problem}')
     for name in ALL_BOUNDED_FIGURES:
         worst: List[Tuple[float, Dict[str, Any]]] = []
         for row in analysis.rows:
-            if row.get(f'{name}_measured') is None:
+            if row.get(f'{name}_measured') is None or row.get('sampling_bound_problem'):
                 continue
             relative = sampling_relative_bound(row, name)
             if relative is None or relative > SUPPORTED_RELATIVE_ERROR:

@@ -141,4 +141,5 @@ def test_a_motor_runs_varying_speed_gets_no_kinematic_bound():
     assert rows
     for row in rows:
         assert all(row[f'{name}_sampling_bound'] is None for name in BOUNDED_FIGURES)
-    assert report.FIGURE_WORDS['time_ratio'] + ' is not supported' in _warned(analysis)
+    assert all(row['sampling_bound_problem'] == measurement.VARYING_SPEED for row in rows)
+    assert measurement.VARYING_SPEED in _warned(analysis)

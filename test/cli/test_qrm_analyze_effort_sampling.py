@@ -29,6 +29,7 @@ import numpy as np
 import pytest
 
 from qrm_ros.analysis import measurement
+from qrm_ros.analysis.measurement import VARYING_SPEED
 from qrm_ros.analysis import recorded_run
 from qrm_ros.analysis import report
 from qrm_ros.cli import exit_codes
@@ -143,11 +144,13 @@ def test_a_motor_run_has_no_effort_bound_and_exits_3(tmp_path, capsys):
         assert np.isfinite(segment['peak_input_torque_measured'])
         for name in EFFORT_BOUNDED_FIGURES:
             assert segment[f'{name}_sampling_bound'] is None
-    assert 'the peak input torque is not supported to 0.001 by the sampling' in err
-    assert 'cannot be bounded' in err
     # Its speed varies: the kinematic bounds (taken at a constant speed) do not hold either.
+    # One line says so, and does not send the user to a higher rate, which would not help.
     assert segments[0]['time_ratio_sampling_bound'] is None
-    assert 'the time ratio TR is not supported to 0.001 by the sampling' in err
+    assert all(segment['sampling_bound_problem'] == VARYING_SPEED for segment in segments)
+    (warning,) = [line for line in err.splitlines() if 'warning' in line]
+    assert 'is supported to 0.001 by the sampling: ' + VARYING_SPEED in warning
+    assert 'publish_rate' not in warning
 
 
 def _synthetic_recording(tmp_path, rate, offset=0.015, hold=4.6):
