@@ -28,6 +28,8 @@ from qrm_ros.analysis import recorded_run
 from qrm_ros.core import dynamics as dyn
 from qrm_ros.core import kinematics as kin
 from qrm_ros.core import names
+from qrm_ros.core.piecewise_efforts import workpiece_edge_times
+from qrm_ros.core.strokes import find_stroke_pairs
 
 JOINT_NAMES = list(names.JOINT_NAMES)
 PAPER = kin.Geometry.paper()
@@ -168,3 +170,24 @@ def write_truncated_run(folder, kept_fraction=0.8):
     cut = folder / 'cut.mcap'
     cut.write_bytes(data[:int(len(data) * kept_fraction)])
     return cut
+
+
+def sampled_speed_drive(offset, rate, phase=0.0, duration=3.5, loads=None, speed=2 * math.pi,
+                        mass=None):
+    """
+    Return the ideal speed drive at offset sampled at rate (Hz), from phase (of a step) on.
+
+    (time, the joints' efforts, the stroke pairs and the workpiece edges found in the samples).
+    """
+    loads = dyn.Loads.small_shaper() if loads is None else loads
+    mass = dyn.MassProperties.small_shaper() if mass is None else mass
+    t = np.arange(0.0, duration, 1.0 / rate) + phase / rate
+    angle = speed * t + 0.3
+    motion = kin.state(PAPER, offset, angle, speed)
+    load = dyn.ram_load_force(loads, motion.ram_position, motion.ram_velocity,
+                              PAPER.ram_stroke)
+    joint = dyn.efforts(PAPER, mass, offset, angle, speed, external_ram_force=load)
+    pairs = find_stroke_pairs(t, motion.ram_position, motion.ram_velocity)
+    edges = workpiece_edge_times(t, motion.ram_position, motion.ram_velocity,
+                                 pairs.cutting_start, pairs.cutting_end, loads.cutting_length)
+    return t, joint, pairs, edges

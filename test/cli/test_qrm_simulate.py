@@ -64,27 +64,29 @@ def test_options_alone_make_a_run_the_analysis_measures(tmp_path):
     assert math.isclose(message.position[4], 0.01)
 
 
-def test_a_scenario_file_with_an_event(tmp_path):
-    scenario = tmp_path / 'change.yaml'
-    scenario.write_text('parameters: {coupling_offset: -0.01, offset_rate_limit: 0.02}\n'
-                        'duration: 20\n'
-                        'events:\n  - {at: 8, set: {coupling_offset: 0.005}}\n')
+def _scenario_run(tmp_path, text, *options):
+    """Simulate the scenario of this YAML text; return the run file's path."""
+    scenario = tmp_path / 'scenario.yaml'
+    scenario.write_text(text)
     path = tmp_path / 'run.mcap'
-    result = _simulate(scenario, '-o', path)
+    result = _simulate(scenario, *options, '-o', path)
     assert result.returncode == exit_codes.EXIT_OK, result.stderr
+    return path
+
+
+def test_a_scenario_file_with_an_event(tmp_path):
+    path = _scenario_run(tmp_path, 'parameters: {coupling_offset: -0.01, offset_rate_limit: '
+                         '0.02}\nduration: 20\n'
+                         'events:\n  - {at: 8, set: {coupling_offset: 0.005}}\n')
     offsets = [row['offset'] for row in analyse(read_recording(str(path), {})).rows]
     assert offsets == [pytest.approx(-0.01), pytest.approx(0.005)]
 
 
 def _load_change_run(tmp_path):
     """A run whose cutting force falls from 400 to 100 N at 6 s (one parameter event)."""
-    scenario = tmp_path / 'load.yaml'
-    scenario.write_text('parameters: {coupling_offset: 0.005, cutting_force: 400.0}\n'
-                        'duration: 12\n'
-                        'events:\n  - {at: 6, set: {cutting_force: 100.0}}\n')
-    path = tmp_path / 'run.mcap'
-    assert _simulate(scenario, '--markers', '-o', path).returncode == exit_codes.EXIT_OK
-    return path
+    return _scenario_run(tmp_path, 'parameters: {coupling_offset: 0.005, cutting_force: '
+                         '400.0}\nduration: 12\n'
+                         'events:\n  - {at: 6, set: {cutting_force: 100.0}}\n', '--markers')
 
 
 def test_every_message_reads_strictly_and_a_load_change_is_seen(tmp_path):

@@ -30,10 +30,11 @@ from qrm_ros.core import dynamics as dyn
 from qrm_ros.core import kinematics as kin
 from qrm_ros.core.effort_sampling_bounds import (EFFORT_BOUNDED_FIGURES,
                                                  effort_sampling_bounds, steady_efforts)
-from qrm_ros.core.piecewise_efforts import workpiece_edge_times
 from qrm_ros.core.sampling_bounds import steady_motion, SUPPORTED_RELATIVE_ERROR
 from qrm_ros.core.speed_drive import pair_efforts
-from qrm_ros.core.strokes import find_stroke_pairs, measure_pair_efforts
+from qrm_ros.core.strokes import measure_pair_efforts
+
+from synthetic_run import sampled_speed_drive
 
 PAPER = kin.Geometry.paper()
 MASS = dyn.MassProperties.small_shaper()
@@ -44,15 +45,9 @@ FIGURES = ('peak_input_torque', 'rms_input_torque', 'mean_input_power', 'energy_
 
 
 def _measured(offset, rate, phase, loads=LOADS, speed=SPEED):
-    t = np.arange(0.0, 3.3 * 2 * math.pi / abs(speed), 1.0 / rate) + phase / rate
-    angle = speed * t + 0.3
-    motion = kin.state(PAPER, offset, angle, speed)
-    load = dyn.ram_load_force(loads, motion.ram_position, motion.ram_velocity,
-                              PAPER.ram_stroke)
-    joint = dyn.efforts(PAPER, MASS, offset, angle, speed, external_ram_force=load)
-    pairs = find_stroke_pairs(t, motion.ram_position, motion.ram_velocity)
-    edges = workpiece_edge_times(t, motion.ram_position, motion.ram_velocity,
-                                 pairs.cutting_start, pairs.cutting_end, loads.cutting_length)
+    t, joint, pairs, edges = sampled_speed_drive(offset, rate, phase,
+                                                 3.3 * 2 * math.pi / abs(speed), loads, speed,
+                                                 MASS)
     return measure_pair_efforts(t, np.full_like(t, speed), joint.input_torque,
                                 joint.offset_force, pairs, edges), float(np.max(np.diff(t)))
 

@@ -60,6 +60,19 @@ def _random_states(seed, count, offset_fraction, angle_span):
         yield offset, rate, angle, speed, torque, load
 
 
+def _random_effort_states(seed, count, radius):
+    """Yield (index, offset, rate, speed, acceleration, load, angle), exact zeros among them."""
+    rng = np.random.default_rng(seed)
+    for index in range(count):
+        # Exact zeros too (a shaft at rest, no ramp, no load): the signs of zeros agree.
+        offset = 0.0 if index % 5 == 0 else float(rng.uniform(-0.99, 0.99)) * radius
+        rate = 0.0 if index % 3 == 0 else float(rng.normal(0.0, 0.02))
+        speed = 0.0 if index % 7 == 0 else float(rng.normal(0.0, 20.0))
+        acceleration = 0.0 if index % 7 == 0 else float(rng.normal(0.0, 50.0))
+        load = 0.0 if index % 4 == 0 else float(rng.normal(0.0, 1500.0))
+        yield index, offset, rate, speed, acceleration, load, float(rng.uniform(-40.0, 40.0))
+
+
 @pytest.mark.parametrize('mass', LEAN_MASSES)
 def test_the_lean_chain_gives_the_chains_numbers_bit_for_bit(mass):
     # The stepper's right-hand side and switch checks: the chain's formula, not a second one.
@@ -84,19 +97,11 @@ def _kernel():
 @pytest.mark.parametrize('mass', LEAN_MASSES)
 def test_the_lean_efforts_are_the_chains_bit_for_bit_in_python_and_compiled(mass):
     kernel = _kernel()
-    rng = np.random.default_rng(12)
     constants = lean_constants(GEOMETRY, mass)
     array = np.array(constants)
     fixed = _chain_fixed(mass)
-    radius = GEOMETRY.coupling_radius
-    for index in range(30000):
-        # Exact zeros too (a shaft at rest, no ramp, no load): the signs of zeros agree.
-        offset = 0.0 if index % 5 == 0 else float(rng.uniform(-0.99, 0.99)) * radius
-        rate = 0.0 if index % 3 == 0 else float(rng.normal(0.0, 0.02))
-        speed = 0.0 if index % 7 == 0 else float(rng.normal(0.0, 20.0))
-        acceleration = 0.0 if index % 7 == 0 else float(rng.normal(0.0, 50.0))
-        load = 0.0 if index % 4 == 0 else float(rng.normal(0.0, 1500.0))
-        angle = float(rng.uniform(-40.0, 40.0))
+    for _, offset, rate, speed, acceleration, load, angle in _random_effort_states(
+            12, 30000, GEOMETRY.coupling_radius):
         arguments = (offset, angle, speed, acceleration, rate, load)
         expected = _bits(dyn.evaluate_chain(*fixed, offset, angle, speed, acceleration, rate,
                                             0.0, load).efforts)
@@ -127,15 +132,8 @@ def test_the_speed_drives_efforts_at_a_still_stroke_are_the_chains_bit_for_bit(
         chain_calls.append(arguments[-1])
         return dyn.evaluate_chain(*arguments)
     monkeypatch.setattr(stroke_efforts, 'evaluate_chain', counted_chain)
-    rng = np.random.default_rng(21)
-    radius = geometry.coupling_radius
-    for index in range(20000):
-        offset = 0.0 if index % 5 == 0 else float(rng.uniform(-0.99, 0.99)) * radius
-        rate = 0.0 if index % 3 == 0 else float(rng.normal(0.0, 0.02))
-        speed = 0.0 if index % 7 == 0 else float(rng.normal(0.0, 20.0))
-        acceleration = 0.0 if index % 7 == 0 else float(rng.normal(0.0, 50.0))
-        load = 0.0 if index % 4 == 0 else float(rng.normal(0.0, 1500.0))
-        angle = float(rng.uniform(-40.0, 40.0))
+    for index, offset, rate, speed, acceleration, load, angle in _random_effort_states(
+            21, 20000, geometry.coupling_radius):
         radius_rates = ((0.0, 0.0), (-0.0, 0.0), (0.002, -0.01))[index % 3]
         arguments = (geometry, mass, offset, angle, speed, acceleration, rate, 0.0, load,
                      *radius_rates)

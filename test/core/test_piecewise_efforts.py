@@ -32,6 +32,8 @@ from qrm_ros.core.piecewise_efforts import (MIN_PIECE_SAMPLES, piecewise_figures
 from qrm_ros.core.speed_drive import load_switch_angles, pair_efforts
 from qrm_ros.core.strokes import find_stroke_pairs, measure_pair_efforts
 
+from synthetic_run import sampled_speed_drive
+
 PAPER = kin.Geometry.paper()
 MASS = dyn.MassProperties.small_shaper()
 LOADS = dyn.Loads.small_shaper()
@@ -87,16 +89,7 @@ def test_edges_are_found_where_the_closed_form_puts_them(offset):
 
 
 def _sampled(offset, rate, phase=0.0, duration=3.5):
-    t = np.arange(0.0, duration, 1.0 / rate) + phase / rate
-    angle = SPEED * t + 0.3
-    motion = kin.state(PAPER, offset, angle, SPEED)
-    load = dyn.ram_load_force(LOADS, motion.ram_position, motion.ram_velocity,
-                              PAPER.ram_stroke)
-    joint = dyn.efforts(PAPER, MASS, offset, angle, SPEED, external_ram_force=load)
-    pairs = find_stroke_pairs(t, motion.ram_position, motion.ram_velocity)
-    edges = workpiece_edge_times(t, motion.ram_position, motion.ram_velocity,
-                                 pairs.cutting_start, pairs.cutting_end, LOADS.cutting_length)
-    return t, joint, pairs, edges
+    return sampled_speed_drive(offset, rate, phase, duration, LOADS, SPEED, MASS)
 
 
 @pytest.mark.parametrize('offset', [-0.015, 0.0, 0.015])
