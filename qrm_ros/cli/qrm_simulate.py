@@ -38,7 +38,8 @@ from qrm_ros.node.offline_sim import Simulation, SimulationSummary, summary_line
 from qrm_ros.node.recorder import default_output_path, DEFAULT_TOPICS
 from qrm_ros.node.ros_process import RCLError, rcl_error_text, StopRequest
 from qrm_ros.node.scenario import load_scenario, Scenario, scenario_from_mapping, ScenarioError
-from qrm_ros.recording.mcap_run_file import COMPRESSIONS, ConfigurationError, RecorderError
+from qrm_ros.recording.mcap_run_file import (COMPRESSIONS, ConfigurationError, RecorderError,
+                                             WriteFailed)
 from rclpy.logging import LoggingSeverity, set_logger_level
 
 __all__ = ['PROGRESS_MIN_DURATION', 'main', 'parse_parameter_options', 'simulate']
@@ -157,6 +158,11 @@ def main(argv: Optional[List[str]] = None) -> int:
         # A refused start-up value or event (the node's reason), an existing output.
         print(f'{PROGRAM}: error: {error}', file=sys.stderr)
         return EXIT_BAD_INPUT
+    except WriteFailed as error:  # the file is removed: no recovery to point to
+        print(f'{PROGRAM}: error: cannot write {error.path!r}: {error.reason}; no file was '
+              'kept' + ('; free space on that disk (or raise the file size limit) or choose '
+                        'another output (-o PATH)' if error.no_room else ''), file=sys.stderr)
+        return EXIT_FAILURE
     except (RecorderError, RCLError) as error:
         text = rcl_error_text(error) if isinstance(error, RCLError) else error
         print(f'{PROGRAM}: error: {text}', file=sys.stderr)

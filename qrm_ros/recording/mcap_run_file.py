@@ -37,7 +37,7 @@ if TYPE_CHECKING:  # the recorder hands over rclpy's profiles; this module never
     from rclpy.qos import QoSProfile
 
 __all__ = ['COMPRESSIONS', 'CHUNK_SIZE_BYTES', 'ConfigurationError', 'McapRunFile',
-           'RecorderError']
+           'RecorderError', 'WriteFailed']
 
 COMPRESSIONS = {'zstd': CompressionType.ZSTD, 'lz4': CompressionType.LZ4,
                 'none': CompressionType.NONE}
@@ -56,6 +56,19 @@ class RecorderError(Exception):
 
 class ConfigurationError(RecorderError):
     """The user asked for something refused before anything is recorded (exit code 2)."""
+
+
+class WriteFailed(RecorderError):
+    """
+    A write to the run file failed: the file ends on its last complete chunk.
+
+    Said for the recorder (whose file stays, to recover); path, reason and no_room (the disk
+    or the size limit is full) let a command that removes its file say it its own way.
+    """
+
+    def __init__(self, text: str, path: str, reason: str, no_room: bool) -> None:
+        super().__init__(text)
+        self.path, self.reason, self.no_room = path, reason, no_room
 
 
 class McapRunFile:
@@ -126,11 +139,12 @@ class McapRunFile:
     def _write_failed(self, error: OSError) -> RecorderError:
         """Let go of the file after a failed write; return the error that says so."""
         self._abandon()
-        return RecorderError(
-            f'cannot write {self.path!r}: {error.strerror or error} (errno {error.errno}); '
-            f'the file keeps the {self.message_count_on_disk} messages up to its last '
-            'complete chunk (finish it with mcap_recorder --recover)'
-            + self._what_to_do(error))
+        reason = f'{error.strerror or error} (errno {error.errno})'
+        return WriteFailed(
+            f'cannot write {self.path!r}: {reason}; the file keeps the '
+            f'{self.message_count_on_disk} messages up to its last complete chunk (finish it '
+            'with mcap_recorder --recover)' + self._what_to_do(error),
+            self.path, reason, error.errno in NO_ROOM)
 
     def _commit(self, wait: bool = False) -> None:
         # Everything buffered goes to the OS now; to the disk by an fsync on the sync thread.

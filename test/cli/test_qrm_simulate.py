@@ -179,4 +179,7 @@ def test_a_write_error_ends_the_run_with_its_reason(tmp_path, monkeypatch, capsy
                               '--progress', 'never']) == exit_codes.EXIT_FAILURE
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and 'No space left on device' in lines[0], lines
+    # The file is gone: the line says so and points to -o, not to a recovery of it.
+    assert 'no file was kept' in lines[0] and '(-o PATH)' in lines[0]
+    assert '--recover' not in lines[0] and 'output:=' not in lines[0]
     assert not path.exists()
