@@ -68,8 +68,12 @@ DEFAULT_RATES = (100.0, 1000.0)
 
 
 def default_publish_rate(input_speed: float) -> float:
-    """Return the publish rate [Hz] giving DEFAULT_SAMPLES_PER_REVOLUTION at input_speed."""
-    wanted = DEFAULT_SAMPLES_PER_REVOLUTION * abs(input_speed) / (2 * math.pi)
+    """
+    Return the publish rate [Hz] giving DEFAULT_SAMPLES_PER_REVOLUTION at input_speed.
+
+    Rounded to 12 significant digits, so 60 rpm publishes at 250 Hz, not 249.99999999999997.
+    """
+    wanted = float(f'{DEFAULT_SAMPLES_PER_REVOLUTION * abs(input_speed) / (2 * math.pi):.12g}')
     return min(max(wanted, DEFAULT_RATES[0]), DEFAULT_RATES[1])
 
 

@@ -191,3 +191,10 @@ def test_the_report_says_figures_the_sampling_cannot_support(tmp_path, capsys):
     err = capsys.readouterr().err
     assert missing and all('by the sampling' in line for line in missing)
     assert all(f'qrm_main: warning: {line}' in err for line in missing)
+
+
+@pytest.mark.parametrize('speed, rate', [(2 * math.pi, 250.0), (4 * math.pi, 500.0),
+                                         (math.pi, 125.0), (0.5, 100.0), (100.0, 1000.0)])
+def test_the_default_rate_gives_250_samples_a_revolution_within_its_range(speed, rate):
+    assert qrm_main.default_publish_rate(speed) == rate
+    assert qrm_main.default_publish_rate(-speed) == rate
