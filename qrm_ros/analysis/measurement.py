@@ -227,11 +227,9 @@ class _EffortBounds:
     (the speed drive, or a file older than the drive parameters) measures Cs exactly: 0.
     """
 
-    def __init__(self, row: Dict[str, Any], samples: Samples, span: slice,
-                 geometry: kin.Geometry, drive: Optional[Drive], speed: float,
-                 motion: Any) -> None:
-        recorded = samples.input_speed[span]
-        constant = recorded.size > 0 and bool(np.all(recorded == recorded[0]))
+    def __init__(self, row: Dict[str, Any], constant: bool, geometry: kin.Geometry,
+                 drive: Optional[Drive], speed: float, motion: Any) -> None:
+        """constant: the segment's recorded input speed is one value throughout."""
         self.fluctuation = 0.0 if constant and (drive is None or drive.motor is None) else None
         self.theory = {name: row.get(f'{name}_theory') for name in EFFORT_FIGURES}
         self.efforts = None
@@ -309,7 +307,8 @@ def _add_sampling_bounds(row: Dict[str, Any], samples: Samples, span: slice, pai
                       for first, last in zip(pairs.first_sample, pairs.last_sample)])
     with np.errstate(divide='ignore'):  # a step of 0 s gets no bound
         rounded = np.power(_STEP_ROUNDING, np.ceil(np.log(steps) / np.log(_STEP_ROUNDING)))
-    effort_bounds = _EffortBounds(row, samples, span, geometry, drive, speed, motion)
+    effort_bounds = _EffortBounds(row, bool(recorded.size) and not varies, geometry, drive,
+                                  speed, motion)
     per_step = {step: {**(figure_sampling_bounds(geometry, row['offset'], speed, step, motion,
                                                  theory) if theory is not None
                           else dict.fromkeys(BOUNDED_FIGURES)), **effort_bounds.at_step(step)}
