@@ -54,15 +54,28 @@ class LinkTransform(NamedTuple):
 def joint_transform(joint: UrdfJoint, value: float = 0.0) -> LinkTransform:
     """Return the child link's pose for a joint value (rad or m; ignored for a fixed joint)."""
     x, y, z = joint.origin
-    rotation = (0.0, 0.0, 0.0, 1.0)
+    translation, rotation = (x, y, z), (0.0, 0.0, 0.0, 1.0)
     if joint.kind == 'prismatic':
-        ax, ay, az = joint.axis or (0.0, 0.0, 0.0)
-        x, y, z = x + ax * value, y + ay * value, z + az * value
-    elif joint.kind in ('revolute', 'continuous'):
-        ax, ay, az = joint.axis or (0.0, 0.0, 0.0)
-        sine = math.sin(0.5 * value)
-        rotation = (ax * sine, ay * sine, az * sine, math.cos(0.5 * value))
-    return LinkTransform(joint.parent, joint.child, (x, y, z), rotation)
+        translation = _slid(joint.origin, joint.axis or (0.0, 0.0, 0.0), value)
+    elif joint.kind in _TURNING:
+        rotation = _turned(joint.axis or (0.0, 0.0, 0.0), value)
+    return LinkTransform(joint.parent, joint.child, translation, rotation)
+
+
+_TURNING = ('revolute', 'continuous')
+
+
+def _slid(origin: Sequence[float], axis: Sequence[float],
+          value: float) -> Tuple[float, float, float]:
+    """Return a slide's translation: the origin moved along the axis by the value (m)."""
+    return (origin[0] + axis[0] * value, origin[1] + axis[1] * value,
+            origin[2] + axis[2] * value)
+
+
+def _turned(axis: Sequence[float], value: float) -> Tuple[float, float, float, float]:
+    """Return a turn's rotation: the unit quaternion of the value (rad) about the axis."""
+    sine = math.sin(0.5 * value)
+    return axis[0] * sine, axis[1] * sine, axis[2] * sine, math.cos(0.5 * value)
 
 
 def fixed_transforms(geometry: Geometry) -> List[LinkTransform]:
@@ -116,20 +129,18 @@ class MachineMessages:
             for joint in self._joints])
         self._moving_lock = threading.Lock()
         # What a joint value moves in each moving transform, the rest of it kept as built:
-        # a slide's translation (origin + axis * value), a turn's rotation (axis * sin,
-        # cos of half the value), as joint_transform computes them, without a tuple per
-        # joint per joint state.
-        self._movers: List[Tuple[bool, bool, float, float, float, float, float, float,
-                                 Any]] = []
+        # a slide's translation, a turn's rotation (joint_transform's _slid and _turned),
+        # without a LinkTransform per joint per joint state.
+        self._movers: List[Tuple[bool, bool, Tuple[float, ...], Tuple[float, ...], Any]] = []
         for stamped, joint in zip(self._moving.transforms, self._joints):
             link = joint_transform(joint)
             translation, rotation = stamped.transform.translation, stamped.transform.rotation
             translation.x, translation.y, translation.z = link.translation
             rotation.x, rotation.y, rotation.z, rotation.w = link.rotation
             slides = joint.kind == 'prismatic'
-            turns = joint.kind in ('revolute', 'continuous')  # else it moves nothing
-            self._movers.append((slides, turns, *joint.origin,
-                                 *(joint.axis or (0.0, 0.0, 0.0)),
+            turns = joint.kind in _TURNING  # else it moves nothing
+            self._movers.append((slides, turns, tuple(joint.origin),
+                                 tuple(joint.axis or (0.0, 0.0, 0.0)),
                                  translation if slides else rotation))
         # Where each moving joint's value is in a joint state in the published order.
         self._published_index = [PUBLISHED_JOINT_NAMES.index(joint.name)
@@ -211,14 +222,11 @@ class MachineMessages:
                 return None
         if not all(map(math.isfinite, values)):
             return None
-        sine, cosine = math.sin, math.cos
         with self._moving_lock:
             self._moving_stamp.sec, self._moving_stamp.nanosec = sec, nanosec
-            for (slides, turns, x, y, z, ax, ay, az, moved), value in zip(self._movers, values):
+            for (slides, turns, origin, axis, moved), value in zip(self._movers, values):
                 if slides:
-                    moved.x, moved.y, moved.z = x + ax * value, y + ay * value, z + az * value
+                    moved.x, moved.y, moved.z = _slid(origin, axis, value)
                 elif turns:
-                    half_sine = sine(0.5 * value)
-                    moved.x, moved.y, moved.z = ax * half_sine, ay * half_sine, az * half_sine
-                    moved.w = cosine(0.5 * value)
+                    moved.x, moved.y, moved.z, moved.w = _turned(axis, value)
             return bytes(self._store.serialize_cdr(self._moving, TF_MESSAGE_TYPE))
