@@ -45,8 +45,9 @@ from qrm_ros.core.geometry import Geometry, TWO_PI
 from qrm_ros.core.mechanism_state import state
 from qrm_ros.core.piecewise_efforts import (INTEGRAL_POINTS, MIN_PIECE_SAMPLES,
                                             STENCIL_POINTS)
-from qrm_ros.core.sampling_bounds import (MARGIN, position_error_near, reversal_shifts,
-                                          SteadyMotion)
+from qrm_ros.core.sampling_bounds import (envelope, FIRST_GRID, GRID_AGREEMENT, LAST_GRID,
+                                          MARGIN, position_error_near, reversal_shifts,
+                                          spectral_derivative, SteadyMotion)
 from qrm_ros.core.speed_drive import load_switch_angles
 
 __all__ = ['EFFORT_BOUNDED_FIGURES', 'effort_sampling_bounds', 'steady_efforts', 'switch_shift',
@@ -87,20 +88,11 @@ _INTEGRAL_PRODUCTS = _node_products(INTEGRAL_POINTS)
 _BEYOND_INTEGRAL = MARGIN * float(np.trapezoid(
     np.prod(np.linspace(0.0, 1.0, 2001)[:, None] + np.arange(INTEGRAL_POINTS), axis=1),
     dx=1.0 / 2000))
-_FIRST_GRID, _LAST_GRID = 1024, 1 << 17
-_AGREEMENT = 1e-3
 
 
 # Fourier coefficients below this fraction of the largest are round-off: dropped before
 # differentiating (the k^n of an nth derivative would raise them above the signal).
 _ROUNDOFF = 1e-13
-
-
-def _spectral(values: np.ndarray, order: int) -> np.ndarray:
-    spectrum = np.fft.rfft(values)
-    magnitude = np.abs(spectrum)
-    spectrum[magnitude < _ROUNDOFF * np.max(magnitude)] = 0.0
-    return np.fft.irfft(spectrum * (1j * np.arange(spectrum.size)) ** order, n=values.size)
 
 
 class SteadyEfforts(NamedTuple):
@@ -139,8 +131,9 @@ def _on_grid(geometry, mass, offset, input_speed, switches, loads_of_pieces, poi
                   'torque': torque, 'offset_force': np.asarray(result.offset_force)}
         here = load == value
         for name, values in series.items():
-            for slot, derived in enumerate((values, _spectral(values, 1),
-                                            _spectral(values, _ORDER[name]))):
+            for slot, derived in enumerate((
+                    values, spectral_derivative(values, 1, _ROUNDOFF),
+                    spectral_derivative(values, _ORDER[name], _ROUNDOFF))):
                 signals[name][slot][here] = derived[here]
     return theta, load, {name: tuple(parts) for name, parts in signals.items()}
 
@@ -175,18 +168,18 @@ def steady_efforts(geometry: Geometry, mass: dyn.MassProperties, loads: dyn.Load
         after = np.asarray(dyn.ram_load_force(loads, moving.ram_position, moving.ram_velocity,
                                               geometry.ram_stroke), dtype=float)
         loads_of_pieces = np.roll(after, 1)  # grid piece index j: after switch j - 1
-        points = _FIRST_GRID
+        points = FIRST_GRID
         previous = _on_grid(geometry, mass, offset, input_speed, switches, loads_of_pieces,
                             points)
         while True:
             points *= 2
-            if points > _LAST_GRID:
+            if points > LAST_GRID:
                 return None
             current = _on_grid(geometry, mass, offset, input_speed, switches,
                                loads_of_pieces, points)
             if all(abs(np.max(np.abs(current[2][name][2]))
                        - np.max(np.abs(previous[2][name][2])))
-                   <= _AGREEMENT * np.max(np.abs(current[2][name][2])) for name in _SIGNALS):
+                   <= GRID_AGREEMENT * np.max(np.abs(current[2][name][2])) for name in _SIGNALS):
                 break
             previous = current
         theta, load, signals = current
@@ -212,12 +205,6 @@ def steady_efforts(geometry: Geometry, mass: dyn.MassProperties, loads: dyn.Load
         return None
     return SteadyEfforts(theta, load, switches, is_edge, signals, sides, slope,
                          float(begins[0]))
-
-
-def _envelope(values: np.ndarray, half_width: float, spacing: float) -> np.ndarray:
-    """Return max |values| within half_width (rad) of each grid point, raised by MARGIN."""
-    reach = min(values.size // 2, int(math.ceil(half_width / spacing)) + 1)
-    return maximum_filter1d(np.abs(values), 2 * reach + 1, mode='wrap') * MARGIN
 
 
 def _distance_to_switch(efforts: SteadyEfforts) -> np.ndarray:
@@ -335,15 +322,15 @@ def _bounds(efforts, motion, theory, input_speed, h, interval_steps=None):
         zone = np.clip(np.ceil(distance).astype(int) - 1, 0, products.size - 1)
         # The polynomial's nodes lie within points steps of any point it is used at (the
         # steps near that point: a late sample widens only its neighbours' reach).
-        envelope = np.empty(derivative.size)
+        highest = np.empty(derivative.size)
         for reach in np.unique(step):
             here = step == reach
-            envelope[here] = _envelope(derivative, points * reach, spacing)[here]
+            highest[here] = envelope(derivative, points * reach, spacing)[here]
         if points == INTEGRAL_POINTS:  # the stretches beyond the samples: integrated below
             products = np.concatenate([[products[1]], products[1:]])
-        error[name] = (envelope * step ** points * products[zone]
+        error[name] = (highest * step ** points * products[zone]
                        / math.factorial(points))
-        scaled = envelope * step ** (points + 1)
+        scaled = highest * step ** (points + 1)
         beyond[name] = sum(
             _BEYOND_INTEGRAL * float(np.max(scaled[gaps[:, k] <= step + spacing], initial=0.0))
             for k in range(efforts.switches.size)) / math.factorial(points) / w

@@ -39,8 +39,9 @@ from qrm_ros.core.mechanism_state import (input_angle_for_flywheel_angle,
                                           reversal_flywheel_angles, state)
 from qrm_ros.core.steady_figures import steady_theory, SteadyTheory
 
-__all__ = ['BOUNDED_FIGURES', 'figure_sampling_bounds', 'gap_after', 'GAP_PERIODS',
-           'GAP_SECONDS', 'MARGIN',
+__all__ = ['BOUNDED_FIGURES', 'envelope', 'figure_sampling_bounds', 'FIRST_GRID', 'gap_after',
+           'GAP_PERIODS', 'GAP_SECONDS', 'GRID_AGREEMENT', 'grid_reach', 'LAST_GRID', 'MARGIN',
+           'spectral_derivative',
            'position_error_near', 'reversal_shifts', 'steady_motion', 'SteadyMotion',
            'SUPPORTED_RELATIVE_ERROR']
 
@@ -62,8 +63,8 @@ BOUNDED_FIGURES = ('time_ratio', 'speed_ratio', 'peak_speed_ratio', 'cutting_tim
 _POSITION_CONSTANT = 1.0 / 384.0
 _VELOCITY_CONSTANT = math.sqrt(3.0) / 216.0
 # Grids of one input revolution for the spectral derivatives: doubled until two agree.
-_FIRST_GRID, _LAST_GRID = 1024, 1 << 17
-_AGREEMENT = 1e-3
+FIRST_GRID, LAST_GRID = 1024, 1 << 17
+GRID_AGREEMENT = 1e-3
 # The grid's maxima are raised (its values at a reversal or a crossing lowered) by this
 # factor: a maximum between grid points is not missed.
 MARGIN = 1.05
@@ -84,11 +85,30 @@ class SteadyMotion(NamedTuple):
     reversals: np.ndarray  # grid indices nearest the two reversals
 
 
-def _spectral(values: np.ndarray, order: int) -> np.ndarray:
-    """Differentiate one period's samples (period 2 pi) order times, by FFT."""
+def spectral_derivative(values: np.ndarray, order: int, roundoff: float = 0.0) -> np.ndarray:
+    """
+    Differentiate one period's samples (period 2 pi) order times, by FFT.
+
+    roundoff: Fourier coefficients below this fraction of the largest are dropped first
+    (the k^order of a high derivative would raise round-off above the signal); 0 keeps all.
+    """
     spectrum = np.fft.rfft(values)
+    if roundoff:
+        magnitude = np.abs(spectrum)
+        spectrum[magnitude < roundoff * np.max(magnitude)] = 0.0
     wave = 1j * np.arange(spectrum.size)
     return np.fft.irfft(spectrum * wave ** order, n=values.size)
+
+
+def grid_reach(points: int, half_width: float, spacing: float) -> int:
+    """Return the grid points either side that cover half_width (rad) at this spacing."""
+    return min(points // 2, int(math.ceil(half_width / spacing)) + 1)
+
+
+def envelope(values: np.ndarray, half_width: float, spacing: float) -> np.ndarray:
+    """Return max |values| within half_width (rad) of each grid point, raised by MARGIN."""
+    reach = grid_reach(values.size, half_width, spacing)
+    return maximum_filter1d(np.abs(values), 2 * reach + 1, mode='wrap') * MARGIN
 
 
 def _on_grid(geometry: Geometry, offset: float, points: int) -> SteadyMotion:
@@ -100,13 +120,15 @@ def _on_grid(geometry: Geometry, offset: float, points: int) -> SteadyMotion:
     start, end = reversal_flywheel_angles(geometry)
     turns = np.mod(input_angle_for_flywheel_angle(geometry, offset, np.array([start, end])),
                    TWO_PI)
-    return SteadyMotion(theta, tuple(_spectral(ram, k) if k else ram for k in range(5)),
-                        1.0 + _spectral(flywheel, 1), _spectral(flywheel, 4),
+    return SteadyMotion(theta,
+                        tuple(spectral_derivative(ram, k) if k else ram for k in range(5)),
+                        1.0 + spectral_derivative(flywheel, 1),
+                        spectral_derivative(flywheel, 4),
                         np.rint(turns / (TWO_PI / points)).astype(int) % points)
 
 
 def _settled(before: SteadyMotion, after: SteadyMotion) -> bool:
-    return all(abs(np.max(np.abs(a)) - np.max(np.abs(b))) <= _AGREEMENT * np.max(np.abs(a))
+    return all(abs(np.max(np.abs(a)) - np.max(np.abs(b))) <= GRID_AGREEMENT * np.max(np.abs(a))
                for a, b in ((after.ram[4], before.ram[4]),
                             (after.flywheel_fourth, before.flywheel_fourth)))
 
@@ -121,10 +143,10 @@ def steady_motion(geometry: Geometry, offset: float) -> Optional[SteadyMotion]:
     """
     if not (math.isfinite(offset) and abs(offset) < geometry.coupling_radius):
         return None
-    points, previous = _FIRST_GRID, _on_grid(geometry, offset, _FIRST_GRID)
+    points, previous = FIRST_GRID, _on_grid(geometry, offset, FIRST_GRID)
     while True:
         points *= 2
-        if points > _LAST_GRID:
+        if points > LAST_GRID:
             return None
         current = _on_grid(geometry, offset, points)
         if _settled(previous, current):
@@ -148,15 +170,15 @@ class _Local:
 
     def __init__(self, motion: SteadyMotion, half_width: float) -> None:
         self.points = motion.theta.size
-        self.reach = min(self.points // 2, int(math.ceil(
-            half_width / (TWO_PI / self.points))) + 1)
+        self.half_width, self.spacing = half_width, TWO_PI / self.points
+        self.reach = grid_reach(self.points, half_width, self.spacing)
 
     def around(self, values: np.ndarray, index: int) -> float:
         picked = np.arange(index - self.reach, index + self.reach + 1) % self.points
         return float(np.max(np.abs(values[picked]))) * MARGIN
 
     def everywhere(self, values: np.ndarray) -> np.ndarray:
-        return maximum_filter1d(np.abs(values), 2 * self.reach + 1, mode='wrap') * MARGIN
+        return envelope(values, self.half_width, self.spacing)
 
 
 def _extreme_shift(speed: np.ndarray, error: np.ndarray, where: np.ndarray,
