@@ -28,8 +28,7 @@ from qrm_ros.analysis import recorded_run
 from qrm_ros.core import dynamics as dyn
 from qrm_ros.core import kinematics as kin
 from qrm_ros.core import names
-from qrm_ros.core.piecewise_efforts import workpiece_edge_times
-from qrm_ros.core.strokes import find_stroke_pairs
+from qrm_ros.core.strokes import find_stroke_pairs, workpiece_edge_times
 
 JOINT_NAMES = list(names.JOINT_NAMES)
 PAPER = kin.Geometry.paper()

@@ -41,10 +41,10 @@ from qrm_ros.core.joint_consistency import misplaced_stamps
 from qrm_ros.core.effort_sampling_bounds import (EFFORT_BOUNDED_FIGURES,
                                                  effort_sampling_bounds, steady_efforts,
                                                  switch_shift)
-from qrm_ros.core.piecewise_efforts import workpiece_edge_times
 from qrm_ros.core.sampling_bounds import (BOUNDED_FIGURES, figure_sampling_bounds,
                                           steady_motion, SUPPORTED_RELATIVE_ERROR)
-from qrm_ros.core.strokes import find_stroke_pairs, measure_pair_efforts
+from qrm_ros.core.strokes import (find_stroke_pairs, measure_pair_efforts,
+                                  workpiece_edge_times)
 
 # Every figure given a bound from the sampling: the stroke's, then the drive's.
 ALL_BOUNDED_FIGURES = BOUNDED_FIGURES + EFFORT_BOUNDED_FIGURES

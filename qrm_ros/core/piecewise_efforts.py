@@ -19,13 +19,13 @@ and leaves the workpiece (doc/dynamics.md); between two switches every effort is
 function of time. Taken as linear across a switch, a jump between two samples costs the
 trapezoid rule and the sampled maximum an error of the jump's size: first order in the
 sample step. Here the samples are split at the switches found from the recorded motion
-(the reversals by the stroke finder, the workpiece's edges where the ram's cubic Hermite
-interpolant crosses them), and within each piece every sample interval is given the
-polynomial through the samples of the piece nearest to it (six, a quintic, for the
-integrals; four, a cubic, for the peaks; a line if the piece has fewer than six), which
-also carries the piece to its ends: sixth and fourth order in the step inside a piece, and
-a peak at a jump is the piece's one-sided limit there, not the last sample before it. Pure
-numpy.
+(the reversals and the workpiece's edges, both by the stroke finder on the ram's cubic
+Hermite interpolant: strokes.workpiece_edge_times), and within each piece every sample
+interval is given the polynomial through the samples of the piece nearest to it (six, a
+quintic, for the integrals; four, a cubic, for the peaks; a line if the piece has fewer
+than six), which also carries the piece to its ends: sixth and fourth order in the step
+inside a piece, and a peak at a jump is the piece's one-sided limit there, not the last
+sample before it. Pure numpy.
 """
 
 from typing import NamedTuple, Sequence, Tuple, Union
@@ -33,7 +33,7 @@ from typing import NamedTuple, Sequence, Tuple, Union
 import numpy as np
 
 __all__ = ['INTEGRAL_POINTS', 'MIN_PIECE_SAMPLES', 'PieceIntegrals', 'piecewise_figures',
-           'STENCIL_POINTS', 'workpiece_edge_times']
+           'STENCIL_POINTS']
 
 ArrayLike = Union[Sequence[float], np.ndarray]
 # Samples each interval's polynomial goes through for the peaks (a cubic: its extremes in
@@ -44,8 +44,6 @@ INTEGRAL_POINTS = 6
 # A piece with fewer samples takes the line through its two nearest samples instead: a
 # cubic through a few samples far apart overshoots more than a line.
 MIN_PIECE_SAMPLES = 6
-# Newton iterations on the Hermite cubic for an edge crossing (from the chord's guess).
-_NEWTON_ITERATIONS = 8
 # Gauss-Legendre rule on [0, 1], exact for the quintics integrated.
 _GAUSS_NODES, _GAUSS_WEIGHTS = np.polynomial.legendre.leggauss(3)
 _GAUSS_NODES = 0.5 * (_GAUSS_NODES + 1.0)
@@ -53,51 +51,6 @@ _GAUSS_WEIGHTS = 0.5 * _GAUSS_WEIGHTS
 # A cubic on [0, 1] from its values at 0, 1/3, 2/3, 1: its coefficients c0 + c1 u + ...
 _THIRDS = np.linspace(0.0, 1.0, 4)
 _TO_COEFFICIENTS = np.linalg.inv(np.vander(_THIRDS, 4, increasing=True))
-
-
-def _hermite(s, step, x0, x1, v0, v1):
-    """Position and its derivative in s of the cubic Hermite interpolant (s in [0, 1])."""
-    s2, s3 = s * s, s * s * s
-    position = ((2 * s3 - 3 * s2 + 1) * x0 + (s3 - 2 * s2 + s) * step * v0
-                + (-2 * s3 + 3 * s2) * x1 + (s3 - s2) * step * v1)
-    slope = ((6 * s2 - 6 * s) * x0 + (3 * s2 - 4 * s + 1) * step * v0
-             + (-6 * s2 + 6 * s) * x1 + (3 * s2 - 2 * s) * step * v1)
-    return position, slope
-
-
-def workpiece_edge_times(time: ArrayLike, ram_position: ArrayLike, ram_velocity: ArrayLike,
-                         cutting_start: ArrayLike, cutting_end: ArrayLike,
-                         cutting_length: float) -> np.ndarray:
-    """
-    Return the times (s, sorted) where the tool meets or leaves the workpiece while cutting.
-
-    The workpiece spans |x| <= cutting_length / 2 (m); an edge is where the cubic Hermite
-    interpolant of the sampled ram positions and velocities (the stroke finder's) crosses
-    x = +-cutting_length / 2 inside a cutting stroke [cutting_start, cutting_end] (s).
-    """
-    t = np.asarray(time, dtype=float)
-    x = np.asarray(ram_position, dtype=float)
-    v = np.asarray(ram_velocity, dtype=float)
-    start = np.asarray(cutting_start, dtype=float)
-    end = np.asarray(cutting_end, dtype=float)
-    if not (cutting_length > 0.0) or t.size < 2 or start.size == 0:
-        return np.empty(0)
-    found = []
-    for level in (0.5 * cutting_length, -0.5 * cutting_length):
-        above = x >= level
-        k = np.nonzero(above[:-1] != above[1:])[0]
-        step = t[k + 1] - t[k]
-        x0, x1, v0, v1 = x[k] - level, x[k + 1] - level, v[k], v[k + 1]
-        with np.errstate(divide='ignore', invalid='ignore'):
-            s = np.clip(np.nan_to_num(x0 / (x0 - x1), nan=0.5), 0.0, 1.0)
-            for _ in range(_NEWTON_ITERATIONS):
-                position, slope = _hermite(s, step, x0, x1, v0, v1)
-                s = np.clip(s - np.nan_to_num(position / slope), 0.0, 1.0)
-        found.append(t[k] + s * step)
-    edges = np.sort(np.concatenate(found))
-    stroke = np.searchsorted(start, edges, side='right') - 1
-    inside = (stroke >= 0) & (edges < end[np.maximum(stroke, 0)])
-    return edges[inside]
 
 
 class PieceIntegrals(NamedTuple):

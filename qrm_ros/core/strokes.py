@@ -35,7 +35,8 @@ import numpy as np
 from qrm_ros.core.piecewise_efforts import piecewise_figures
 
 __all__ = ['PairEffortsMeasured', 'StrokePairs', 'find_reversals', 'find_stroke_pairs',
-           'measure_pair_efforts', 'pair_effort_steps', 'run_steps', 'stroke_pair_steps']
+           'measure_pair_efforts', 'pair_effort_steps', 'run_steps', 'stroke_pair_steps',
+           'workpiece_edge_times']
 
 # Sampled values: a sequence of floats or a numpy array.
 ArrayLike = Union[Sequence[float], np.ndarray]
@@ -141,11 +142,15 @@ def _interval_peak_speed(t, x, v):
     return np.maximum(np.maximum(np.abs(v[:-1]), np.abs(v[1:])), extremum)
 
 
-def _mid_stroke_speed_steps(t, x, v):
-    """Find times and |velocity| where the ram passes x = 0 (lever vertical), in steps."""
-    k = np.nonzero((x[:-1] >= 0.0) != (x[1:] >= 0.0))[0]
+def _crossing_steps(t, x, v, level=0.0):
+    """
+    Find times and |velocity| where the ram passes x = level (m), in steps.
+
+    At level 0 the lever is vertical (the mid-stroke speeds); x - 0.0 is x, bit for bit.
+    """
+    k = np.nonzero((x[:-1] >= level) != (x[1:] >= level))[0]
     step = t[k + 1] - t[k]
-    x0, x1, v0, v1 = x[k], x[k + 1], v[k], v[k + 1]
+    x0, x1, v0, v1 = x[k] - level, x[k + 1] - level, v[k], v[k + 1]
     with np.errstate(divide='ignore', invalid='ignore'):
         s = np.clip(np.nan_to_num(x0 / (x0 - x1), nan=0.5), 0.0, 1.0)
     a, b, c = _hermite_velocity_coefficients(step, x0, x1, v0, v1)
@@ -157,6 +162,31 @@ def _mid_stroke_speed_steps(t, x, v):
             update = _hermite_position(s, step, x0, x1, v0, v1) / slope
         s = np.clip(s - np.nan_to_num(update), 0.0, 1.0)
     return t[k] + s * step, np.abs((a * s + b) * s + c)
+
+
+def workpiece_edge_times(time: ArrayLike, ram_position: ArrayLike, ram_velocity: ArrayLike,
+                         cutting_start: ArrayLike, cutting_end: ArrayLike,
+                         cutting_length: float) -> np.ndarray:
+    """
+    Return the times (s, sorted) where the tool meets or leaves the workpiece while cutting.
+
+    The workpiece spans |x| <= cutting_length / 2 (m); an edge is where the cubic Hermite
+    interpolant of the sampled ram positions and velocities crosses x = +-cutting_length / 2
+    (found as the mid-stroke crossing is) inside a cutting stroke [cutting_start,
+    cutting_end] (s).
+    """
+    t = np.asarray(time, dtype=float)
+    x = np.asarray(ram_position, dtype=float)
+    v = np.asarray(ram_velocity, dtype=float)
+    start = np.asarray(cutting_start, dtype=float)
+    end = np.asarray(cutting_end, dtype=float)
+    if not (cutting_length > 0.0) or t.size < 2 or start.size == 0:
+        return np.empty(0)
+    edges = np.sort(np.concatenate([run_steps(_crossing_steps(t, x, v, level))[0] for level in
+                                    (0.5 * cutting_length, -0.5 * cutting_length)]))
+    stroke = np.searchsorted(start, edges, side='right') - 1
+    inside = (stroke >= 0) & (edges < end[np.maximum(stroke, 0)])
+    return edges[inside]
 
 
 def find_stroke_pairs(time: ArrayLike, ram_position: ArrayLike,
@@ -184,7 +214,7 @@ def stroke_pair_steps(time: ArrayLike, ram_position: ArrayLike,
     peak_cut = cumulative_max[starts]
     peak_ret = cumulative_max[starts + 1]
 
-    cross_time, cross_speed = yield from _mid_stroke_speed_steps(t, x, v)
+    cross_time, cross_speed = yield from _crossing_steps(t, x, v)
     yield
     mid_cut = _first_between(cross_time, cross_speed, cut_start, cut_end)
     mid_ret = _first_between(cross_time, cross_speed, cut_end, ret_end)
@@ -267,8 +297,8 @@ def measure_pair_efforts(time: ArrayLike, input_speed: ArrayLike, input_torque: 
 
     Without workpiece_edges, every signal is taken as linear between samples (trapezoid
     integrals, the pair's ends interpolated), so a load switch between two samples costs an
-    error of order its jump x the sample spacing. With them (s: piecewise_efforts.
-    workpiece_edge_times, empty for a run without a workpiece), the torque and offset force
+    error of order its jump x the sample spacing. With them (s: workpiece_edge_times,
+    empty for a run without a workpiece), the torque and offset force
     are split there and at the pair's reversals and taken piece by piece
     (core.piecewise_efforts: fourth order within a piece, a jump's one-sided limits kept);
     a pair with a piece too short for that keeps the linear measure. These are
