@@ -201,8 +201,12 @@ class StrokeMonitor:
         # Exact differences, then one division each (float(ns - origin) / 1e9, as in Python).
         time = (stamps - origin) / NANOSECONDS_PER_SECOND
         columns = {name: np.frombuffer(column) for name, column in completed.columns.items()}
-        # The usual step between samples, to tell a gap in publication within a pair.
-        usual_step = float(np.median(np.diff(time))) if time.size > 1 else math.inf
+        # The usual step between samples (their median), to tell a gap in publication within
+        # a pair. The steps are finite (whole ns apart), so the middle one of the sorted steps
+        # (a + a is 2a: exact), or the sum of the middle two over 2, is np.median's value.
+        steps = np.diff(time)
+        middle = np.sort(steps)[(steps.size - 1) // 2:steps.size // 2 + 1].tolist()
+        usual_step = (middle[0] + middle[-1]) / 2 if middle else math.inf
         yield
         pairs = yield from stroke_pair_steps(time, columns['ram_position'],
                                              columns['ram_velocity'])
@@ -215,7 +219,7 @@ class StrokeMonitor:
         for index in range(len(pairs.cutting_time)):
             yield
             reports.append(self._report(completed.stamp_ns, columns, origin, pairs, figures,
-                                        index, (time, usual_step)))
+                                        index, (steps, usual_step)))
         return reports
 
     def _report(self, stamp_ns, columns, origin, pairs, figures, index, timing):
@@ -233,8 +237,8 @@ class StrokeMonitor:
             radii[first:last + 1].min() == radii[first:last + 1].max()
             and not columns['crank_radius_rate'][first:last].any())
         origin_seconds = float(origin) / NANOSECONDS_PER_SECOND
-        time, usual_step = timing
-        steps = np.diff(time[first:last + 1])
+        all_steps, usual_step = timing
+        steps = all_steps[first:last]  # the pair's own steps
         return PairReport(
             stamp_ns=stamp_ns,
             pair_start=origin_seconds + float(pairs.cutting_start[index]),

@@ -43,7 +43,8 @@ ArrayLike = Union[Sequence[float], np.ndarray]
 Result = TypeVar('Result')
 # A computation in steps: each next() runs one; its return value is the result.
 Steps = Generator[None, None, Result]
-# Newton iterations of the mid-stroke crossing per step.
+# Newton iterations of the mid-stroke crossing: at most, and per step.
+_NEWTON_ITERATIONS = 8
 _NEWTON_ITERATIONS_PER_STEP = 2
 # Pairs measured piece by piece in one step, and the samples beyond their ends a stencil
 # may reach (a piece holding no sample borrows its neighbours').
@@ -89,9 +90,13 @@ def _hermite_velocity_coefficients(step, x0, x1, v0, v1):
 
 
 def _hermite_position(s, step, x0, x1, v0, v1):
-    s2, s3 = s * s, s * s * s
-    return ((2 * s3 - 3 * s2 + 1) * x0 + (s3 - 2 * s2 + s) * step * v0
-            + (-2 * s3 + 3 * s2) * x1 + (s3 - s2) * step * v1)
+    s2 = s * s
+    s3 = s2 * s
+    # The basis 3 s^2 - 2 s^3 and 1 minus it: bit for bit -2 s^3 + 3 s^2 and 2 s^3 - 3 s^2 + 1
+    # (rounding is symmetric: a - b is -(b - a), and 2 s^3 is exact), each worked out once.
+    rise = 3 * s2 - 2 * s3
+    return ((1 - rise) * x0 + (s3 - 2 * s2 + s) * step * v0
+            + rise * x1 + (s3 - s2) * step * v1)
 
 
 def _quadratic_root_in_unit(a, b, c):
@@ -105,7 +110,8 @@ def _quadratic_root_in_unit(a, b, c):
     inside = (first >= 0.0) & (first <= 1.0)
     root = np.where(inside, first, second)
     root = np.where(np.abs(a) < 1e-12 * (np.abs(b) + np.abs(c)), linear, root)
-    return np.clip(np.nan_to_num(root, nan=0.0), 0.0, 1.0)
+    root[root != root] = 0.0  # no root (nan) -> 0; an infinite one goes to an end in the clip
+    return np.clip(root, 0.0, 1.0)
 
 
 def find_reversals(time: ArrayLike, ram_position: ArrayLike, ram_velocity: ArrayLike
@@ -152,15 +158,32 @@ def _crossing_steps(t, x, v, level=0.0):
     step = t[k + 1] - t[k]
     x0, x1, v0, v1 = x[k] - level, x[k + 1] - level, v[k], v[k + 1]
     with np.errstate(divide='ignore', invalid='ignore'):
-        s = np.clip(np.nan_to_num(x0 / (x0 - x1), nan=0.5), 0.0, 1.0)
+        s = x0 / (x0 - x1)
+    s[s != s] = 0.5  # 0/0: the middle; an infinite start goes to an end in the clip
+    s = np.clip(s, 0.0, 1.0)
     a, b, c = _hermite_velocity_coefficients(step, x0, x1, v0, v1)
-    for iteration in range(8):  # Newton on the cubic; the ram crosses x = 0 at near-peak speed.
-        if iteration % _NEWTON_ITERATIONS_PER_STEP == 0:
-            yield
-        slope = ((a * s + b) * s + c) * step
+    # Newton on the cubic (the ram crosses x = 0 at near-peak speed), _NEWTON_ITERATIONS
+    # times. Each iteration is a function of s alone: once s comes back to a value it had,
+    # bit for bit (a fixed point, or a cycle in its last bits), the value after the last
+    # iteration is known, and the loop stops there.
+    seen = {s.tobytes(): 0}
+    values = [s]
+    for first in range(0, _NEWTON_ITERATIONS, _NEWTON_ITERATIONS_PER_STEP):
+        yield
         with np.errstate(divide='ignore', invalid='ignore'):
-            update = _hermite_position(s, step, x0, x1, v0, v1) / slope
-        s = np.clip(s - np.nan_to_num(update), 0.0, 1.0)
+            for iteration in range(first + 1, min(first + _NEWTON_ITERATIONS_PER_STEP,
+                                                  _NEWTON_ITERATIONS) + 1):
+                update = _hermite_position(s, step, x0, x1, v0, v1) / (
+                    ((a * s + b) * s + c) * step)
+                # A 0/0 update moves nothing (nan -> 0); an infinite one goes to an end of
+                # [0, 1] through the clip, as the largest finite float did.
+                update[update != update] = 0.0
+                s = np.clip(s - update, 0.0, 1.0)
+                earlier = seen.setdefault(s.tobytes(), iteration)
+                if earlier != iteration:
+                    s = values[earlier + (_NEWTON_ITERATIONS - earlier) % (iteration - earlier)]
+                    return t[k] + s * step, np.abs((a * s + b) * s + c)
+                values.append(s)
     return t[k] + s * step, np.abs((a * s + b) * s + c)
 
 
@@ -263,26 +286,43 @@ class PairEffortsMeasured(NamedTuple):
     speed_fluctuation: np.ndarray   # (max - min input speed) / mean input speed
 
 
-def _cumulative_trapezoid(t, f):
-    return np.concatenate(([0.0], np.cumsum(0.5 * np.diff(t) * (f[1:] + f[:-1]))))
+class _PairEnds(NamedTuple):
+    """Where the pairs' ends (ends then starts) fall among the samples: one for every signal."""
+
+    sample: np.ndarray   # the sample each end follows (the last interval for an end beyond)
+    since: np.ndarray    # s from that sample to the end
+    spacing: np.ndarray  # s from that sample to the next
+    half_step: np.ndarray  # s, half of each step between samples (the trapezoids)
+    points: np.ndarray   # s, the starts and ends stacked (2, pairs)
+    first: np.ndarray    # the first sample at or after each start
+    last: np.ndarray     # one past the last sample at or before each end
 
 
-def _integral_up_to(t, f, cumulative, when):
-    """Integral of the linear interpolant of f from t[0] to each time in when."""
+def _pair_ends(t, start, end):
+    when = np.concatenate([end, start])
     k = np.clip(np.searchsorted(t, when, side='right') - 1, 0, t.size - 2)
-    step = when - t[k]
-    at = f[k] + (f[k + 1] - f[k]) * step / (t[k + 1] - t[k])
-    return cumulative[k] + 0.5 * step * (f[k] + at)
+    return _PairEnds(k, when - t[k], t[k + 1] - t[k], 0.5 * np.diff(t), np.stack([start, end]),
+                     np.searchsorted(t, start, side='left'),
+                     np.searchsorted(t, end, side='right'))
 
 
-def _window_extremes(t, f, start, end):
-    """Max and min of f over [start, end]: samples inside plus the interpolated ends."""
-    ends = np.interp(np.stack([start, end]), t, f)
-    first = np.searchsorted(t, start, side='left')
-    last = np.searchsorted(t, end, side='right')
-    high, low = np.max(ends, axis=0), np.min(ends, axis=0)
-    for index in range(start.size):
-        inside = f[first[index]:last[index]]
+def _over_pairs(f, ends):
+    """Integral over each pair of the linear interpolant of f (trapezoids, ends interpolated)."""
+    cumulative = np.concatenate(([0.0], np.cumsum(ends.half_step * (f[1:] + f[:-1]))))
+    k, step = ends.sample, ends.since
+    at_sample = f[k]
+    at = at_sample + (f[k + 1] - at_sample) * step / ends.spacing
+    up_to = cumulative[k] + 0.5 * step * (at_sample + at)
+    pairs = up_to.size // 2
+    return up_to[:pairs] - up_to[pairs:]
+
+
+def _window_extremes(t, f, ends):
+    """Max and min of f over each pair: samples inside plus the interpolated ends."""
+    at_ends = np.interp(ends.points, t, f)
+    high, low = np.max(at_ends, axis=0), np.min(at_ends, axis=0)
+    for index, (first, last) in enumerate(zip(ends.first.tolist(), ends.last.tolist())):
+        inside = f[first:last]
         if inside.size:
             high[index] = max(high[index], inside.max())
             low[index] = min(low[index], inside.min())
@@ -322,23 +362,19 @@ def pair_effort_steps(time: ArrayLike, input_speed: ArrayLike, input_torque: Arr
     if start.size == 0:
         return PairEffortsMeasured._make([np.empty(0)] * len(PairEffortsMeasured._fields))
 
-    def over_pair(values):
-        cumulative = _cumulative_trapezoid(t, values)
-        return (_integral_up_to(t, values, cumulative, end)
-                - _integral_up_to(t, values, cumulative, start))
-
+    ends = _pair_ends(t, start, end)
     duration = end - start
-    energy = over_pair(torque * speed)
+    energy = _over_pairs(torque * speed, ends)
     yield
-    torque_squared = over_pair(torque * torque)
+    torque_squared = _over_pairs(torque * torque, ends)
     yield
-    angle = over_pair(speed)
+    angle = _over_pairs(speed, ends)
     yield
-    torque_high, torque_low = _window_extremes(t, torque, start, end)
+    torque_high, torque_low = _window_extremes(t, torque, ends)
     yield
-    force_high, force_low = _window_extremes(t, force, start, end)
+    force_high, force_low = _window_extremes(t, force, ends)
     yield
-    speed_high, speed_low = _window_extremes(t, speed, start, end)
+    speed_high, speed_low = _window_extremes(t, speed, ends)
     if workpiece_edges is not None:
         edges = np.asarray(workpiece_edges, dtype=float)
         switches = np.concatenate([start, pairs.cutting_end, end, edges])
