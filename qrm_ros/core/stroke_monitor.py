@@ -57,6 +57,10 @@ SAMPLE_FIELDS = ('ram_position', 'ram_velocity', 'offset', 'offset_rate', 'input
 # by nature, so a pair is steady in speed when the setting held).
 STROKE_SAMPLE_FIELDS = ('crank_radius', 'crank_radius_rate', 'setting_speed')
 _KEPT_FIELDS = SAMPLE_FIELDS + STROKE_SAMPLE_FIELDS
+# The rows of the fields a steady pair holds at one value (the offset, the speed setting, the
+# crank radius), and of the rates that are zero then (the offset's, the crank radius's).
+_HELD_ROWS = [_KEPT_FIELDS.index(name) for name in ('offset', 'setting_speed', 'crank_radius')]
+_RATE_ROWS = [_KEPT_FIELDS.index(name) for name in ('offset_rate', 'crank_radius_rate')]
 _THEORY_CACHE_LIMIT = 64
 
 
@@ -218,24 +222,21 @@ class StrokeMonitor:
         reports = []
         for index in range(len(pairs.cutting_time)):
             yield
-            reports.append(self._report(completed.stamp_ns, columns, origin, pairs, figures,
+            reports.append(self._report(completed.stamp_ns, rows, origin, pairs, figures,
                                         index, (steps, usual_step)))
         return reports
 
-    def _report(self, stamp_ns, columns, origin, pairs, figures, index, timing):
+    def _report(self, stamp_ns, rows, origin, pairs, figures, index, timing):
         first, last = int(pairs.first_sample[index]), int(pairs.last_sample[index])
-        offsets = columns['offset'][first:last + 1]
-        speeds = columns['input_speed'][first:last + 1]
-        offset, speed = float(offsets[-1]), float(speeds[-1])
-        settings = (speeds if columns.get('setting_speed') is None
-                    else columns['setting_speed'][first:last + 1])
-        radii = columns.get('crank_radius')
-        radius = (float(self._geometry.crank_radius) if radii is None
-                  else float(radii[last]))
+        at_end = dict(zip(_KEPT_FIELDS, rows[:, last].tolist()))
+        offset, speed = at_end['offset'], at_end['input_speed']
+        radius = at_end['crank_radius']
         geometry = self._geometry_of(radius)
-        stroke_steady = radii is None or bool(
-            radii[first:last + 1].min() == radii[first:last + 1].max()
-            and not columns['crank_radius_rate'][first:last].any())
+        # Whether each held field kept one value through the pair (min == max, nan: no), and
+        # whether each rate was zero throughout: one reduction each for all of them.
+        held = rows[_HELD_ROWS, first:last + 1]
+        unmoved = (np.minimum.reduce(held, axis=1) == np.maximum.reduce(held, axis=1)).tolist()
+        moving = rows[_RATE_ROWS, first:last].any(axis=1).tolist()
         origin_seconds = float(origin) / NANOSECONDS_PER_SECOND
         all_steps, usual_step = timing
         steps = all_steps[first:last]  # the pair's own steps
@@ -244,15 +245,14 @@ class StrokeMonitor:
             pair_start=origin_seconds + float(pairs.cutting_start[index]),
             pair_end=origin_seconds + float(pairs.return_end[index]),
             coupling_offset=offset, input_speed=speed,
-            offset_steady=bool(offsets.min() == offsets.max()
-                               and not columns['offset_rate'][first:last].any()),
-            input_speed_steady=bool(settings.min() == settings.max()),
+            offset_steady=unmoved[0] and not moving[0],
+            input_speed_steady=unmoved[1],
             measured={name: float(figures[name][index]) for name in MEASURED_FIGURES},
             theory=self.theory(offset, speed, geometry) if speed != 0.0 else {},
             crank_radius=radius, stroke_length=float(geometry.ram_stroke),
-            stroke_steady=stroke_steady,
+            stroke_steady=unmoved[2] and not moving[1],
             sampled_without_gap=not steps.size or bool(
-                np.max(steps) <= gap_after(usual_step)))
+                np.maximum.reduce(steps) <= gap_after(usual_step)))
 
     def _geometry_of(self, crank_radius: float) -> Geometry:
         """Return the geometry with this crank radius (the same object while it holds)."""

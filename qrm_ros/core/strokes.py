@@ -306,26 +306,30 @@ def _pair_ends(t, start, end):
                      np.searchsorted(t, end, side='right'))
 
 
-def _over_pairs(f, ends):
-    """Integral over each pair of the linear interpolant of f (trapezoids, ends interpolated)."""
-    cumulative = np.concatenate(([0.0], np.cumsum(ends.half_step * (f[1:] + f[:-1]))))
+def _over_pairs(signals, ends):
+    """Integral over each pair of each row's linear interpolant (trapezoids, ends interpolated)."""
+    cumulative = np.zeros(signals.shape)
+    np.cumsum(ends.half_step * (signals[:, 1:] + signals[:, :-1]), axis=1, out=cumulative[:, 1:])
     k, step = ends.sample, ends.since
-    at_sample = f[k]
-    at = at_sample + (f[k + 1] - at_sample) * step / ends.spacing
-    up_to = cumulative[k] + 0.5 * step * (at_sample + at)
-    pairs = up_to.size // 2
-    return up_to[:pairs] - up_to[pairs:]
+    at_sample = signals[:, k]
+    at = at_sample + (signals[:, k + 1] - at_sample) * step / ends.spacing
+    up_to = cumulative[:, k] + 0.5 * step * (at_sample + at)
+    pairs = k.size // 2
+    return up_to[:, :pairs] - up_to[:, pairs:]
 
 
-def _window_extremes(t, f, ends):
-    """Max and min of f over each pair: samples inside plus the interpolated ends."""
-    at_ends = np.interp(ends.points, t, f)
-    high, low = np.max(at_ends, axis=0), np.min(at_ends, axis=0)
+def _window_extremes(t, signals, ends):
+    """Max and min of each row over each pair: samples inside plus the interpolated ends."""
+    at_ends = np.stack([np.interp(ends.points, t, f) for f in signals])
+    high, low = np.max(at_ends, axis=1), np.min(at_ends, axis=1)
+    rows = range(len(signals))
     for index, (first, last) in enumerate(zip(ends.first.tolist(), ends.last.tolist())):
-        inside = f[first:last]
-        if inside.size:
-            high[index] = max(high[index], inside.max())
-            low[index] = min(low[index], inside.min())
+        if last > first:
+            inside = signals[:, first:last]
+            for row, top, bottom in zip(rows, np.max(inside, axis=1).tolist(),
+                                        np.min(inside, axis=1).tolist()):
+                high[row, index] = max(high[row, index], top)
+                low[row, index] = min(low[row, index], bottom)
     return high, low
 
 
@@ -364,21 +368,15 @@ def pair_effort_steps(time: ArrayLike, input_speed: ArrayLike, input_torque: Arr
 
     ends = _pair_ends(t, start, end)
     duration = end - start
-    energy = _over_pairs(torque * speed, ends)
+    # The three integrals in one pass over the signals stacked, as the three extremes.
+    power, squares = torque * speed, torque * torque
+    energy, torque_squared, angle = _over_pairs(np.stack([power, squares, speed]), ends)
     yield
-    torque_squared = _over_pairs(torque * torque, ends)
-    yield
-    angle = _over_pairs(speed, ends)
-    yield
-    torque_high, torque_low = _window_extremes(t, torque, ends)
-    yield
-    force_high, force_low = _window_extremes(t, force, ends)
-    yield
-    speed_high, speed_low = _window_extremes(t, speed, ends)
+    (torque_high, force_high, speed_high), (torque_low, force_low, speed_low) = (
+        _window_extremes(t, np.stack([torque, force, speed]), ends))
     if workpiece_edges is not None:
         edges = np.asarray(workpiece_edges, dtype=float)
         switches = np.concatenate([start, pairs.cutting_end, end, edges])
-        power, squares = torque * speed, torque * torque
         # A few pairs at a time, over their own samples (and the neighbours a stencil may
         # borrow): the memory stays that of a few pairs however long the run.
         for first in range(0, start.size, _PAIRS_PER_STEP):

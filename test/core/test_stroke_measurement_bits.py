@@ -16,8 +16,8 @@ The stroke measurement, bit for bit as it was: every figure, report and status v
 
 A change made for speed alone must not move a single bit. The cases are the golden logs
 (test/data) and what plain arithmetic makes of them (decimated, run backwards, with a gap,
-with a stall, made-up efforts), plus integer-valued random walks (exact zeros, ties,
-crossings on samples); their results are held to fingerprints (sha256 of the values'
+with a stall, made-up efforts), plus integer-valued random walks (exact zeros of both signs,
+ties, crossings on samples); their results are held to fingerprints (sha256 of the values'
 bytes) in test/data/stroke_measurement_bits.json, written by the code before such a change:
 
     python3 dev.py run python test/core/test_stroke_measurement_bits.py --write
@@ -113,6 +113,29 @@ def _random_walk(seed, size):
             'speed': speed, 'torque': speed * v, 'force': x - v}
 
 
+def _signed_zeros(seed, size):
+    """A random walk whose zeros come with both signs, efforts of zeros only (peaks of 0)."""
+    walk = _random_walk(seed, size)
+    generator = np.random.default_rng(seed + 100)
+    sign = generator.integers(0, 2, (3, size)).astype(bool)
+    walk['v'] = np.where((walk['v'] == 0.0) & sign[0], -0.0, walk['v'])
+    walk['torque'] = np.where(sign[1], -0.0, 0.0)
+    walk['force'] = np.where(sign[2], -0.0, 0.0)
+    return walk
+
+
+def _long_pairs(size):
+    """Pairs of thousands of samples: a triangle wave, cutting 2400 samples, returning 1600."""
+    phase = np.arange(size) % 4000
+    cutting = phase < 2400
+    x = np.where(cutting, 1200 - phase, phase - 3600) / 1024.0
+    v = np.where(cutting, -1.0, 1.5) + (phase % 7 - 3) / 64.0
+    time = np.arange(size) / 4096.0
+    speed = 6.0 + (phase % 5) / 8.0
+    return {'time': time, 'x': x, 'v': v, 'offset': np.full(size, 0.01),
+            'offset_rate': np.zeros(size), 'speed': speed, 'torque': v * speed, 'force': x * 3.0}
+
+
 @functools.lru_cache(maxsize=None)
 def cases():
     """Every case by name: columns of samples (s, m, m/s, rad/s, N m, N)."""
@@ -128,6 +151,8 @@ def cases():
         found[f'{name}/stall'] = _stalled(case, size // 2, 30)
     for seed in range(6):
         found[f'random_walk/{seed}'] = _random_walk(seed, 400)
+        found[f'signed_zeros/{seed}'] = _signed_zeros(seed, 400)
+    found['long_pairs'] = _long_pairs(20000)
     return found
 
 
