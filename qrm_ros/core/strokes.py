@@ -28,6 +28,7 @@ pair of thousands of samples), so that a node's timer can measure between its ti
 plain functions run the same steps at once.
 """
 
+import math
 from typing import Generator, NamedTuple, Optional, Sequence, Tuple, TypeVar, Union
 
 import numpy as np
@@ -125,43 +126,71 @@ def find_reversals(time: ArrayLike, ram_position: ArrayLike, ram_velocity: Array
     A velocity of exactly zero counts as positive, so a reversal landing on a sample is
     found once.
     """
-    t = np.asarray(time, dtype=float)
-    x = np.asarray(ram_position, dtype=float)
     v = np.asarray(ram_velocity, dtype=float)
+    return _reversals(_intervals(np.asarray(time, dtype=float),
+                                 np.asarray(ram_position, dtype=float), v), v)
+
+
+class _Intervals(NamedTuple):
+    """The cubic Hermite interpolant on each interval between samples, worked out once."""
+
+    start: np.ndarray  # s
+    step: np.ndarray   # s, the interval's length
+    x0: np.ndarray     # m, the positions and velocities at its ends
+    x1: np.ndarray
+    v0: np.ndarray     # m/s
+    v1: np.ndarray
+    a: np.ndarray      # the velocity a s^2 + b s + v0, s = (t - start) / step
+    b: np.ndarray
+
+
+def _intervals(t, x, v):
+    step = np.diff(t)
+    x0, x1, v0, v1 = x[:-1], x[1:], v[:-1], v[1:]
+    a, b, _ = _hermite_velocity_coefficients(step, x0, x1, v0, v1)
+    return _Intervals(t[:-1], step, x0, x1, v0, v1, a, b)
+
+
+def _reversals(intervals, v):
+    """find_reversals on the intervals of samples with velocities v."""
     positive = v >= 0.0
     k = np.nonzero(positive[:-1] != positive[1:])[0]
-    step = t[k + 1] - t[k]
-    a, b, c = _hermite_velocity_coefficients(step, x[k], x[k + 1], v[k], v[k + 1])
-    s = _quadratic_root_in_unit(a, b, c)
-    return t[k] + s * step, positive[k], k
+    start, step = intervals.start[k], intervals.step[k]
+    s = _quadratic_root_in_unit(intervals.a[k], intervals.b[k], intervals.v0[k])
+    return start + s * step, positive[k], k
 
 
-def _interval_peak_speed(t, x, v):
+def _interval_peak_speed(intervals):
     """Largest |velocity| of the Hermite interpolant on each sample interval."""
-    step = np.diff(t)
-    a, b, c = _hermite_velocity_coefficients(step, x[:-1], x[1:], v[:-1], v[1:])
+    a, b, c = intervals.a, intervals.b, intervals.v0
     with np.errstate(divide='ignore', invalid='ignore'):
         s = -b / (2.0 * a)
     interior = np.isfinite(s) & (s > 0.0) & (s < 1.0)
     s = np.where(interior, s, 0.0)
     extremum = np.where(interior, np.abs((a * s + b) * s + c), 0.0)
-    return np.maximum(np.maximum(np.abs(v[:-1]), np.abs(v[1:])), extremum)
+    return np.maximum(np.maximum(np.abs(intervals.v0), np.abs(intervals.v1)), extremum)
 
 
-def _crossing_steps(t, x, v, level=0.0):
+def _crossing_steps(intervals, x, level=0.0):
     """
-    Find times and |velocity| where the ram passes x = level (m), in steps.
+    Find times and |velocity| where the ram (positions x) passes x = level (m), in steps.
 
-    At level 0 the lever is vertical (the mid-stroke speeds); x - 0.0 is x, bit for bit.
+    At level 0 the lever is vertical (the mid-stroke speeds); x - 0.0 is x, bit for bit, so
+    there the intervals' own velocity quadratics are the crossing's.
     """
-    k = np.nonzero((x[:-1] >= level) != (x[1:] >= level))[0]
-    step = t[k + 1] - t[k]
-    x0, x1, v0, v1 = x[k] - level, x[k + 1] - level, v[k], v[k + 1]
+    above = x >= level
+    k = np.nonzero(above[:-1] != above[1:])[0]
+    interval_start, step = intervals.start[k], intervals.step[k]
+    x0, x1 = intervals.x0[k] - level, intervals.x1[k] - level
+    v0, v1 = intervals.v0[k], intervals.v1[k]
     with np.errstate(divide='ignore', invalid='ignore'):
         s = x0 / (x0 - x1)
     s[s != s] = 0.5  # 0/0: the middle; an infinite start goes to an end in the clip
     s = np.clip(s, 0.0, 1.0)
-    a, b, c = _hermite_velocity_coefficients(step, x0, x1, v0, v1)
+    if level == 0.0 and math.copysign(1.0, level) > 0.0:  # (x - -0.0 turns -0.0 into 0.0)
+        a, b, c = intervals.a[k], intervals.b[k], v0
+    else:
+        a, b, c = _hermite_velocity_coefficients(step, x0, x1, v0, v1)
     # Newton on the cubic (the ram crosses x = 0 at near-peak speed), _NEWTON_ITERATIONS
     # times. Each iteration is a function of s alone: once s comes back to a value it had,
     # bit for bit (a fixed point, or a cycle in its last bits), the value after the last
@@ -182,9 +211,9 @@ def _crossing_steps(t, x, v, level=0.0):
                 earlier = seen.setdefault(s.tobytes(), iteration)
                 if earlier != iteration:
                     s = values[earlier + (_NEWTON_ITERATIONS - earlier) % (iteration - earlier)]
-                    return t[k] + s * step, np.abs((a * s + b) * s + c)
+                    return interval_start + s * step, np.abs((a * s + b) * s + c)
                 values.append(s)
-    return t[k] + s * step, np.abs((a * s + b) * s + c)
+    return interval_start + s * step, np.abs((a * s + b) * s + c)
 
 
 def workpiece_edge_times(time: ArrayLike, ram_position: ArrayLike, ram_velocity: ArrayLike,
@@ -205,8 +234,9 @@ def workpiece_edge_times(time: ArrayLike, ram_position: ArrayLike, ram_velocity:
     end = np.asarray(cutting_end, dtype=float)
     if not (cutting_length > 0.0) or t.size < 2 or start.size == 0:
         return np.empty(0)
-    edges = np.sort(np.concatenate([run_steps(_crossing_steps(t, x, v, level))[0] for level in
-                                    (0.5 * cutting_length, -0.5 * cutting_length)]))
+    intervals = _intervals(t, x, v)
+    edges = np.sort(np.concatenate([run_steps(_crossing_steps(intervals, x, level))[0]
+                                    for level in (0.5 * cutting_length, -0.5 * cutting_length)]))
     stroke = np.searchsorted(start, edges, side='right') - 1
     inside = (stroke >= 0) & (edges < end[np.maximum(stroke, 0)])
     return edges[inside]
@@ -227,25 +257,29 @@ def stroke_pair_steps(time: ArrayLike, ram_position: ArrayLike,
     empty = np.empty(0)
     if t.size < 3:
         return StrokePairs._make([empty] * 13 + [np.empty(0, int), np.empty(0, int)])
-    when, cut_begins, interval = find_reversals(t, x, v)
+    intervals = _intervals(t, x, v)
+    when, cut_begins, interval = _reversals(intervals, v)
     starts = np.nonzero(cut_begins[:-2] & ~cut_begins[1:-1] & cut_begins[2:])[0]
     cut_start, cut_end, ret_end = when[starts], when[starts + 1], when[starts + 2]
     yield
 
-    peak = _interval_peak_speed(t, x, v)
+    peak = _interval_peak_speed(intervals)
     cumulative_max = _segment_max(peak, interval)
     peak_cut = cumulative_max[starts]
     peak_ret = cumulative_max[starts + 1]
 
-    cross_time, cross_speed = yield from _crossing_steps(t, x, v)
+    cross_time, cross_speed = yield from _crossing_steps(intervals, x)
     yield
-    mid_cut = _first_between(cross_time, cross_speed, cut_start, cut_end)
-    mid_ret = _first_between(cross_time, cross_speed, cut_end, ret_end)
+    # The mid-stroke speeds of the cutting strokes, then of the returns, in one search.
+    mid_speeds = _first_between(cross_time, cross_speed, np.concatenate([cut_start, cut_end]),
+                                np.concatenate([cut_end, ret_end]))
+    mid_cut, mid_ret = mid_speeds[:starts.size], mid_speeds[starts.size:]
     cutting_time, return_time = cut_end - cut_start, ret_end - cut_end
     # Ram positions at the reversals, on the same Hermite interpolant that located them.
-    step = t[interval + 1] - t[interval]
-    turn_position = _hermite_position((when - t[interval]) / step, step, x[interval],
-                                      x[interval + 1], v[interval], v[interval + 1])
+    step = intervals.step[interval]
+    turn_position = _hermite_position(
+        (when - intervals.start[interval]) / step, step, intervals.x0[interval],
+        intervals.x1[interval], intervals.v0[interval], intervals.v1[interval])
     cutting_length = turn_position[starts] - turn_position[starts + 1]
     with np.errstate(divide='ignore', invalid='ignore'):
         return StrokePairs(
