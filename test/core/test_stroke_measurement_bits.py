@@ -51,6 +51,8 @@ FINGERPRINTS = os.path.join(TEST_DATA, 'stroke_measurement_bits.json')
 LOGS = ('steady_positive_offset', 'steady_negative_offset', 'offset_and_speed_change',
         'motor_cutting_load')
 NS = 1_000_000_000
+# The holds a status is made with: (cutting speed target, its definition, time ratio target).
+HOLDS = ((0.0, 'mean', 0.0), (0.2, 'peak', 1.5), (0.3, 'mean', 0.0))
 
 
 def _fingerprint(values) -> str:
@@ -191,7 +193,7 @@ def _reports(case):
             values += list(measured.values())
             words += list(measured) + [str(report.stamp_ns), str(report.steady),
                                        str(report.sampled_without_gap)]
-            for target, definition, held_ratio in ((0.0, 'mean', 0.0), (0.2, 'peak', 1.5), (0.3, 'mean', 0.0)):
+            for target, definition, held_ratio in HOLDS:
                 status = stroke_pair_status(report, [KeyValue(key='a', value='b')], 'state',
                                             target, definition, held_ratio).status[0]
                 words += [status.message] + [f'{pair.key}={pair.value}' for pair in status.values
