@@ -30,7 +30,8 @@ from qrm_ros.core.dynamics import MassProperties
 from qrm_ros.core.geometry import Geometry
 
 __all__ = ['coupling_and_crank', 'lean_acceleration_of', 'lean_coefficients', 'lean_constants',
-           'lean_efforts_of', 'lean_ram_motion', 'LeanConstants']
+           'lean_efforts_of', 'lean_ram_motion', 'lean_speed_drive_sample', 'LeanConstants',
+           'SPEED_DRIVE_SAMPLE_FIELDS']
 
 # The constants (lean_constants' tuple; the compiled forms take them as a float64 array).
 LeanConstants = Sequence[float]
@@ -186,3 +187,60 @@ def lean_ram_motion(constants: LeanConstants) -> Callable[[float, float, float, 
         return height * tan_l, height * (1.0 + tan_l * tan_l) * (psi_p * flywheel_speed)
 
     return ram_motion
+
+
+# What lean_speed_drive_sample returns, in order: the published joints' motion, the chain's
+# Efforts fields, the stroke screw's force.
+SPEED_DRIVE_SAMPLE_FIELDS = (
+    'flywheel_angle', 'flywheel_speed', 'lever_angle', 'lever_speed', 'ram_position',
+    'ram_velocity', 'input_torque', 'flywheel_torque', 'lever_torque', 'ram_force',
+    'offset_force', 'crank_radius_force')
+
+
+def lean_speed_drive_sample(constants: LeanConstants, cutting_force: float,
+                            cutting_length: float, ram_friction: float, offset: float,
+                            angle: float, speed: float, acceleration: float,
+                            offset_rate: float) -> Tuple[float, ...]:
+    """
+    Return a speed-drive sample with the stroke still: motion, efforts, screw force.
+
+    SPEED_DRIVE_SAMPLE_FIELDS, from the input's angle, speed and acceleration and the
+    offset and its rate (the offset's acceleration zero), under the loads given (N, m, N).
+    The operations of mechanism_state.state (positions and speeds: no powers, which a
+    compiled form would turn into products), dynamics.ram_load_force,
+    ``lean_efforts_of`` and stroke_efforts.lever_radius_coefficient on one sample, in their
+    order, so it gives their numbers bit for bit (a test holds it to them);
+    qrm_ros.core.motor_kernel compiles it for the node's tick.
+    """
+    r1, r, h, height, phase = constants[0], constants[1], constants[2], constants[3], constants[4]
+    # state(): the coupling (the first slot's rate), then the lever (the second's).
+    cos_a, sin_a = math.cos(angle), math.sin(angle)
+    flywheel_angle = angle + math.atan2(offset * cos_a, r1 + offset * sin_a)
+    px = r1 * cos_a
+    py = r1 * sin_a + offset
+    vx = -r1 * sin_a * speed
+    vy = r1 * cos_a * speed + offset_rate
+    flywheel_speed = (px * vy - py * vx) / (px * px + py * py)
+    crank_angle = flywheel_angle + phase
+    cos_c, sin_c = math.cos(crank_angle), math.sin(crank_angle)
+    lever_angle = math.atan2(r * cos_c, h + r * sin_c)
+    px = r * cos_c
+    py = r * sin_c + h
+    vx = -r * sin_c * flywheel_speed
+    vy = r * cos_c * flywheel_speed + 0.0
+    lever_speed = -((px * vy - py * vx) / (px * px + py * py))
+    tan_lever = r * cos_c / (h + r * sin_c)
+    ram_position = height * tan_lever
+    ram_velocity = height * lever_speed * (1.0 + tan_lever * tan_lever)
+    # ram_load_force(): the tool faces -x; Coulomb friction, zero at rest.
+    cutting = ram_velocity < 0.0 and abs(ram_position) <= 0.5 * cutting_length
+    direction = math.copysign(1.0, ram_velocity) if ram_velocity else 0.0
+    load = (cutting_force if cutting else 0.0) - ram_friction * direction
+    (input_torque, flywheel_torque, lever_torque, ram_force,
+     offset_force) = lean_efforts_of(constants, offset, angle, speed, acceleration,
+                                     offset_rate, load)
+    # lever_radius_coefficient(): d(psi)/d(r) at the flywheel angle.
+    screw_force = lever_torque * (h * cos_c / (r * r + h * h + 2.0 * r * h * sin_c))
+    return (flywheel_angle, flywheel_speed, lever_angle, lever_speed, ram_position,
+            ram_velocity, input_torque, flywheel_torque, lever_torque, ram_force,
+            offset_force, screw_force)

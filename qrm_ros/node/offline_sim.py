@@ -40,7 +40,6 @@ import time
 from typing import Any, Callable, Dict, List, NamedTuple, Optional, Sequence, Tuple
 
 from qrm_ros.core.motor_kernel_loading import COMPILED_MOTOR_KERNEL
-from qrm_ros.core.motor_stepper import MotorStepper
 from qrm_ros.core.names import (JOINT_STATE_TYPE, JOINT_STATES_TOPIC, LINKAGE_MARKERS_TOPIC,
                                 RAM_TWIST_TOPIC, SPEED_COMMAND_TOPIC)
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
@@ -67,7 +66,7 @@ __all__ = ['OfflineShaperSim', 'RecordingPublisher', 'Simulation', 'SimulationSu
 # s a live node's stroke-pair report may wait for its effort theory (worked out in a worker
 # process) where it is to match an offline run's, which works it out in its own thread.
 THEORY_TIMEOUT = 120.0
-# s a motor-drive run waits for the motor's compiled forms before its first tick.
+# s a run waits for the drives' compiled forms before its first tick.
 KERNEL_LOAD_TIMEOUT = 30.0
 # s of log time per chunk, as the recorder's default max_chunk_duration.
 CHUNK_DURATION_NS = NANOSECONDS_PER_SECOND
@@ -305,10 +304,10 @@ class Simulation:
         events = deque((start_ns + round(e.at * NANOSECONDS_PER_SECOND), e)
                        for e in self.scenario.events)
         self._set_clock(start_ns)
-        if isinstance(node.stepper, MotorStepper):
-            # Its compiled forms load on a thread (0.3-1 s); the same numbers, faster.
-            COMPILED_MOTOR_KERNEL.start_loading()  # once per process: started already
-            COMPILED_MOTOR_KERNEL.loaded.wait(KERNEL_LOAD_TIMEOUT)
+        # The drives' compiled forms load on a thread (0.3-1 s): the same numbers, faster;
+        # worth it for every tick of a run (the live node's speed drive does without).
+        COMPILED_MOTOR_KERNEL.start_loading()  # once per process
+        COMPILED_MOTOR_KERNEL.loaded.wait(KERNEL_LOAD_TIMEOUT)
         progress_every = max(1, round(NANOSECONDS_PER_SECOND / stamps.step))
         publish_at, wait_for_reports, set_clock = (node.publish_at, node.wait_for_pair_reports,
                                                    self._set_clock)
