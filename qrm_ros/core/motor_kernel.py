@@ -48,4 +48,4 @@ lean_efforts = numba.njit('UniTuple(float64, 5)' + _ARGUMENTS, cache=True,
 # load fields and five of the state.
 lean_speed_drive = numba.njit(
     f'UniTuple(float64, {len(SPEED_DRIVE_SAMPLE_FIELDS)})(float64[::1]{", float64" * 8})',
-    cache=True, nogil=True)(lean_speed_drive_sample)
+    cache=True)(lean_speed_drive_sample)  # holds the GIL: releasing it cost more than the call

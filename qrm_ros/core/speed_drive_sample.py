@@ -24,14 +24,13 @@ hundreds of thousands of times. Elsewhere (the screw moving, anything not a fini
 the core's general forms answer.
 """
 
-import functools
 import math
-from typing import Optional, Tuple
+from typing import NamedTuple, Optional, Tuple
 
 import numpy as np
 
 from qrm_ros.core.dynamics import Loads, MassProperties, ram_load_force
-from qrm_ros.core.geometry import MechanismState
+from qrm_ros.core.geometry import Geometry, MechanismState
 from qrm_ros.core.lean_chain import lean_speed_drive_sample
 from qrm_ros.core.motor_kernel_loading import COMPILED_MOTOR_KERNEL
 from qrm_ros.core.stepping import ShaperStepper
@@ -42,19 +41,31 @@ __all__ = ['speed_drive_sample']
 _FIVE_FLOATS = (float,) * 5
 
 
-@functools.lru_cache(maxsize=8)
-def _compiled_constants(constants: Tuple[float, ...]) -> np.ndarray:
-    """Return the lean constants as the compiled form takes them (once per tuple)."""
-    return np.array(constants, dtype=np.float64)
+class _Prepared(NamedTuple):
+    """What the lean form takes from one geometry, mass and loads (their objects)."""
+
+    geometry: Geometry
+    mass: MassProperties
+    loads: Loads
+    constants: Optional[Tuple[float, ...]]  # None: the lean form cannot answer
+    compiled_constants: Optional[np.ndarray]  # the same as the compiled form takes them
+    load_fields: Tuple[float, float, float]  # cutting_force, cutting_length, ram_friction
 
 
-@functools.lru_cache(maxsize=8)
-def _load_fields(loads: Loads) -> Optional[Tuple[float, float, float]]:
-    """Return (cutting_force, cutting_length, ram_friction) if finite floats, else None."""
-    fields = (loads.cutting_force, loads.cutting_length, loads.ram_friction)
-    if all(type(value) is float and math.isfinite(value) for value in fields):
-        return fields  # type: ignore[return-value]  # floats, checked
-    return None
+def _prepare(geometry: Geometry, mass: MassProperties, loads: Loads) -> _Prepared:
+    """Return the lean form's constants and load fields (None if not all finite floats)."""
+    constants = still_stroke_constants(geometry, mass)
+    load_fields = (loads.cutting_force, loads.cutting_length, loads.ram_friction)
+    if not all(type(value) is float and math.isfinite(value) for value in load_fields):
+        constants = None
+    return _Prepared(geometry, mass, loads, constants,
+                     None if constants is None else np.array(constants, dtype=np.float64),
+                     load_fields)
+
+
+# The last prepared, found again by identity (the node's parameter sets are new objects
+# whenever they change; hashing them at every tick cost more than the lean form).
+_last_prepared: Optional[_Prepared] = None
 
 
 def speed_drive_sample(stepper: ShaperStepper, mass: MassProperties, loads: Loads
@@ -65,23 +76,26 @@ def speed_drive_sample(stepper: ShaperStepper, mass: MassProperties, loads: Load
     The sample is lean_chain.SPEED_DRIVE_SAMPLE_FIELDS. The state is None where the lean
     form answered (it holds no accelerations; whoever needs them asks the core).
     """
+    global _last_prepared
     stroke = stepper.stroke
     loads.check_against(max(stroke.stroke, stroke.command))
     radius_rate, radius_acceleration = stroke.crank_radius_rates()
     geometry = stepper.geometry
-    constants = still_stroke_constants(geometry, mass)
-    load_fields = _load_fields(loads)
+    prepared = _last_prepared
+    if (prepared is None or prepared.geometry is not geometry or prepared.mass is not mass
+            or prepared.loads is not loads):
+        _last_prepared = prepared = _prepare(geometry, mass, loads)
+    constants = prepared.constants
     arguments = (stepper.offset, stepper.input_angle, stepper.input_speed,
                  stepper.input_acceleration, stepper.offset_rate)
-    if (constants is not None and load_fields is not None
-            and radius_rate == 0.0 and radius_acceleration == 0.0
+    if (constants is not None and radius_rate == 0.0 and radius_acceleration == 0.0
             and tuple(map(type, arguments)) == _FIVE_FLOATS
             and all(map(math.isfinite, arguments)) and abs(arguments[0]) < constants[0]):
         compiled = COMPILED_MOTOR_KERNEL.module
         if compiled is not None:
-            return None, compiled.lean_speed_drive(_compiled_constants(constants),
-                                                   *load_fields, *arguments)
-        return None, lean_speed_drive_sample(constants, *load_fields, *arguments)
+            return None, compiled.lean_speed_drive(prepared.compiled_constants,
+                                                   *prepared.load_fields, *arguments)
+        return None, lean_speed_drive_sample(constants, *prepared.load_fields, *arguments)
     sample = stepper.mechanism_state()
     offset, input_angle, input_speed, input_acceleration, offset_rate = arguments
     ram_force = ram_load_force(loads, sample.ram_position, sample.ram_velocity,
