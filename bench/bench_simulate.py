@@ -53,6 +53,7 @@ from qrm_ros.node import shaper_sim
 from qrm_ros.node.offline_sim import RecordingPublisher, Simulation
 from qrm_ros.node.scenario import scenario_from_mapping
 from qrm_ros.recording.machine_channels import MachineChannels
+from qrm_ros.recording.mcap_run_file import CHUNK_SIZE_BYTES
 
 PERIOD_NS = 10_000_000
 
@@ -74,7 +75,8 @@ def floor(path, ticks, transforms=True):
     store = get_typestore(Stores.ROS2_JAZZY)
     tf_message = _tf_message(store)
     with open(path, 'wb') as stream:
-        writer = Writer(stream, compression=CompressionType.ZSTD)
+        # Chunks of the simulator's size (the run file's cap), zstd as its default.
+        writer = Writer(stream, chunk_size=CHUNK_SIZE_BYTES, compression=CompressionType.ZSTD)
         writer.start('ros2', 'bench')
         schema = writer.register_schema('sensor_msgs/msg/JointState', 'ros2msg', b'')
         joints = writer.register_channel('/joint_states', 'cdr', schema)

@@ -43,7 +43,8 @@ from qrm_ros.core.motor_kernel_loading import COMPILED_MOTOR_KERNEL
 from qrm_ros.core.names import (JOINT_STATE_TYPE, JOINT_STATES_TOPIC, LINKAGE_MARKERS_TOPIC,
                                 RAM_TWIST_TOPIC, SPEED_COMMAND_TOPIC)
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
-from qrm_ros.node.recorder import DEFAULT_TOPICS, sim_metadata_records
+from qrm_ros.node.recorder import (DEFAULT_TOPICS, MAX_CHUNK_DURATION_RANGE,
+                                   sim_metadata_records)
 from qrm_ros.node.ros_process import init_rclpy
 from qrm_ros.node.scenario import Event, Scenario, ScenarioError
 from qrm_ros.node.shaper_sim import ShaperSimNode
@@ -68,8 +69,11 @@ __all__ = ['OfflineShaperSim', 'RecordingPublisher', 'Simulation', 'SimulationSu
 THEORY_TIMEOUT = 120.0
 # s a run waits for the drives' compiled forms before its first tick.
 KERNEL_LOAD_TIMEOUT = 30.0
-# s of log time per chunk, as the recorder's default max_chunk_duration.
-CHUNK_DURATION_NS = NANOSECONDS_PER_SECOND
+# Longest log time per chunk: the longest the recorder allows, so chunks close by size
+# (CHUNK_SIZE_BYTES). A live recording closes (and fsyncs) one a second, to lose at most that
+# much to a crash; an offline run has nothing live to lose (it is made again), and its
+# chunks of one second cost about 15 us a tick more than the messages' writing itself.
+CHUNK_DURATION_NS = round(MAX_CHUNK_DURATION_RANGE[1] * NANOSECONDS_PER_SECOND)
 # Messages handed to the run file together, with their joint states' machine transforms: the
 # writing code then runs many times in a row, not once between two ticks of the node (which
 # pushed it out of the processor's caches: about 15 us a tick more). The same calls in the
