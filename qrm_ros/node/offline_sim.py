@@ -39,7 +39,7 @@ import os
 import time
 from typing import Any, Callable, Dict, List, NamedTuple, Optional, Sequence, Tuple
 
-from qrm_ros.core.motor_kernel_loading import COMPILED_MOTOR_KERNEL
+from qrm_ros.core.drive_kernel_loading import COMPILED_DRIVE_KERNEL
 from qrm_ros.core.names import (JOINT_STATE_TYPE, JOINT_STATES_TOPIC, LINKAGE_MARKERS_TOPIC,
                                 RAM_TWIST_TOPIC, SPEED_COMMAND_TOPIC)
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
@@ -310,8 +310,8 @@ class Simulation:
         self._set_clock(start_ns)
         # The drives' compiled forms load on a thread (0.3-1 s): the same numbers, faster;
         # worth it for every tick of a run (the live node's speed drive does without).
-        COMPILED_MOTOR_KERNEL.start_loading()  # once per process
-        COMPILED_MOTOR_KERNEL.loaded.wait(KERNEL_LOAD_TIMEOUT)
+        COMPILED_DRIVE_KERNEL.start_loading()  # once per process
+        COMPILED_DRIVE_KERNEL.loaded.wait(KERNEL_LOAD_TIMEOUT)
         progress_every = max(1, round(NANOSECONDS_PER_SECOND / stamps.step))
         publish_at, wait_for_reports, set_clock = (node.publish_at, node.wait_for_pair_reports,
                                                    self._set_clock)

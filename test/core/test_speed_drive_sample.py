@@ -27,7 +27,7 @@ import pytest
 from qrm_ros.core import dynamics as dyn
 from qrm_ros.core.geometry import Geometry
 from qrm_ros.core.lean_chain import SPEED_DRIVE_SAMPLE_FIELDS
-from qrm_ros.core.motor_kernel_loading import COMPILED_MOTOR_KERNEL
+from qrm_ros.core.drive_kernel_loading import COMPILED_DRIVE_KERNEL
 from qrm_ros.core.speed_drive_sample import speed_drive_sample
 from qrm_ros.core.stepping import ShaperStepper
 from qrm_ros.core.stroke_adjustment import StrokeRamp
@@ -78,11 +78,11 @@ def _random_steppers(geometry, seed, count):
 def kernel(request, monkeypatch):
     """The lean form in Python (no compiled kernel) or compiled."""
     if request.param == 'python':
-        monkeypatch.setattr(COMPILED_MOTOR_KERNEL, 'module', None)
+        monkeypatch.setattr(COMPILED_DRIVE_KERNEL, 'module', None)
     else:
         pytest.importorskip('numba')
-        from qrm_ros.core import motor_kernel
-        monkeypatch.setattr(COMPILED_MOTOR_KERNEL, 'module', motor_kernel)
+        from qrm_ros.core import drive_kernel
+        monkeypatch.setattr(COMPILED_DRIVE_KERNEL, 'module', drive_kernel)
     return request.param
 
 

@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 """
-Compiled (numba) right-hand side of the motor drive's equation of motion; a speed-drive sample.
+Compiled (numba): the motor drive's equation of motion and the speed drive's sample.
 
 lean_chain.lean_acceleration_of (the right-hand side's acceleration) and lean_efforts_of (the
 efforts at a stamp), and lean_speed_drive_sample (the speed drive's tick at a still stroke,
@@ -20,12 +20,12 @@ core.speed_drive_sample), the same functions compiled for floats (their constant
 array): about a quarter of their cost in Python, the same numbers bit for bit (no fast-math
 flag, so nothing is fused or reordered; tests hold the forms together). The head they share,
 lean_coefficients (and its own head, coupling_and_crank), is registered as callable from
-compiled code and compiled into both.
-motor_kernel_loading imports this on a thread of its own and the MotorStepper takes it up
-once loaded (importing numba and loading the cached machine code take about 0.3 s; the first
-import compiles, about 1 s, cached beside this file or in numba's user cache); until then,
-and without numba, it runs the Python form. Compiled for its one signature on import, so no
-call can start a compilation.
+compiled code and compiled into all three.
+drive_kernel_loading imports this on a thread of its own and the MotorStepper (and the speed
+drive's sample) takes it up once loaded (importing numba and loading the cached machine code
+take about 0.3 s; the first import compiles, about 1 s, cached beside this file or in numba's
+user cache); until then, and without numba, it runs the Python form. Compiled for its one
+signature on import, so no call can start a compilation.
 """
 
 import numba
