@@ -17,7 +17,7 @@ shaper_sim run offline, as fast as the CPU allows: the node itself, ticked by a 
 Nothing of the node is copied. The simulator is ShaperSimNode, started with use_sim_time and
 with publishers that write each message, serialized by rclpy, into the run file (the
 recorder's own McapRunFile) instead of sending it over DDS (the slower topics' bytes made the
-exact message DDS would send: recording.typestore.canonical_cdr). A loop calls, at each tick's
+exact message DDS would send: recording.typestore.exact_cdr). A loop calls, at each tick's
 stamp, what the node's timer callback calls at its clock's time (publish_at), so the
 steppers, the efforts, the stroke measurement, the diagnostics and the markers are the
 node's; a scenario's events go in
@@ -50,7 +50,7 @@ from qrm_ros.node.scenario import Event, Scenario, ScenarioError
 from qrm_ros.node.shaper_sim import ShaperSimNode
 from qrm_ros.recording.machine_channels import MachineChannels
 from qrm_ros.recording.mcap_run_file import COMPRESSIONS, McapRunFile
-from qrm_ros.recording.typestore import canonical_cdr
+from qrm_ros.recording.typestore import exact_cdr
 import rclpy
 from rclpy.clock import ClockType, ROSClock
 from rclpy.context import Context
@@ -224,9 +224,9 @@ class Simulation:
         self._queue(channel, now, data, None)
 
     def _write_exact(self, type_name: str, channel: int, message: Any) -> None:
-        """Write a message of the slower topics as DDS would send it (canonical_cdr)."""
+        """Write a message of the slower topics as DDS would send it (exact_cdr)."""
         now = self._now_ns
-        data = canonical_cdr(serialize_message(message), type_name)
+        data = exact_cdr(message, type_name)
         self._queue(channel, now, data, None)
 
     def _write_joint_state(self, channel: int, message: Any) -> None:
