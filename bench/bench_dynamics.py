@@ -36,7 +36,7 @@ import numpy as np
 
 from qrm_ros.core import dynamics as dyn
 from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.motor_kernel_loading import COMPILED_MOTOR_KERNEL
+from qrm_ros.core.drive_kernel_loading import COMPILED_DRIVE_KERNEL
 from qrm_ros.core.motor_stepper import MotorStepper
 from qrm_ros.core.speed_drive import pair_efforts
 from qrm_ros.core.stepping import ShaperStepper
@@ -124,8 +124,8 @@ def main():
     # The stepper's compiled right-hand side loads on a thread of its own (once per process);
     # the ticks are timed once it is there, and once in its Python form for comparison.
     start = time.perf_counter()
-    COMPILED_MOTOR_KERNEL.loaded.wait(60.0)
-    compiled = COMPILED_MOTOR_KERNEL.module
+    COMPILED_DRIVE_KERNEL.loaded.wait(60.0)
+    compiled = COMPILED_DRIVE_KERNEL.module
     print(f'motor stepper: compiled right-hand side and efforts '
           f'{"loaded" if compiled is not None else "unavailable (no numba)"}, waited '
           f'{time.perf_counter() - start:.2f} s after the first stepper')
@@ -133,7 +133,7 @@ def main():
     timings = {name: [] for name in runs}
     for _ in range(args.repeats):
         for name, run in runs.items():
-            COMPILED_MOTOR_KERNEL.module = None if name.endswith('(Python form)') else compiled
+            COMPILED_DRIVE_KERNEL.module = None if name.endswith('(Python form)') else compiled
             start = time.perf_counter()
             run()
             timings[name].append((time.perf_counter() - start) / args.ticks * 1e6)

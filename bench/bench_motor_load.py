@@ -14,7 +14,7 @@
 """
 Benchmark: how late 1 kHz motor-drive ticks come while the compiled forms load on a thread.
 
-The first MotorStepper of a process loads qrm_ros.core.motor_kernel (numba) on a thread of its
+The first MotorStepper of a process loads qrm_ros.core.drive_kernel (numba) on a thread of its
 own. Each run is a fresh process that makes its first stepper and ticks it at 1 kHz (sleep
 to the due time, the node's 0.1 ms GIL switch interval) for --ticks ticks; it prints how late
 the ticks came (the tick's start past its due time) over the first 1000 ticks, while loading,
@@ -43,10 +43,10 @@ def ticker(ticks, load):
     sys.setswitchinterval(1e-4)
     from qrm_ros.core import dynamics as dyn
     from qrm_ros.core.geometry import Geometry
-    from qrm_ros.core.motor_kernel_loading import COMPILED_MOTOR_KERNEL
+    from qrm_ros.core.drive_kernel_loading import COMPILED_DRIVE_KERNEL
     from qrm_ros.core.motor_stepper import MotorStepper
     if not load:
-        COMPILED_MOTOR_KERNEL.start_loading = lambda: None
+        COMPILED_DRIVE_KERNEL.start_loading = lambda: None
     stepper = MotorStepper(Geometry.paper(), dyn.MassProperties.small_shaper(),
                            dyn.Loads.small_shaper(), dyn.MotorDrive.small_shaper(),
                            2 * math.pi, 0.01, 50.0, 0.01)
@@ -62,9 +62,9 @@ def ticker(ticks, load):
         late.append(now - due)
         stepper.advance_to(tick * 1_000_000 + 1)
         stepper.efforts()
-        if loaded_at is None and COMPILED_MOTOR_KERNEL.loaded.is_set():
+        if loaded_at is None and COMPILED_DRIVE_KERNEL.loaded.is_set():
             loaded_at = tick
-    compiled = COMPILED_MOTOR_KERNEL.module is not None
+    compiled = COMPILED_DRIVE_KERNEL.module is not None
     print(f'{"loading" if load else "baseline"}: compiled forms '
           f'{"loaded by tick " + str(loaded_at) if compiled else "not loaded"}')
     print(f'  first 1000 ticks: {_lateness(late[:1000])}')

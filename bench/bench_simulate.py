@@ -28,7 +28,7 @@ interleaved over repeats; medians and their spread; the ratio simulator / floor 
 
 --breakdown says where a speed-drive tick's CPU time goes instead: the run again with one
 part more left out each time (the stroke-pair measurement, the /tf, the serializing and
-writing, the efforts, the kinematics; each left out by replacing its call), the floors beside.
+writing, the kinematics and efforts; each left out by replacing its call), the floors beside.
 
     python3 dev.py run python bench/bench_simulate.py [--repeats 5] [--seconds 120]
     python3 dev.py run python bench/bench_simulate.py --breakdown [--repeats 3] [--seconds 200]
@@ -53,6 +53,7 @@ from qrm_ros.node import shaper_sim
 from qrm_ros.node.offline_sim import RecordingPublisher, Simulation
 from qrm_ros.node.scenario import scenario_from_mapping
 from qrm_ros.recording.machine_channels import MachineChannels
+from qrm_ros.recording.mcap_run_file import CHUNK_SIZE_BYTES
 
 PERIOD_NS = 10_000_000
 
@@ -74,7 +75,8 @@ def floor(path, ticks, transforms=True):
     store = get_typestore(Stores.ROS2_JAZZY)
     tf_message = _tf_message(store)
     with open(path, 'wb') as stream:
-        writer = Writer(stream, compression=CompressionType.ZSTD)
+        # Chunks of the simulator's size (the run file's cap), zstd as its default.
+        writer = Writer(stream, chunk_size=CHUNK_SIZE_BYTES, compression=CompressionType.ZSTD)
         writer.start('ros2', 'bench')
         schema = writer.register_schema('sensor_msgs/msg/JointState', 'ros2msg', b'')
         joints = writer.register_channel('/joint_states', 'cdr', schema)
@@ -123,7 +125,7 @@ def simulated(path, seconds, drive):
 
 # What --breakdown leaves out, one more part in each run: (label, how it is left out).
 LEFT_OUT = ('the stroke-pair measurement and reports', 'the /tf',
-            'the serializing and writing', 'the efforts', 'the kinematics')
+            'the serializing and writing', 'the kinematics and efforts')
 
 
 def _leave_out(simulation, part, undo):
@@ -138,15 +140,10 @@ def _leave_out(simulation, part, undo):
         for publisher in node.publishers:
             if isinstance(publisher, RecordingPublisher):
                 publisher.write = None
-    elif part == 3:
-        efforts = shaper_sim.efforts_with_stroke_screw(
-            node.stepper.geometry, node.mass, 0.01, 1.0, 6.28, 0.0, 0.0, 0.0, -100.0, 0.0, 0.0)
-        undo.append((shaper_sim, 'efforts_with_stroke_screw',
-                     shaper_sim.efforts_with_stroke_screw))
-        shaper_sim.efforts_with_stroke_screw = lambda *arguments: efforts
-    else:
-        sample = node.stepper.mechanism_state()
-        node.stepper.mechanism_state = lambda: sample
+    else:  # the speed drive's sample: its state and efforts, as at the first tick
+        sample = shaper_sim.speed_drive_sample(node.stepper, node.mass, node.loads)
+        undo.append((shaper_sim, 'speed_drive_sample', shaper_sim.speed_drive_sample))
+        shaper_sim.speed_drive_sample = lambda *arguments: sample
 
 
 def breakdown(folder, seconds, repeats):

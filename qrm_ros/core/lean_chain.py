@@ -18,7 +18,7 @@ The chain on plain floats, lean: the motor stepper's equation of motion (no nump
 thousands of times a second on floats, where the named tuples, the mass dict and the terms
 multiplied by an exact zero cost more than the arithmetic. These are the chain's own
 operations in its order with those left out, so they give its numbers bit for bit (the
-tests hold them to it). Math functions and floats only: qrm_ros.core.motor_kernel compiles
+tests hold them to it). Math functions and floats only: qrm_ros.core.drive_kernel compiles
 ``lean_acceleration_of`` and ``lean_efforts_of`` (numba, no fast-math), which give the same
 numbers bit for bit too.
 """
@@ -30,7 +30,8 @@ from qrm_ros.core.dynamics import MassProperties
 from qrm_ros.core.geometry import Geometry
 
 __all__ = ['coupling_and_crank', 'lean_acceleration_of', 'lean_coefficients', 'lean_constants',
-           'lean_efforts_of', 'lean_ram_motion', 'LeanConstants']
+           'lean_efforts_of', 'lean_ram_motion', 'lean_speed_drive_sample', 'LeanConstants',
+           'SPEED_DRIVE_SAMPLE_FIELDS']
 
 # The constants (lean_constants' tuple; the compiled forms take them as a float64 array).
 LeanConstants = Sequence[float]
@@ -40,7 +41,7 @@ def lean_constants(geometry: Geometry, mass: MassProperties) -> Tuple[float, ...
     """
     Return the lean chain's constants: the geometry, the masses, and their fixed groupings.
 
-    A tuple of floats in ``lean_coefficients``' order (qrm_ros.core.motor_kernel takes them
+    A tuple of floats in ``lean_coefficients``' order (qrm_ros.core.drive_kernel takes them
     as an array); the groupings are the chain's own sub-expressions that hold the geometry
     alone, grouped as it groups them.
     """
@@ -87,7 +88,7 @@ def lean_coefficients(constants: LeanConstants, offset: float,
     (input_inertia, flywheel_inertia, lever_inertia, ram_mass, lever_weight, phi_t, phi_d,
     phi_tt, phi_td, phi_dd, psi_p, psi_pp, tan_l, sec2, x_p, x_pp): the constants and the
     part of the chain that hold the configuration alone, shared by ``lean_acceleration_of``
-    and ``lean_efforts_of`` (and compiled into them, qrm_ros.core.motor_kernel).
+    and ``lean_efforts_of`` (and compiled into them, qrm_ros.core.drive_kernel).
     """
     (_, r, h, height, _, input_inertia, flywheel_inertia, lever_inertia, ram_mass,
      lever_weight, _, _, r_h, two_r_h, minus_r, minus_r_h, h_h_r_r, two_height,
@@ -186,3 +187,60 @@ def lean_ram_motion(constants: LeanConstants) -> Callable[[float, float, float, 
         return height * tan_l, height * (1.0 + tan_l * tan_l) * (psi_p * flywheel_speed)
 
     return ram_motion
+
+
+# What lean_speed_drive_sample returns, in order: the published joints' motion, the chain's
+# Efforts fields, the stroke screw's force.
+SPEED_DRIVE_SAMPLE_FIELDS = (
+    'flywheel_angle', 'flywheel_speed', 'lever_angle', 'lever_speed', 'ram_position',
+    'ram_velocity', 'input_torque', 'flywheel_torque', 'lever_torque', 'ram_force',
+    'offset_force', 'crank_radius_force')
+
+
+def lean_speed_drive_sample(constants: LeanConstants, cutting_force: float,
+                            cutting_length: float, ram_friction: float, offset: float,
+                            angle: float, speed: float, acceleration: float,
+                            offset_rate: float) -> Tuple[float, ...]:
+    """
+    Return a speed-drive sample with the stroke still: motion, efforts, screw force.
+
+    SPEED_DRIVE_SAMPLE_FIELDS, from the input's angle, speed and acceleration and the
+    offset and its rate (the offset's acceleration zero), under the loads given (N, m, N).
+    The operations of mechanism_state.state (positions and speeds: no powers, which a
+    compiled form would turn into products), dynamics.ram_load_force,
+    ``lean_efforts_of`` and stroke_efforts.lever_radius_coefficient on one sample, in their
+    order, so it gives their numbers bit for bit (a test holds it to them);
+    qrm_ros.core.drive_kernel compiles it for the node's tick.
+    """
+    r1, r, h, height, phase = constants[0], constants[1], constants[2], constants[3], constants[4]
+    # state(): the coupling (the first slot's rate), then the lever (the second's).
+    cos_a, sin_a = math.cos(angle), math.sin(angle)
+    flywheel_angle = angle + math.atan2(offset * cos_a, r1 + offset * sin_a)
+    px = r1 * cos_a
+    py = r1 * sin_a + offset
+    vx = -r1 * sin_a * speed
+    vy = r1 * cos_a * speed + offset_rate
+    flywheel_speed = (px * vy - py * vx) / (px * px + py * py)
+    crank_angle = flywheel_angle + phase
+    cos_c, sin_c = math.cos(crank_angle), math.sin(crank_angle)
+    lever_angle = math.atan2(r * cos_c, h + r * sin_c)
+    px = r * cos_c
+    py = r * sin_c + h
+    vx = -r * sin_c * flywheel_speed
+    vy = r * cos_c * flywheel_speed + 0.0
+    lever_speed = -((px * vy - py * vx) / (px * px + py * py))
+    tan_lever = r * cos_c / (h + r * sin_c)
+    ram_position = height * tan_lever
+    ram_velocity = height * lever_speed * (1.0 + tan_lever * tan_lever)
+    # ram_load_force(): the tool faces -x; Coulomb friction, zero at rest.
+    cutting = ram_velocity < 0.0 and abs(ram_position) <= 0.5 * cutting_length
+    direction = math.copysign(1.0, ram_velocity) if ram_velocity else 0.0
+    load = (cutting_force if cutting else 0.0) - ram_friction * direction
+    (input_torque, flywheel_torque, lever_torque, ram_force,
+     offset_force) = lean_efforts_of(constants, offset, angle, speed, acceleration,
+                                     offset_rate, load)
+    # lever_radius_coefficient(): d(psi)/d(r) at the flywheel angle.
+    screw_force = lever_torque * (h * cos_c / (r * r + h * h + 2.0 * r * h * sin_c))
+    return (flywheel_angle, flywheel_speed, lever_angle, lever_speed, ram_position,
+            ram_velocity, input_torque, flywheel_torque, lever_torque, ram_force,
+            offset_force, screw_force)

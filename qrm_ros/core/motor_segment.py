@@ -31,7 +31,7 @@ from qrm_ros.core.dynamics import Chain
 from qrm_ros.core.geometry import TWO_PI
 from qrm_ros.core.lean_chain import lean_acceleration_of
 from qrm_ros.core.motor_equation import EquationOfMotion, sign
-from qrm_ros.core.motor_kernel_loading import COMPILED_MOTOR_KERNEL
+from qrm_ros.core.drive_kernel_loading import COMPILED_DRIVE_KERNEL
 from qrm_ros.core.motor_stroke import moving_radius_motion, StrokeSegment
 from qrm_ros.core.stepping import ramp, wrap_angle
 
@@ -230,7 +230,7 @@ def segment_functions(plan: SegmentPlan, equation: EquationOfMotion) -> SegmentF
     about 16 times a solver step, the switch checks 6 times. The compiled acceleration is
     taken if it has loaded, else the Python form (the same numbers).
     """
-    compiled = COMPILED_MOTOR_KERNEL.module
+    compiled = COMPILED_DRIVE_KERNEL.module
     kernel, constants = ((lean_acceleration_of, equation.lean_constants)
                          if compiled is None else
                          (compiled.lean_acceleration, equation.lean_array))

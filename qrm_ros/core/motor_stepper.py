@@ -18,7 +18,7 @@ The mechanism under a motor drive, stepped between stamps (pure numpy/scipy, no 
 protocol, qrm_ros.core.stepper), with the input speed a state of the equation of motion.
 Its parts: the equation of motion's ingredients (motor_equation), the present segment's
 plan and functions (motor_segment), the solver within a segment (motor_integration) and the
-compiled kernel loaded on a thread (motor_kernel_loading). ``simulate`` samples a run.
+compiled kernel loaded on a thread (drive_kernel_loading). ``simulate`` samples a run.
 
 Integration: scipy's DOP853, restarted at every switch of the right-hand side (a new
 segment, motor_segment): stroke reversal, tool entering or leaving the workpiece, motor
@@ -45,7 +45,7 @@ from qrm_ros.core.kinematics import state
 from qrm_ros.core.lean_chain import lean_efforts_of
 from qrm_ros.core.motor_equation import EquationOfMotion
 from qrm_ros.core.motor_integration import Observer, Piece, SegmentIntegration
-from qrm_ros.core.motor_kernel_loading import COMPILED_MOTOR_KERNEL
+from qrm_ros.core.drive_kernel_loading import COMPILED_DRIVE_KERNEL
 from qrm_ros.core.motor_segment import (Segment, segment_functions, SegmentFunctions,
                                         SegmentPlan)
 from qrm_ros.core.motor_stroke import MovingStroke, StrokeSegment
@@ -144,7 +144,7 @@ class MotorStepper(MovingStroke, PlanViews):
             positive('offset_rate_limit', offset_rate_limit, 'm/s'),
             StrokeSegment(float(geometry.pivot_distance), float(geometry.ram_height)))
         self._equation = EquationOfMotion(geometry, mass, loads, motor, stroke.command)
-        COMPILED_MOTOR_KERNEL.start_loading()
+        COMPILED_DRIVE_KERNEL.start_loading()
         self.time_resets = self.integration_cutoffs = 0  # counted, for the node's status
         self._observer: Optional[Observer] = None
         self._functions: Optional[SegmentFunctions] = None
@@ -364,7 +364,7 @@ class MotorStepper(MovingStroke, PlanViews):
         """``dynamics.Efforts`` at the present stamp (the motor's torque drives the input)."""
         arguments = (self.offset, self._angle, self._speed, self.input_acceleration,
                      self.offset_rate, self._plan.load)
-        compiled = COMPILED_MOTOR_KERNEL.module
+        compiled = COMPILED_DRIVE_KERNEL.module
         if self._radius_moved():
             found = self._moving_radius_efforts(*arguments)
         elif compiled is None:

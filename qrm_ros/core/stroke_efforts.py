@@ -32,7 +32,8 @@ from qrm_ros.core.dynamics import (ARRAY_OPS, Chain, checked_quantity, Efforts, 
 from qrm_ros.core.geometry import check_offset, FloatOrArray, Geometry
 from qrm_ros.core.lean_chain import lean_constants, lean_efforts_of
 
-__all__ = ['chain_with_stroke_screw', 'efforts_with_stroke_screw', 'lever_radius_coefficient']
+__all__ = ['chain_with_stroke_screw', 'efforts_with_stroke_screw', 'lever_radius_coefficient',
+           'still_stroke_constants']
 
 
 # The arguments' types on the one-sample path (by type: numpy's float64 takes the other).
@@ -111,7 +112,8 @@ def efforts_with_stroke_screw(*arguments: Any, **keywords: Any) -> Tuple[Efforts
 
 
 @functools.lru_cache(maxsize=8)
-def _lean_constants(geometry: Geometry, mass: MassProperties) -> Optional[Tuple[float, ...]]:
+def still_stroke_constants(geometry: Geometry,
+                           mass: MassProperties) -> Optional[Tuple[float, ...]]:
     """Return lean_chain's constants if the geometry's fields are finite floats, else None."""
     return None if _float_fields(geometry) is None else lean_constants(geometry, mass)
 
@@ -127,7 +129,7 @@ def _still_stroke_efforts(geometry: Geometry, mass: MassProperties, offset: Any,
     the screw's force is the lever torque times d(psi)/d(r) at the chain's flywheel angle,
     as the chain computes it. None elsewhere (the chain answers).
     """
-    constants = _lean_constants(geometry, mass)
+    constants = still_stroke_constants(geometry, mass)
     if (constants is None or type(offset) is not float or not abs(offset) < constants[0]
             or tuple(map(type, arguments)) != _EIGHT_FLOATS
             or not all(map(math.isfinite, arguments))):

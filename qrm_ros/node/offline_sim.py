@@ -17,7 +17,7 @@ shaper_sim run offline, as fast as the CPU allows: the node itself, ticked by a 
 Nothing of the node is copied. The simulator is ShaperSimNode, started with use_sim_time and
 with publishers that write each message, serialized by rclpy, into the run file (the
 recorder's own McapRunFile) instead of sending it over DDS (the slower topics' bytes made the
-exact message DDS would send: recording.typestore.canonical_cdr). A loop calls, at each tick's
+exact message DDS would send: recording.typestore.exact_cdr). A loop calls, at each tick's
 stamp, what the node's timer callback calls at its clock's time (publish_at), so the
 steppers, the efforts, the stroke measurement, the diagnostics and the markers are the
 node's; a scenario's events go in
@@ -39,18 +39,18 @@ import os
 import time
 from typing import Any, Callable, Dict, List, NamedTuple, Optional, Sequence, Tuple
 
-from qrm_ros.core.motor_kernel_loading import COMPILED_MOTOR_KERNEL
-from qrm_ros.core.motor_stepper import MotorStepper
+from qrm_ros.core.drive_kernel_loading import COMPILED_DRIVE_KERNEL
 from qrm_ros.core.names import (JOINT_STATE_TYPE, JOINT_STATES_TOPIC, LINKAGE_MARKERS_TOPIC,
                                 RAM_TWIST_TOPIC, SPEED_COMMAND_TOPIC)
 from qrm_ros.core.units import NANOSECONDS_PER_SECOND
-from qrm_ros.node.recorder import DEFAULT_TOPICS, sim_metadata_records
+from qrm_ros.node.recorder import (DEFAULT_TOPICS, MAX_CHUNK_DURATION_RANGE,
+                                   sim_metadata_records)
 from qrm_ros.node.ros_process import init_rclpy
 from qrm_ros.node.scenario import Event, Scenario, ScenarioError
 from qrm_ros.node.shaper_sim import ShaperSimNode
 from qrm_ros.recording.machine_channels import MachineChannels
 from qrm_ros.recording.mcap_run_file import COMPRESSIONS, McapRunFile
-from qrm_ros.recording.typestore import canonical_cdr
+from qrm_ros.recording.typestore import exact_cdr
 import rclpy
 from rclpy.clock import ClockType, ROSClock
 from rclpy.context import Context
@@ -67,10 +67,13 @@ __all__ = ['OfflineShaperSim', 'RecordingPublisher', 'Simulation', 'SimulationSu
 # s a live node's stroke-pair report may wait for its effort theory (worked out in a worker
 # process) where it is to match an offline run's, which works it out in its own thread.
 THEORY_TIMEOUT = 120.0
-# s a motor-drive run waits for the motor's compiled forms before its first tick.
+# s a run waits for the drives' compiled forms before its first tick.
 KERNEL_LOAD_TIMEOUT = 30.0
-# s of log time per chunk, as the recorder's default max_chunk_duration.
-CHUNK_DURATION_NS = NANOSECONDS_PER_SECOND
+# Longest log time per chunk: the longest the recorder allows, so chunks close by size
+# (CHUNK_SIZE_BYTES). A live recording closes (and fsyncs) one a second, to lose at most that
+# much to a crash; an offline run has nothing live to lose (it is made again), and its
+# chunks of one second cost about 15 us a tick more than the messages' writing itself.
+CHUNK_DURATION_NS = round(MAX_CHUNK_DURATION_RANGE[1] * NANOSECONDS_PER_SECOND)
 # Messages handed to the run file together, with their joint states' machine transforms: the
 # writing code then runs many times in a row, not once between two ticks of the node (which
 # pushed it out of the processor's caches: about 15 us a tick more). The same calls in the
@@ -221,9 +224,9 @@ class Simulation:
         self._queue(channel, now, data, None)
 
     def _write_exact(self, type_name: str, channel: int, message: Any) -> None:
-        """Write a message of the slower topics as DDS would send it (canonical_cdr)."""
+        """Write a message of the slower topics as DDS would send it (exact_cdr)."""
         now = self._now_ns
-        data = canonical_cdr(serialize_message(message), type_name)
+        data = exact_cdr(message, type_name)
         self._queue(channel, now, data, None)
 
     def _write_joint_state(self, channel: int, message: Any) -> None:
@@ -305,10 +308,10 @@ class Simulation:
         events = deque((start_ns + round(e.at * NANOSECONDS_PER_SECOND), e)
                        for e in self.scenario.events)
         self._set_clock(start_ns)
-        if isinstance(node.stepper, MotorStepper):
-            # Its compiled forms load on a thread (0.3-1 s); the same numbers, faster.
-            COMPILED_MOTOR_KERNEL.start_loading()  # once per process: started already
-            COMPILED_MOTOR_KERNEL.loaded.wait(KERNEL_LOAD_TIMEOUT)
+        # The drives' compiled forms load on a thread (0.3-1 s): the same numbers, faster;
+        # worth it for every tick of a run (the live node's speed drive does without).
+        COMPILED_DRIVE_KERNEL.start_loading()  # once per process
+        COMPILED_DRIVE_KERNEL.loaded.wait(KERNEL_LOAD_TIMEOUT)
         progress_every = max(1, round(NANOSECONDS_PER_SECOND / stamps.step))
         publish_at, wait_for_reports, set_clock = (node.publish_at, node.wait_for_pair_reports,
                                                    self._set_clock)

@@ -32,15 +32,15 @@ import time
 from typing import Optional
 
 from diagnostic_msgs.msg import DiagnosticArray
-from qrm_ros.core.dynamics import (Loads, MassProperties, MotorDrive, parameter_names,
-                                   ram_load_force)
+from qrm_ros.core.dynamics import Loads, MassProperties, MotorDrive, parameter_names
 from qrm_ros.core.motor_stepper import MotorStepper
 from qrm_ros.core.stepper import Stepper
 from qrm_ros.core.names import (DIAGNOSTICS_TOPIC, LINKAGE_MARKERS_TOPIC, SIM_NODE_NAME,
                                 SPEED_COMMAND_TOPIC)
 from qrm_ros.core.stepping import ShaperStepper, wrap_angle
 from qrm_ros.core.stroke_adjustment import StrokeRamp
-from qrm_ros.core.stroke_efforts import efforts_with_stroke_screw, lever_radius_coefficient
+from qrm_ros.core.speed_drive_sample import speed_drive_sample
+from qrm_ros.core.stroke_efforts import lever_radius_coefficient
 from qrm_ros.node.held_figures import HeldFigures
 from qrm_ros.node.marker_schedule import LinkageMarkerSchedule, MarkerScene
 from qrm_ros.node.parameter_services import ShaperParameterNode, WARNING_PERIOD
@@ -255,7 +255,8 @@ class ShaperSimNode(HeldFigures, ShaperParameterNode):
         if stamp_ns <= 0 or stamp_ns == stepper.stamp_ns:
             return False
         resets, cutoffs = stepper.time_resets, stepper.integration_cutoffs
-        sample = stepper.advance_to(stamp_ns)
+        motor = isinstance(stepper, MotorStepper)
+        stepper.integrate_to(stamp_ns)
         if stepper.integration_cutoffs != cutoffs:
             self.get_logger().warning(
                 'the drive could not be integrated to this stamp within a bounded effort (a '
@@ -268,35 +269,34 @@ class ShaperSimNode(HeldFigures, ShaperParameterNode):
                 'continuing from the new time', throttle_duration_sec=WARNING_PERIOD)
             self._pair_reports.clear()
         stroke = stepper.stroke
-        radius_rate, radius_acceleration = stroke.crank_radius_rates()
         # The stepper's state, read once (a tick reads each several times).
         input_angle, input_speed = stepper.input_angle, stepper.input_speed
         offset, offset_rate = stepper.offset, stepper.offset_rate
         crank_radius = stroke.crank_radius
-        ram_position, ram_velocity = sample.ram_position, sample.ram_velocity
-        positions = array('d', (input_angle, wrap_angle(sample.flywheel_angle),
-                                sample.lever_angle, ram_position, offset, crank_radius))
-        velocities = array('d', (input_speed, sample.flywheel_speed, sample.lever_speed,
-                                 ram_velocity, offset_rate, radius_rate))
+        radius_rate = stroke.crank_radius_rates()[0]
         # What drives each joint (N m, N), exact at the stamp. The speed drive supplies the
         # input torque the prescribed motion needs against inertia, gravity and the loads;
         # the motor stepper integrates the motion from the motor's torque and knows them.
         # The stroke screw's force is the lever torque's share through d(psi)/d(r).
-        motor = isinstance(stepper, MotorStepper)
         if motor:
+            sample = stepper.mechanism_state()
+            (flywheel_angle, flywheel_speed, lever_angle, lever_speed, ram_position,
+             ram_velocity) = (sample.flywheel_angle, sample.flywheel_speed, sample.lever_angle,
+                              sample.lever_speed, sample.ram_position, sample.ram_velocity)
             joint_efforts = array('d', stepper.efforts())
             joint_efforts.append(joint_efforts[2] * lever_radius_coefficient(
-                stepper.geometry, sample.flywheel_angle))
+                stepper.geometry, flywheel_angle))
             self._drive_status.update(stepper, stamp_ns)
         else:
             # The workpiece fits the longer of the strokes in force and commanded (rules).
-            ram_force = ram_load_force(self._loads, ram_position, ram_velocity,
-                                       max(stroke.stroke, stroke.command))
-            chain_efforts, screw_force = efforts_with_stroke_screw(
-                stepper.geometry, self._mass, offset, input_angle, input_speed,
-                stepper.input_acceleration, offset_rate, 0.0, ram_force, radius_rate,
-                radius_acceleration)
-            joint_efforts = array('d', (*chain_efforts, screw_force))
+            sample, values = speed_drive_sample(stepper, self._mass, self._loads)
+            (flywheel_angle, flywheel_speed, lever_angle, lever_speed, ram_position,
+             ram_velocity) = values[:6]
+            joint_efforts = array('d', values[6:])
+        positions = array('d', (input_angle, wrap_angle(flywheel_angle), lever_angle,
+                                ram_position, offset, crank_radius))
+        velocities = array('d', (input_speed, flywheel_speed, lever_speed, ram_velocity,
+                                 offset_rate, radius_rate))
         if not all(map(math.isfinite, positions + velocities + joint_efforts)):
             self.get_logger().error(
                 f'non-finite state at {stamp_ns} ns not published: positions {positions}, '
@@ -307,7 +307,7 @@ class ShaperSimNode(HeldFigures, ShaperParameterNode):
         self._state_publishers.publish(stamp_ns, self._values['frame_id'], positions,
                                        velocities, joint_efforts, ram_velocity)
         self._published_stamp_ns = stamp_ns
-        # The speed drive's sample is the core's state: the markers need not recompute it.
+        # The speed drive's state where the core gave it: the markers need not recompute it.
         self._markers.publish_if_due(stamp_ns, None if motor else sample)
         reports = self._pair_reports
         speed_setting = reports.note_setting(stepper, self._mass, self._loads, self._motor,

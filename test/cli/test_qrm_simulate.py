@@ -164,7 +164,8 @@ def test_a_progress_bar_when_asked_and_none_off_a_terminal(tmp_path):
 
 
 def test_a_write_error_ends_the_run_with_its_reason(tmp_path, monkeypatch, capsys):
-    # The disk fills up: a chunk's sync fails. The run file's one-line reason, exit 1, no file.
+    # The disk fills up: a chunk's sync fails (the fourth: chunks close by size offline, so
+    # the run is long enough for several). The run file's one-line reason, exit 1, no file.
     syncs = []
     real_fsync = os.fsync
 
@@ -175,8 +176,9 @@ def test_a_write_error_ends_the_run_with_its_reason(tmp_path, monkeypatch, capsy
         real_fsync(fd)
     monkeypatch.setattr(os, 'fsync', filling_fsync)
     path = tmp_path / 'run.mcap'
-    assert qrm_simulate.main(['--duration', '20', '-o', str(path),
+    assert qrm_simulate.main(['--duration', '200', '-p', 'publish_rate:=1000.0', '-o', str(path),
                               '--progress', 'never']) == exit_codes.EXIT_FAILURE
+    assert len(syncs) == 4  # it ended at the failed sync
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and 'No space left on device' in lines[0], lines
     # The file is gone: the line says so and points to -o, not to a recovery of it.

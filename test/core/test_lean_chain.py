@@ -14,7 +14,7 @@
 """
 The lean chain (the motor stepper's equation of motion) gives the chain's numbers bit for bit.
 
-In its Python form and compiled (qrm_ros.core.motor_kernel), on random states with exact
+In its Python form and compiled (qrm_ros.core.drive_kernel), on random states with exact
 zeros among them; and as the speed drive's efforts at a still stroke (stroke_efforts).
 """
 
@@ -90,8 +90,8 @@ def test_the_lean_chain_gives_the_chains_numbers_bit_for_bit(mass):
 
 def _kernel():
     pytest.importorskip('numba')
-    from qrm_ros.core import motor_kernel
-    return motor_kernel
+    from qrm_ros.core import drive_kernel
+    return drive_kernel
 
 
 @pytest.mark.parametrize('mass', LEAN_MASSES)

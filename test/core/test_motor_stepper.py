@@ -30,7 +30,7 @@ from qrm_ros.core import motor_integration
 from qrm_ros.core.geometry import Geometry
 from qrm_ros.core.kinematics import input_angle_for_flywheel_angle, reversal_flywheel_angles, state
 from qrm_ros.core.motor_equation import EquationOfMotion
-from qrm_ros.core.motor_kernel_loading import COMPILED_MOTOR_KERNEL
+from qrm_ros.core.drive_kernel_loading import COMPILED_DRIVE_KERNEL
 from qrm_ros.core.motor_stepper import MotorStepper, simulate
 
 GEOMETRY = Geometry.paper()
@@ -261,8 +261,8 @@ def _chain_fixed(mass):
 
 def _kernel():
     pytest.importorskip('numba')
-    from qrm_ros.core import motor_kernel
-    return motor_kernel
+    from qrm_ros.core import drive_kernel
+    return drive_kernel
 
 
 def _commanded_run(loads, at_tick=None):
@@ -291,14 +291,14 @@ def test_the_compiled_and_python_right_hand_sides_give_the_same_run(monkeypatch,
     compiled = _kernel()
     loads = dyn.Loads(cutting_force=cutting_force, ram_friction=LOADS.ram_friction,
                       cutting_length=LOADS.cutting_length)
-    monkeypatch.setattr(COMPILED_MOTOR_KERNEL, 'module', compiled)
+    monkeypatch.setattr(COMPILED_DRIVE_KERNEL, 'module', compiled)
     in_compiled = _commanded_run(loads)
-    COMPILED_MOTOR_KERNEL.module = None
+    COMPILED_DRIVE_KERNEL.module = None
     in_python = _commanded_run(loads)
     assert in_python == in_compiled
 
     def load_at_two_seconds(stamp):
-        COMPILED_MOTOR_KERNEL.module = compiled if stamp >= 2_000_000_000 else None
+        COMPILED_DRIVE_KERNEL.module = compiled if stamp >= 2_000_000_000 else None
     assert _commanded_run(loads, load_at_two_seconds) == in_compiled
 
 
@@ -317,13 +317,13 @@ def test_without_numba_the_stepper_runs_the_python_form(monkeypatch):
 
     def without_numba(name, *arguments, **options):
         if name == 'numba' or name.startswith('numba.') or (
-                name == 'qrm_ros.core' and 'motor_kernel' in (arguments[2] or ())):
+                name == 'qrm_ros.core' and 'drive_kernel' in (arguments[2] or ())):
             raise ImportError(f'no module named {name!r} (test)')
         return real_import(name, *arguments, **options)
-    monkeypatch.setattr(COMPILED_MOTOR_KERNEL, 'module', None)
+    monkeypatch.setattr(COMPILED_DRIVE_KERNEL, 'module', None)
     monkeypatch.setattr(builtins, '__import__', without_numba)
-    COMPILED_MOTOR_KERNEL.load()
-    assert COMPILED_MOTOR_KERNEL.module is None and COMPILED_MOTOR_KERNEL.loaded.is_set()
+    COMPILED_DRIVE_KERNEL.load()
+    assert COMPILED_DRIVE_KERNEL.module is None and COMPILED_DRIVE_KERNEL.loaded.is_set()
     monkeypatch.setattr(builtins, '__import__', real_import)
     rows = _run(_stepper(), 0, 200_000_000)
     assert rows[-1][1] > 0.0

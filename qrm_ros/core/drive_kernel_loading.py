@@ -12,12 +12,13 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 """
-Loading the motor stepper's compiled kernel (qrm_ros.core.motor_kernel) on a thread of its own.
+Loading the drives' compiled kernel (qrm_ros.core.drive_kernel) on a thread of its own.
 
-The lean acceleration and efforts compiled (numba): importing numba and loading the machine
-code take 0.3-1 s, so the first MotorStepper of a process starts loading them on a thread
-of its own; each segment, and the efforts at each stamp, take whichever form is there (the
-two give the same numbers bit for bit). That thread interleaves with the ticks (the node's
+The lean acceleration and efforts and the speed drive's sample compiled (numba): importing
+numba and loading the machine code take 0.3-1 s, so the first MotorStepper of a process (or
+an offline run, qrm_simulate) starts loading them on a thread of its own; each segment, and
+the efforts at each stamp, take whichever form is there (the two give the same numbers bit
+for bit). That thread interleaves with the ticks (the node's
 0.1 ms GIL switch interval) but for its C calls that keep the GIL: 3-7 ms each, a few, once
 per process.
 """
@@ -27,7 +28,7 @@ import threading
 from types import ModuleType
 from typing import Optional
 
-__all__ = ['COMPILED_MOTOR_KERNEL', 'CompiledKernel']
+__all__ = ['COMPILED_DRIVE_KERNEL', 'CompiledKernel']
 
 
 class CompiledKernel:
@@ -49,11 +50,11 @@ class CompiledKernel:
         gc.disable()
         try:
             # Imported here, not at the top: numba is optional and slow to load.
-            from qrm_ros.core import motor_kernel
+            from qrm_ros.core import drive_kernel
         except ImportError:  # without numba: the Python form throughout
             pass
         else:
-            self.module = motor_kernel
+            self.module = drive_kernel
         finally:
             gc.freeze()
             if collecting:
@@ -65,9 +66,10 @@ class CompiledKernel:
         with self._lock:
             if self._loader is None:
                 self._loader = threading.Thread(target=self.load, daemon=True,
-                                                name='qrm_motor_kernel_loader')
+                                                name='qrm_drive_kernel_loader')
                 self._loader.start()
 
 
-# The one per process: every MotorStepper takes its compiled forms from here.
-COMPILED_MOTOR_KERNEL = CompiledKernel()
+# The one per process: every MotorStepper, and the speed drive's sample, take their compiled
+# forms from here.
+COMPILED_DRIVE_KERNEL = CompiledKernel()
