@@ -402,8 +402,9 @@ def pair_effort_steps(time: ArrayLike, input_speed: ArrayLike, input_torque: Arr
 
     ends = _pair_ends(t, start, end)
     duration = end - start
-    # The three integrals in one pass over the signals stacked, as the three extremes.
     power, squares = torque * speed, torque * torque
+    yield
+    # The three integrals in one pass over the signals stacked, as the three extremes.
     energy, torque_squared, angle = _over_pairs(np.stack([power, squares, speed]), ends)
     yield
     (torque_high, force_high, speed_high), (torque_low, force_low, speed_low) = (
