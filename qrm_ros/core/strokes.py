@@ -260,13 +260,14 @@ def stroke_pair_steps(time: ArrayLike, ram_position: ArrayLike,
     intervals = _intervals(t, x, v)
     when, cut_begins, interval = _reversals(intervals, v)
     starts = np.nonzero(cut_begins[:-2] & ~cut_begins[1:-1] & cut_begins[2:])[0]
-    cut_start, cut_end, ret_end = when[starts], when[starts + 1], when[starts + 2]
+    returns, ends = starts + 1, starts + 2  # the reversals that begin the returns, end pairs
+    cut_start, cut_end, ret_end = when[starts], when[returns], when[ends]
     yield
 
     peak = _interval_peak_speed(intervals)
     cumulative_max = _segment_max(peak, interval)
     peak_cut = cumulative_max[starts]
-    peak_ret = cumulative_max[starts + 1]
+    peak_ret = cumulative_max[returns]
 
     cross_time, cross_speed = yield from _crossing_steps(intervals, x)
     yield
@@ -280,7 +281,7 @@ def stroke_pair_steps(time: ArrayLike, ram_position: ArrayLike,
     turn_position = _hermite_position(
         (when - intervals.start[interval]) / step, step, intervals.x0[interval],
         intervals.x1[interval], intervals.v0[interval], intervals.v1[interval])
-    cutting_length = turn_position[starts] - turn_position[starts + 1]
+    cutting_length = turn_position[starts] - turn_position[returns]
     with np.errstate(divide='ignore', invalid='ignore'):
         return StrokePairs(
             cutting_start=cut_start, cutting_end=cut_end, return_end=ret_end,
@@ -290,7 +291,7 @@ def stroke_pair_steps(time: ArrayLike, ram_position: ArrayLike,
             mid_cutting_speed=mid_cut, mid_return_speed=mid_ret,
             speed_ratio=mid_ret / mid_cut, peak_speed_ratio=peak_ret / peak_cut,
             mean_cutting_speed=cutting_length / cutting_time,
-            first_sample=interval[starts], last_sample=interval[starts + 2] + 1)
+            first_sample=interval[starts], last_sample=interval[ends] + 1)
 
 
 def _segment_max(values, boundaries):
@@ -305,7 +306,8 @@ def _first_between(times, values, start, end):
     if times.size == 0:
         return np.full(start.shape, np.nan)
     index = np.minimum(np.searchsorted(times, start, side='right'), times.size - 1)
-    found = (times[index] > start) & (times[index] < end)
+    at = times[index]
+    found = (at > start) & (at < end)
     return np.where(found, values[index], np.nan)
 
 
@@ -335,7 +337,9 @@ class _PairEnds(NamedTuple):
 def _pair_ends(t, start, end):
     when = np.concatenate([end, start])
     k = np.clip(np.searchsorted(t, when, side='right') - 1, 0, t.size - 2)
-    return _PairEnds(k, when - t[k], t[k + 1] - t[k], 0.5 * np.diff(t), np.stack([start, end]),
+    at_sample = t[k]
+    return _PairEnds(k, when - at_sample, t[k + 1] - at_sample, 0.5 * (t[1:] - t[:-1]),
+                     np.stack([start, end]),
                      np.searchsorted(t, start, side='left'),
                      np.searchsorted(t, end, side='right'))
 
@@ -355,13 +359,13 @@ def _over_pairs(signals, ends):
 def _window_extremes(t, signals, ends):
     """Max and min of each row over each pair: samples inside plus the interpolated ends."""
     at_ends = np.stack([np.interp(ends.points, t, f) for f in signals])
-    high, low = np.max(at_ends, axis=1), np.min(at_ends, axis=1)
+    high, low = at_ends.max(axis=1), at_ends.min(axis=1)
     rows = range(len(signals))
     for index, (first, last) in enumerate(zip(ends.first.tolist(), ends.last.tolist())):
         if last > first:
             inside = signals[:, first:last]
-            for row, top, bottom in zip(rows, np.max(inside, axis=1).tolist(),
-                                        np.min(inside, axis=1).tolist()):
+            for row, top, bottom in zip(rows, inside.max(axis=1).tolist(),
+                                        inside.min(axis=1).tolist()):
                 high[row, index] = max(high[row, index], top)
                 low[row, index] = min(low[row, index], bottom)
     return high, low
