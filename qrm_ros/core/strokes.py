@@ -140,14 +140,16 @@ class _Intervals(NamedTuple):
     x1: np.ndarray
     v0: np.ndarray     # m/s
     v1: np.ndarray
-    a: np.ndarray      # the velocity a s^2 + b s + v0, s = (t - start) / step
-    b: np.ndarray
+    a: Optional[np.ndarray]  # the velocity a s^2 + b s + v0, s = (t - start) / step
+    b: Optional[np.ndarray]
 
 
-def _intervals(t, x, v):
+def _intervals(t, x, v, quadratic=True):
+    """Return the intervals of samples t, x, v (their velocity quadratics only if quadratic)."""
     step = np.diff(t)
     x0, x1, v0, v1 = x[:-1], x[1:], v[:-1], v[1:]
-    a, b, _ = _hermite_velocity_coefficients(step, x0, x1, v0, v1)
+    a, b, _ = (_hermite_velocity_coefficients(step, x0, x1, v0, v1) if quadratic
+               else (None, None, None))
     return _Intervals(t[:-1], step, x0, x1, v0, v1, a, b)
 
 
@@ -187,7 +189,8 @@ def _crossing_steps(intervals, x, level=0.0):
         s = x0 / (x0 - x1)
     s[s != s] = 0.5  # 0/0: the middle; an infinite start goes to an end in the clip
     s = np.clip(s, 0.0, 1.0)
-    if level == 0.0 and math.copysign(1.0, level) > 0.0:  # (x - -0.0 turns -0.0 into 0.0)
+    # At level +0.0 (not -0.0: x - -0.0 turns -0.0 into 0.0) the intervals' own quadratic.
+    if intervals.a is not None and level == 0.0 and math.copysign(1.0, level) > 0.0:
         a, b, c = intervals.a[k], intervals.b[k], v0
     else:
         a, b, c = _hermite_velocity_coefficients(step, x0, x1, v0, v1)
@@ -234,7 +237,7 @@ def workpiece_edge_times(time: ArrayLike, ram_position: ArrayLike, ram_velocity:
     end = np.asarray(cutting_end, dtype=float)
     if not (cutting_length > 0.0) or t.size < 2 or start.size == 0:
         return np.empty(0)
-    intervals = _intervals(t, x, v)
+    intervals = _intervals(t, x, v, quadratic=False)  # off level 0: the crossing's own
     edges = np.sort(np.concatenate([run_steps(_crossing_steps(intervals, x, level))[0]
                                     for level in (0.5 * cutting_length, -0.5 * cutting_length)]))
     stroke = np.searchsorted(start, edges, side='right') - 1
