@@ -16,15 +16,19 @@ qrm_simulate's speed against its floor: the same messages serialized and written
 
 The floor, per tick: fill a JointState (six joints' positions, velocities, efforts) and a
 TwistStamped, serialize both with rclpy's serialize_message and write them with the mcap
-Writer (zstd chunks), into a file; and, since the simulator writes them too (as the
-recorder does), the moving links' TFMessage (six transforms) filled and serialized by the
-same library call the simulator uses (rosbags' serialize_cdr: tf2_msgs has no rclpy type
-here) and written. The two-message floor of the issue (no /tf) is measured as well. The
+Writer (zstd chunks of the simulator's size), into a file; and, since the simulator writes
+them too (as the recorder does), the moving links' TFMessage (six transforms) filled and
+serialized by the same library call the simulator uses (rosbags' serialize_cdr: tf2_msgs
+has no rclpy type here) and written; and once a stroke pair (every 100 ticks at the node's
+default 1 rev/s and 100 Hz) the pair's /diagnostics status, a message the simulator wrote
+in a short run, serialized as the simulator does (typestore.exact_cdr) and written. The
+two-message floor of the issue (joint states and twists alone) is measured as well. The
 simulator, per tick: the whole node tick (stepping, efforts, stroke measurement and
 reports, the messages), serialization and writing, with the node's default 100 Hz and
-offset +10 mm, for each drive. Ticks per second of the loop (the set-up apart),
-interleaved over repeats; medians and their spread; the ratio simulator / floor (goal
->= 0.7 for the speed drive) and how long an hour of machine time at 100 Hz takes.
+offset +10 mm, for each drive. Ticks per second of the loop (the set-up apart: the
+compiled forms are loaded once before the runs), interleaved over repeats; medians and
+their spread; the ratio simulator / floor (goal >= 0.7 for the speed drive) and how long an
+hour of machine time at 100 Hz takes.
 
 --breakdown says where a speed-drive tick's CPU time goes instead: the run again with one
 part more left out each time (the stroke-pair measurement, the /tf, the serializing and
@@ -48,14 +52,19 @@ from rclpy.serialization import serialize_message
 from rosbags.typesys import get_typestore, Stores
 from sensor_msgs.msg import JointState
 
+from qrm_ros.core.drive_kernel_loading import COMPILED_DRIVE_KERNEL
 from qrm_ros.core.names import PUBLISHED_JOINT_NAMES, TF_MESSAGE_TYPE
 from qrm_ros.node import shaper_sim
 from qrm_ros.node.offline_sim import RecordingPublisher, Simulation
 from qrm_ros.node.scenario import scenario_from_mapping
 from qrm_ros.recording.machine_channels import MachineChannels
 from qrm_ros.recording.mcap_run_file import CHUNK_SIZE_BYTES
+from qrm_ros.recording.typestore import exact_cdr
 
 PERIOD_NS = 10_000_000
+# Ticks of a stroke pair at the node's default input speed (1 rev/s) and rate (100 Hz).
+PAIR_TICKS = 100
+DIAGNOSTICS_TYPE = 'diagnostic_msgs/msg/DiagnosticArray'
 
 
 def _tf_message(store):
@@ -70,8 +79,33 @@ def _tf_message(store):
         for name in PUBLISHED_JOINT_NAMES])
 
 
-def floor(path, ticks, transforms=True):
-    """Return the ticks per second of filling, serializing and writing the messages."""
+def _stroke_pair_status(folder):
+    """Return a stroke pair's /diagnostics message as the simulator writes it (a short run)."""
+    written = []
+    write_exact = Simulation._write_exact
+
+    def kept(simulation, type_name, channel, message):
+        if type_name == DIAGNOSTICS_TYPE:
+            written.append(message)
+        write_exact(simulation, type_name, channel, message)
+    Simulation._write_exact = kept
+    try:
+        path = os.path.join(folder, 'status.mcap')
+        Simulation(scenario_from_mapping({'duration': 3.0, 'parameters': {
+            'coupling_offset': 0.01}}), path).run()
+        os.unlink(path)
+    finally:
+        Simulation._write_exact = write_exact
+    return written[-1]
+
+
+def floor(path, ticks, transforms=True, status=None):
+    """
+    Return the ticks per second of filling, serializing and writing the messages.
+
+    status: a stroke pair's /diagnostics message, written once a pair (every PAIR_TICKS) as
+    the simulator writes it (exact_cdr), or None (the two-message floor: not written).
+    """
     store = get_typestore(Stores.ROS2_JAZZY)
     tf_message = _tf_message(store)
     with open(path, 'wb') as stream:
@@ -82,6 +116,7 @@ def floor(path, ticks, transforms=True):
         joints = writer.register_channel('/joint_states', 'cdr', schema)
         twists = writer.register_channel('/ram/twist', 'cdr', schema)
         tf = writer.register_channel('/tf', 'cdr', schema)
+        diagnostics = writer.register_channel('/diagnostics', 'cdr', schema)
         joint_state, twist = JointState(name=list(PUBLISHED_JOINT_NAMES)), TwistStamped()
         started, cpu_started = time.perf_counter(), time.process_time()
         for tick in range(1, ticks + 1):
@@ -107,6 +142,10 @@ def floor(path, ticks, transforms=True):
                     transform.transform.rotation.w = math.cos(0.5 * angle)
                 writer.add_message(tf, stamp, bytes(store.serialize_cdr(
                     tf_message, TF_MESSAGE_TYPE)), stamp)
+            if status is not None and tick % PAIR_TICKS == 0:
+                status.header.stamp.sec, status.header.stamp.nanosec = seconds, nanoseconds
+                writer.add_message(diagnostics, stamp, exact_cdr(status, DIAGNOSTICS_TYPE),
+                                   stamp)
         writer.finish()
         return (ticks / (time.perf_counter() - started),
                 ticks / (time.process_time() - cpu_started))
@@ -151,6 +190,7 @@ def breakdown(folder, seconds, repeats):
     labels = ['the whole tick'] + [f'... without {label}' for label in LEFT_OUT]
     times = {label: [] for label in labels + ['floor', 'floor_no_tf']}
     path = os.path.join(folder, 'breakdown.mcap')
+    status = _stroke_pair_status(folder)
     for _ in range(repeats):
         for index, label in enumerate(labels):
             simulation = Simulation(scenario_from_mapping({'duration': seconds, 'parameters': {
@@ -167,7 +207,9 @@ def breakdown(folder, seconds, repeats):
                     setattr(owner, name, value)
             os.unlink(path)
         for name in ('floor', 'floor_no_tf'):
-            times[name].append(1e6 / floor(path, round(seconds * 100), name == 'floor')[1])
+            full = name == 'floor'
+            times[name].append(1e6 / floor(path, round(seconds * 100), full,
+                                           status if full else None)[1])
             os.unlink(path)
     before = None
     for label, values in times.items():
@@ -187,6 +229,10 @@ def main():
                         help='where a speed-drive tick\'s time goes (see the docstring)')
     args = parser.parse_args()
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'OFF'
+    # The drives' compiled forms, loaded once per process (0.3-1 s; a first run's own load is
+    # set-up, as the node's start), before any run is timed.
+    COMPILED_DRIVE_KERNEL.start_loading()
+    COMPILED_DRIVE_KERNEL.loaded.wait(60.0)
     if args.breakdown:
         with tempfile.TemporaryDirectory() as folder:
             breakdown(folder, args.seconds, args.repeats)
@@ -194,11 +240,13 @@ def main():
     rates = {'floor': [], 'floor_no_tf': [], 'speed': [], 'motor': []}
     cpu_rates = {name: [] for name in rates}
     with tempfile.TemporaryDirectory() as folder:
+        status = _stroke_pair_status(folder)
         for repeat in range(args.repeats):
             for name in rates:
                 path = os.path.join(folder, f'{name}_{repeat}.mcap')
                 if name.startswith('floor'):
-                    rate = floor(path, round(args.seconds * 100), name == 'floor')
+                    full = name == 'floor'
+                    rate = floor(path, round(args.seconds * 100), full, status if full else None)
                 else:
                     rate = simulated(path, args.seconds / (4 if name == 'motor' else 1), name)
                 rates[name].append(rate[0])
