@@ -31,13 +31,17 @@ signature on import, so no call can start a compilation.
 import numba
 from numba.extending import register_jitable
 
+from qrm_ros.core.dynamics import one_sample_ram_load
 from qrm_ros.core.lean_chain import (coupling_and_crank, lean_acceleration_of, lean_coefficients,
                                      lean_efforts_of, lean_speed_drive_sample,
-                                     SPEED_DRIVE_SAMPLE_FIELDS)
+                                     lever_radius_coefficient_of, SPEED_DRIVE_SAMPLE_FIELDS)
 
 register_jitable(coupling_and_crank)
 register_jitable(lean_coefficients)
-register_jitable(lean_efforts_of)  # called within lean_speed_drive_sample
+# Called within lean_speed_drive_sample:
+register_jitable(lean_efforts_of)
+register_jitable(lever_radius_coefficient_of)
+register_jitable(one_sample_ram_load)
 
 _ARGUMENTS = '(float64[::1], float64, float64, float64, float64, float64, float64)'
 lean_acceleration = numba.njit('float64' + _ARGUMENTS, cache=True,

@@ -39,7 +39,7 @@ from qrm_ros.core.physical_ranges import magnitude_problem
 __all__ = [
     'DynamicsError', 'Efforts', 'Loads', 'MassProperties', 'MotorDrive', 'checked_quantity',
     'efforts',
-    'generalized_inertia', 'ram_load_force',
+    'generalized_inertia', 'one_sample_ram_load', 'ram_load_force',
 ]
 
 # A float, or a numpy array of them in vectorised use.
@@ -527,6 +527,19 @@ def generalized_inertia(geometry: Geometry, mass: MassProperties, offset: FloatO
     return float(value) if np.ndim(value) == 0 else value
 
 
+def one_sample_ram_load(cutting_force: float, cutting_length: float, ram_friction: float,
+                        ram_position: float, ram_velocity: float) -> float:
+    """
+    ram_load_force on one sample of floats, the loads' fields given (N, m, N; m, m/s).
+
+    Math and floats only: the speed drive's compiled sample (qrm_ros.core.drive_kernel)
+    calls it too.
+    """
+    cutting = ram_velocity < 0.0 and abs(ram_position) <= 0.5 * cutting_length
+    direction = math.copysign(1.0, ram_velocity) if ram_velocity else 0.0
+    return (cutting_force if cutting else 0.0) - ram_friction * direction
+
+
 def ram_load_force(loads: 'Loads', ram_position: FloatOrArray, ram_velocity: FloatOrArray,
                    stroke: FloatOrArray) -> FloatOrArray:
     """
@@ -538,9 +551,8 @@ def ram_load_force(loads: 'Loads', ram_position: FloatOrArray, ram_velocity: Flo
     """
     loads.check_against(stroke)
     if type(ram_position) is float and type(ram_velocity) is float:  # one sample: the node
-        cutting = ram_velocity < 0.0 and abs(ram_position) <= 0.5 * loads.cutting_length
-        direction = math.copysign(1.0, ram_velocity) if ram_velocity else 0.0
-        return (loads.cutting_force if cutting else 0.0) - loads.ram_friction * direction
+        return one_sample_ram_load(loads.cutting_force, loads.cutting_length,
+                                   loads.ram_friction, ram_position, ram_velocity)
     position = np.asarray(ram_position, dtype=float)
     velocity = np.asarray(ram_velocity, dtype=float)
     cutting = (velocity < 0.0) & (np.abs(position) <= 0.5 * loads.cutting_length)

@@ -26,12 +26,12 @@ numbers bit for bit too.
 import math
 from typing import Callable, Sequence, Tuple
 
-from qrm_ros.core.dynamics import MassProperties
+from qrm_ros.core.dynamics import MassProperties, one_sample_ram_load
 from qrm_ros.core.geometry import Geometry
 
 __all__ = ['coupling_and_crank', 'lean_acceleration_of', 'lean_coefficients', 'lean_constants',
            'lean_efforts_of', 'lean_ram_motion', 'lean_speed_drive_sample', 'LeanConstants',
-           'SPEED_DRIVE_SAMPLE_FIELDS']
+           'lever_radius_coefficient_of', 'SPEED_DRIVE_SAMPLE_FIELDS']
 
 # The constants (lean_constants' tuple; the compiled forms take them as a float64 array).
 LeanConstants = Sequence[float]
@@ -189,6 +189,18 @@ def lean_ram_motion(constants: LeanConstants) -> Callable[[float, float, float, 
     return ram_motion
 
 
+def lever_radius_coefficient_of(radius: float, pivot_distance: float, cos_crank: float,
+                                sin_crank: float) -> float:
+    """
+    Return d(psi)/d(r) (rad/m): h cos(phi_c) / |pin - O3|^2, the crank's direction given.
+
+    The stroke screw's force is the lever torque times this (stroke_efforts.
+    lever_radius_coefficient at a flywheel angle; the speed drive's sample).
+    """
+    return pivot_distance * cos_crank / (radius * radius + pivot_distance * pivot_distance
+                                         + 2.0 * radius * pivot_distance * sin_crank)
+
+
 # What lean_speed_drive_sample returns, in order: the published joints' motion, the chain's
 # Efforts fields, the stroke screw's force.
 SPEED_DRIVE_SAMPLE_FIELDS = (
@@ -207,10 +219,10 @@ def lean_speed_drive_sample(constants: LeanConstants, cutting_force: float,
     SPEED_DRIVE_SAMPLE_FIELDS, from the input's angle, speed and acceleration and the
     offset and its rate (the offset's acceleration zero), under the loads given (N, m, N).
     The operations of mechanism_state.state (positions and speeds: no powers, which a
-    compiled form would turn into products), dynamics.ram_load_force,
-    ``lean_efforts_of`` and stroke_efforts.lever_radius_coefficient on one sample, in their
-    order, so it gives their numbers bit for bit (a test holds it to them);
-    qrm_ros.core.drive_kernel compiles it for the node's tick.
+    compiled form would turn into products), then dynamics.one_sample_ram_load,
+    ``lean_efforts_of`` and ``lever_radius_coefficient_of`` on one sample, in their order,
+    so it gives their numbers bit for bit (a test holds it to them); qrm_ros.core.drive_kernel
+    compiles it for the node's tick.
     """
     r1, r, h, height, phase = constants[0], constants[1], constants[2], constants[3], constants[4]
     # state(): the coupling (the first slot's rate), then the lever (the second's).
@@ -232,15 +244,12 @@ def lean_speed_drive_sample(constants: LeanConstants, cutting_force: float,
     tan_lever = r * cos_c / (h + r * sin_c)
     ram_position = height * tan_lever
     ram_velocity = height * lever_speed * (1.0 + tan_lever * tan_lever)
-    # ram_load_force(): the tool faces -x; Coulomb friction, zero at rest.
-    cutting = ram_velocity < 0.0 and abs(ram_position) <= 0.5 * cutting_length
-    direction = math.copysign(1.0, ram_velocity) if ram_velocity else 0.0
-    load = (cutting_force if cutting else 0.0) - ram_friction * direction
+    load = one_sample_ram_load(cutting_force, cutting_length, ram_friction, ram_position,
+                               ram_velocity)
     (input_torque, flywheel_torque, lever_torque, ram_force,
      offset_force) = lean_efforts_of(constants, offset, angle, speed, acceleration,
                                      offset_rate, load)
-    # lever_radius_coefficient(): d(psi)/d(r) at the flywheel angle.
-    screw_force = lever_torque * (h * cos_c / (r * r + h * h + 2.0 * r * h * sin_c))
+    screw_force = lever_torque * lever_radius_coefficient_of(r, h, cos_c, sin_c)
     return (flywheel_angle, flywheel_speed, lever_angle, lever_speed, ram_position,
             ram_velocity, input_torque, flywheel_torque, lever_torque, ram_force,
             offset_force, screw_force)

@@ -30,7 +30,7 @@ import numpy as np
 from qrm_ros.core.dynamics import (ARRAY_OPS, Chain, checked_quantity, Efforts, evaluate_chain,
                                    geometry_fields, MassProperties, SCALAR_OPS)
 from qrm_ros.core.geometry import check_offset, FloatOrArray, Geometry
-from qrm_ros.core.lean_chain import lean_constants, lean_efforts_of
+from qrm_ros.core.lean_chain import lean_constants, lean_efforts_of, lever_radius_coefficient_of
 
 __all__ = ['chain_with_stroke_screw', 'efforts_with_stroke_screw', 'lever_radius_coefficient',
            'still_stroke_constants']
@@ -154,7 +154,7 @@ def lever_radius_coefficient(geometry: Geometry, flywheel_angle: float) -> float
     The stroke screw's force is the lever torque times this (with the stroke still: the
     motor stepper's efforts, which carry the lever torque).
     """
-    r, h = float(geometry.crank_radius), float(geometry.pivot_distance)
     crank_angle = flywheel_angle + float(geometry.crank_phase)
-    sin_c = math.sin(crank_angle)
-    return h * math.cos(crank_angle) / (r * r + h * h + 2.0 * r * h * sin_c)
+    return lever_radius_coefficient_of(float(geometry.crank_radius),
+                                       float(geometry.pivot_distance), math.cos(crank_angle),
+                                       math.sin(crank_angle))
