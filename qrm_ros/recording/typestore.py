@@ -68,8 +68,10 @@ def _element_type(field_type: str) -> str:
 
 
 def _single(value: Any) -> Any:
-    """Return a one-byte field (rclpy: bytes of length one) as the store's integer."""
-    return value[0] if isinstance(value, (bytes, str)) else value
+    """Return a one-byte field (rclpy: bytes, or a str for an IDL char) as the store's integer."""
+    if isinstance(value, bytes):
+        return value[0]
+    return ord(value) if isinstance(value, str) else value
 
 
 def _field_converter(field_type: str) -> Optional[Callable[[Any], Any]]:
