@@ -14,7 +14,8 @@
 """
 The motor stepper's integration within one segment: DOP853 steps, a few ahead of the stamps.
 
-scipy's DOP853 (8th order) on the segment's right-hand side, called directly. Each step's
+scipy's DOP853 (8th order) on the segment's right-hand side, its vector algebra written
+out (core.portable_dop853: the same steps on every CPU). Each step's
 dense output is sampled for a switch of the segment's mode; a switch inside a step is found
 with brentq and the step is cut there, the next segment to start from it once the stamps
 pass it. Steps are taken a few at a time ahead of the stamps (the same steps, so the same
@@ -25,10 +26,11 @@ import collections
 from typing import Any, Callable, Deque, List, Optional, Tuple
 
 import numpy as np
-from scipy import integrate, optimize
+from scipy import optimize
 
 from qrm_ros.core import dynamics as dyn
 from qrm_ros.core.motor_segment import SegmentFunctions
+from qrm_ros.core.portable_dop853 import PortableDop853
 
 __all__ = ['ATOL', 'Dop853', 'float_dense', 'Piece', 'ROOT_SAMPLES', 'RTOL',
            'SegmentIntegration', 'STEPS_AHEAD']
@@ -78,20 +80,11 @@ def float_dense(dense: Any) -> Callable[[float], Tuple[float, float]]:
     return at
 
 
-class Dop853(integrate.DOP853):
-    """
-    scipy's DOP853 at the stepper's tolerances, calling the right-hand side directly.
-
-    OdeSolver wraps the right-hand side (a call counting nfev, then np.asarray of its
-    result); the solver stores each result into its stage array, or keeps the last as f and
-    adds it to an array (dense output), both of which take the [speed, acceleration] list as
-    the array it made of it, so dropping the wrappers changes no number (nfev goes
-    uncounted). Construction still goes through them.
-    """
+class Dop853(PortableDop853):
+    """DOP853 at the stepper's tolerances, its steps the same on every CPU."""
 
     def __init__(self, rhs: Callable, time: float, state: List[float], bound: float) -> None:
         super().__init__(rhs, time, state, bound, rtol=RTOL, atol=ATOL)
-        self.fun = rhs
 
 
 class SegmentIntegration:

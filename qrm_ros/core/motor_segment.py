@@ -205,7 +205,7 @@ class SegmentPlan:
 class SegmentFunctions(NamedTuple):
     """A segment's right-hand side, acceleration and switching functions (closures)."""
 
-    rhs: Callable  # (time, y) -> [speed, acceleration], for DOP853
+    rhs: Callable  # (time, [angle, speed]) -> [speed, acceleration], for DOP853
     acceleration: Callable[[float, float, float], float]  # (time, angle, speed) -> rad/s^2
     switching: Callable[..., List[float]]  # (time, angle, speed, ram=True) -> values > 0
     clear: Callable[[float, float], bool]  # (low, high) angles clear of the load's switches
@@ -278,17 +278,17 @@ def segment_functions(plan: SegmentPlan, equation: EquationOfMotion) -> SegmentF
     # right-hand side is acceleration's steady branch, written out.
     if max(reference_end, offset_end, plan.stroke.end) > start:
         def rhs(time, y):
-            """Right-hand side for DOP853 (y an array: its values go on as floats)."""
-            angle, speed = y.tolist()
+            """Right-hand side for DOP853 (y: the state as a list of floats)."""
+            angle, speed = y
             return [speed, acceleration(float(time), angle, speed)]
     elif free:
         def rhs(time, y):
-            angle, speed = y.tolist()
+            angle, speed = y
             return [speed, kernel(constants, target, angle, speed, rate,
                                   stiffness * (command - speed), load)]
     else:
         def rhs(time, y):
-            angle, speed = y.tolist()
+            angle, speed = y
             return [speed, kernel(constants, target, angle, speed, rate, held_torque,
                                   load)]
 

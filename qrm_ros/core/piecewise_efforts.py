@@ -25,12 +25,16 @@ interval is given the polynomial through the samples of the piece nearest to it 
 quintic, for the integrals; four, a cubic, for the peaks; a line if the piece has fewer
 than six), which also carries the piece to its ends: sixth and fourth order in the step
 inside a piece, and a peak at a jump is the piece's one-sided limit there, not the last
-sample before it. Pure numpy.
+sample before it. Pure numpy, and no BLAS: its sums are added in a written order
+(core.fixed_order), so the figures have the same bits on every CPU.
 """
 
+import math
 from typing import NamedTuple, Sequence, Tuple, Union
 
 import numpy as np
+
+from qrm_ros.core.fixed_order import weighted_sum
 
 __all__ = ['INTEGRAL_POINTS', 'MIN_PIECE_SAMPLES', 'PieceIntegrals', 'piecewise_figures',
            'STENCIL_POINTS']
@@ -44,13 +48,18 @@ INTEGRAL_POINTS = 6
 # A piece with fewer samples takes the line through its two nearest samples instead: a
 # cubic through a few samples far apart overshoots more than a line.
 MIN_PIECE_SAMPLES = 6
-# Gauss-Legendre rule on [0, 1], exact for the quintics integrated.
-_GAUSS_NODES, _GAUSS_WEIGHTS = np.polynomial.legendre.leggauss(3)
-_GAUSS_NODES = 0.5 * (_GAUSS_NODES + 1.0)
-_GAUSS_WEIGHTS = 0.5 * _GAUSS_WEIGHTS
-# A cubic on [0, 1] from its values at 0, 1/3, 2/3, 1: its coefficients c0 + c1 u + ...
-_THIRDS = np.linspace(0.0, 1.0, 4)
-_TO_COEFFICIENTS = np.linalg.inv(np.vander(_THIRDS, 4, increasing=True))
+# Three-point Gauss-Legendre rule on [0, 1], exact for the quintics integrated: nodes
+# (1 -+ sqrt(3/5)) / 2 and 1/2, weights 5/18, 4/9, 5/18, in closed form (numpy's leggauss
+# finds them by an eigensolver, whose last bits follow the CPU's LAPACK kernels).
+_GAUSS_NODES = np.array([0.5 * (1.0 - math.sqrt(0.6)), 0.5, 0.5 * (1.0 + math.sqrt(0.6))])
+_GAUSS_WEIGHTS = (5.0 / 18.0, 4.0 / 9.0, 5.0 / 18.0)
+# A cubic on [0, 1] from its values at 0, 1/3, 2/3, 1: the rows give its coefficients
+# c0 + c1 u + c2 u^2 + c3 u^3 (the inverse of that Vandermonde matrix, exact in binary).
+_THIRDS = np.array([0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0])
+_TO_COEFFICIENTS = ((1.0, 0.0, 0.0, 0.0),
+                    (-5.5, 9.0, -4.5, 1.0),
+                    (9.0, -22.5, 18.0, -4.5),
+                    (-4.5, 13.5, -13.5, 4.5))
 
 
 class PieceIntegrals(NamedTuple):
@@ -104,7 +113,8 @@ def _lagrange(nodes, values, degree, points):
 
 def _cubic_extremes(values_at_thirds):
     """Max and min over [0, 1] of each row's cubic, given by its values at 0, 1/3, 2/3, 1."""
-    c0, c1, c2, c3 = (values_at_thirds @ _TO_COEFFICIENTS.T).T
+    values = values_at_thirds.T
+    c0, c1, c2, c3 = (weighted_sum(values, row) for row in _TO_COEFFICIENTS)
     a, b, c = 3.0 * c3, 2.0 * c2, c1
     with np.errstate(divide='ignore', invalid='ignore'):
         root = np.sqrt(np.maximum(b * b - 4.0 * a * c, 0.0))
@@ -157,7 +167,7 @@ def piecewise_figures(time: ArrayLike, switches: ArrayLike, pair_start: ArrayLik
     for integrand in integrands:
         values = np.asarray(integrand, dtype=float)[index]
         at_nodes = _lagrange(nodes, values, degree, width * _GAUSS_NODES)
-        piece_integral = (width[:, 0] * (at_nodes @ _GAUSS_WEIGHTS))
+        piece_integral = width[:, 0] * weighted_sum(at_nodes.T, _GAUSS_WEIGHTS)
         integrals.append(np.bincount(pair, weights=piece_integral, minlength=start.size))
     first, degree = _stencils(t, cut, left, right, STENCIL_POINTS)
     index = np.minimum(first[:, None] + np.arange(STENCIL_POINTS), t.size - 1)

@@ -53,7 +53,8 @@ from qrm_ros.core import kinematics as kin
 from qrm_ros.recording.bag_reader import open_run
 from qrm_ros.core.motor_stepper import MotorStepper
 from qrm_ros.core.sampling_bounds import BOUNDED_FIGURES
-from qrm_ros.core.names import JOINT_NAMES
+from qrm_ros.core.names import JOINT_NAMES, PUBLISHED_JOINT_NAMES
+from qrm_ros.core.stroke_efforts import lever_radius_coefficient
 from qrm_ros.node.shaper_parameters import MOTOR_PREFIX
 from qrm_ros.core.stepping import ShaperStepper, wrap_angle
 from repo_paths import TEST_DATA
@@ -61,6 +62,7 @@ from repo_paths import TEST_DATA
 DATA = TEST_DATA
 LOGS = sorted(glob.glob(os.path.join(DATA, '*.mcap')))
 JOINTS = list(JOINT_NAMES)
+PUBLISHED = list(PUBLISHED_JOINT_NAMES)
 # The settings make_golden_logs.py commanded: (offset m, input speed rad/s) per log.
 COMMANDED = {
     'steady_positive_offset': [(0.010, 2 * math.pi)],
@@ -95,7 +97,8 @@ class Log:
             message = STORE.deserialize_cdr(recorded.data, recorded.schema_name)
             topic = recorded.topic
             if topic == '/joint_states':
-                assert list(message.name) == JOINTS
+                # Logs made before the stroke adjustment have the five JOINT_NAMES only.
+                assert list(message.name) in (JOINTS, PUBLISHED)
                 stamps.append(_ns(message.header.stamp))
                 positions.append(message.position)
                 velocities.append(message.velocity)
@@ -108,9 +111,13 @@ class Log:
                     self.events.append((_ns(message.stamp), parameter.name, value))
         order = np.argsort(stamps, kind='stable')
         self.stamps = [stamps[i] for i in order]
-        self.position = np.array(positions)[order]
-        self.velocity = np.array(velocities)[order]
-        self.effort = np.array(efforts)[order]  # (n, 0) when the node published none
+        joints = len(JOINTS)
+        self.position = np.array(positions)[order][:, :joints]
+        self.velocity = np.array(velocities)[order][:, :joints]
+        self.effort = np.array(efforts)[order][:, :joints]  # (n, 0) when none published
+        # The crank radius's joint (m, m/s, N), where logged: (n, 3), else (n, 0).
+        self.crank_radius = np.array([np.array(column)[order][:, joints:].ravel()
+                                      for column in (positions, velocities, efforts)]).T
         self.motor = self.parameters.get('drive') == 'motor'
         self.twists = twists
         self.events.sort()
@@ -182,16 +189,22 @@ def _apply(stepper, parameters, name, value):
 
 
 def _published(log, stepper, parameters):
-    """Positions, velocities and efforts as shaper_sim publishes them at the present stamp."""
+    """
+    Positions, velocities and efforts as shaper_sim publishes them at the present stamp.
+
+    And the motor drive's stroke screw force: the lever torque's share (shaper_sim).
+    """
     sample = stepper.mechanism_state()
     positions = (stepper.input_angle, wrap_angle(sample.flywheel_angle), sample.lever_angle,
                  sample.ram_position, stepper.offset)
     velocities = (stepper.input_speed, sample.flywheel_speed, sample.lever_speed,
                   sample.ram_velocity, stepper.offset_rate)
+    screw = None
     if not log.effort.shape[1]:
         efforts = ()  # logged before the node published efforts
     elif isinstance(stepper, MotorStepper):
         efforts = tuple(stepper.efforts())
+        screw = efforts[2] * lever_radius_coefficient(log.geometry, sample.flywheel_angle)
     else:
         mass, loads, _ = _dynamics(parameters)
         efforts = tuple(dyn.efforts(
@@ -199,12 +212,12 @@ def _published(log, stepper, parameters):
             stepper.input_acceleration, stepper.offset_rate, 0.0,
             dyn.ram_load_force(loads, sample.ram_position, sample.ram_velocity,
                                log.geometry.ram_stroke)))
-    return positions, velocities, efforts
+    return positions, velocities, efforts, screw
 
 
 def replay(log):
     """
-    Step the node's stepper through the log; yield (index, positions, velocities, efforts).
+    Step the node's stepper through the log: (index, positions, velocities, efforts, screw).
 
     The commands in force at the first sample are the metadata's start-up values and any
     change stamped before it; the first sample is taken as the state there.
@@ -239,7 +252,7 @@ def test_stepper_replays_the_logged_trajectory_bit_for_bit(log):
     # joint and effort in the motor logs. The speed-drive logs' derived joints were computed
     # by an earlier core, to within an ulp of today's (test_core_reproduces_...).
     stepped = (slice(None), slice(None)) if log.motor else ([0, 4], [0, 4])
-    for k, positions, velocities, efforts in replay(log):
+    for k, positions, velocities, efforts, screw in replay(log):
         if k == 0 and not log.motor:
             continue  # the state restored
         got = (np.array(positions)[stepped[0]].tolist(),
@@ -249,6 +262,11 @@ def test_stepper_replays_the_logged_trajectory_bit_for_bit(log):
         if log.motor:
             assert list(efforts) == log.effort[k].tolist(), (
                 f'sample {k} at {log.stamps[k]} ns: efforts {efforts} != log {log.effort[k]}')
+        if log.crank_radius.size:
+            # No stroke change in the logs: the radius stands still.
+            assert log.crank_radius[k, :2].tolist() == [log.geometry.crank_radius, 0.0]
+        if log.motor and log.crank_radius.size:
+            assert log.crank_radius[k, 2] == screw, f'sample {k} at {log.stamps[k]} ns: screw'
 
 
 def test_the_motor_logs_start_at_a_reset_and_hold_the_changes(log, request):
@@ -378,7 +396,7 @@ def test_a_load_change_mid_run_is_recoverable_from_the_file(motor_log):
     unchanged = Log.__new__(Log)
     unchanged.__dict__.update(vars(log), events=[(s, n, log.parameters[n] if n == name else v)
                                                  for s, n, v in log.events])
-    first = next(k for k, _, velocities, _ in replay(unchanged)
+    first = next(k for k, _, velocities, _, _ in replay(unchanged)
                  if velocities[0] != log.velocity[k, 0])
     assert first == next(k for k in after if log.velocity[k, 3] < 0.0
                          and abs(log.position[k, 3]) <= 0.5 * in_force[k]['cutting_length'])
