@@ -42,15 +42,14 @@ from qrm_ros.core.effort_sampling_bounds import (EFFORT_BOUNDED_FIGURES,
                                                  effort_sampling_bounds, steady_efforts,
                                                  switch_shift)
 from qrm_ros.core.sampling_bounds import (BOUNDED_FIGURES, figure_sampling_bounds,
-                                          steady_motion, SUPPORTED_RELATIVE_ERROR)
+                                          step_on_grid, steady_motion,
+                                          SUPPORTED_RELATIVE_ERROR)
 from qrm_ros.core.strokes import (find_stroke_pairs, measure_pair_efforts,
                                   workpiece_edge_times)
 
 # Every figure given a bound from the sampling: the stroke's, then the drive's.
 ALL_BOUNDED_FIGURES = BOUNDED_FIGURES + EFFORT_BOUNDED_FIGURES
 
-# Steps are rounded up to a power of this before their bounds are worked out.
-_STEP_ROUNDING = 1.01
 # A pair whose longest step exceeds its median step this many times (a late or lost
 # sample) has its effort figures bounded at each stretch's own steps.
 _IRREGULAR_STEPS = 1.05
@@ -305,8 +304,7 @@ def _add_sampling_bounds(row: Dict[str, Any], samples: Samples, span: slice, pai
             theory = kin.steady_theory(geometry, row['offset'], speed)
     steps = np.array([np.max(np.diff(time[first:last + 1]), initial=0.0)
                       for first, last in zip(pairs.first_sample, pairs.last_sample)])
-    with np.errstate(divide='ignore'):  # a step of 0 s gets no bound
-        rounded = np.power(_STEP_ROUNDING, np.ceil(np.log(steps) / np.log(_STEP_ROUNDING)))
+    rounded = step_on_grid(steps)  # a step of 0 s gets no bound
     effort_bounds = _EffortBounds(row, bool(recorded.size) and not varies, geometry, drive,
                                   speed, motion)
     per_step = {step: {**(figure_sampling_bounds(geometry, row['offset'], speed, step, motion,

@@ -43,11 +43,12 @@ from qrm_ros.core import dynamics as dyn
 from qrm_ros.core.effort_theory import EFFORT_FIGURES
 from qrm_ros.core.geometry import Geometry, TWO_PI
 from qrm_ros.core.mechanism_state import state
+from qrm_ros.core.portable_math import power
 from qrm_ros.core.piecewise_efforts import (INTEGRAL_POINTS, MIN_PIECE_SAMPLES,
                                             STENCIL_POINTS)
 from qrm_ros.core.sampling_bounds import (envelope, FIRST_GRID, GRID_AGREEMENT, LAST_GRID,
                                           MARGIN, position_error_near, reversal_shifts,
-                                          spectral_derivative, SteadyMotion)
+                                          spectral_derivative, SteadyMotion, step_on_grid)
 from qrm_ros.core.speed_drive import load_switch_angles
 
 __all__ = ['EFFORT_BOUNDED_FIGURES', 'effort_sampling_bounds', 'steady_efforts', 'switch_shift',
@@ -294,8 +295,8 @@ def _local_steps(efforts, input_speed, h, interval_steps):
     period = TWO_PI / w
     since = np.mod((efforts.theta - efforts.cutting_start) / input_speed, period)
     index = np.clip(np.searchsorted(starts, since, side='right') - 1, 0, steps.size - 1)
-    # Rounded up to 1 % steps: a few distinct reaches for the envelopes.
-    return w * np.power(1.01, np.ceil(np.log(widest[index]) / math.log(1.01)))
+    # Rounded up to the steps' grid: a few distinct reaches for the envelopes.
+    return w * step_on_grid(widest[index])
 
 
 def _bounds(efforts, motion, theory, input_speed, h, interval_steps=None):
@@ -328,9 +329,9 @@ def _bounds(efforts, motion, theory, input_speed, h, interval_steps=None):
             highest[here] = envelope(derivative, points * reach, spacing)[here]
         if points == INTEGRAL_POINTS:  # the stretches beyond the samples: integrated below
             products = np.concatenate([[products[1]], products[1:]])
-        error[name] = (highest * step ** points * products[zone]
+        error[name] = (highest * power(step, points) * products[zone]
                        / math.factorial(points))
-        scaled = highest * step ** (points + 1)
+        scaled = highest * power(step, points + 1)
         beyond[name] = sum(
             _BEYOND_INTEGRAL * float(np.max(scaled[gaps[:, k] <= step + spacing], initial=0.0))
             for k in range(efforts.switches.size)) / math.factorial(points) / w

@@ -45,6 +45,7 @@ from qrm_ros.core.cutting_speeds import mean_cutting_speed
 from qrm_ros.core.geometry import ArrayLike, FloatOrArray, Geometry
 from qrm_ros.core.offset_inverses import offset_for_time_ratio
 from qrm_ros.core.peak_speeds import peak_ram_speeds
+from qrm_ros.core.portable_math import power
 from qrm_ros.core.stroke_timing import time_ratio
 
 __all__ = ['ConventionalGearbox', 'DEFAULT_MIN_TIME_RATIO', 'DEFINITIONS', 'GearStep',
@@ -215,7 +216,7 @@ def conventional_gearbox(geometry: Geometry, definition: str, min_cutting_speed:
         raise KinematicsError(
             f'progression_ratio must be > 1, got {progression_ratio!r}')
     count = fewest_steps(max_cutting_speed / min_cutting_speed, progression_ratio)
-    speeds = min_cutting_speed * progression_ratio ** np.arange(count)
+    speeds = min_cutting_speed * power(progression_ratio, np.arange(count))
     unit = float(unit_cutting_speed(geometry, definition)(0.0))
     return ConventionalGearbox(progression_ratio, 1.0 - 1.0 / progression_ratio, count,
                                tuple(float(v) for v in speeds / unit),
@@ -264,10 +265,10 @@ def plan_gearbox(geometry: Geometry, min_cutting_speed: float, max_cutting_speed
             f'speed from {v1:g} to {v2:g} m/s; {remedy}')
     count = fewest_steps(range_ratio, band_ratio)
     progression = min(range_ratio ** (1.0 / count), band_ratio)
-    edges = v1 * progression ** np.arange(count + 1)
+    edges = v1 * power(progression, np.arange(count + 1))
     edges[-1] = v2
     centre = math.sqrt(offsets.slowest_per_input_speed * offsets.fastest_per_input_speed)
-    input_speeds = v1 * progression ** (np.arange(count) + 0.5) / centre
+    input_speeds = v1 * power(progression, np.arange(count) + 0.5) / centre
     ends = offsets_for_unit_speeds(
         geometry, definition, offsets,
         np.stack([edges[:-1] / input_speeds, edges[1:] / input_speeds]))

@@ -28,6 +28,7 @@ from typing import Any, Tuple
 
 import numpy as np
 
+from qrm_ros.core.portable_math import arcsin, arctan2
 from qrm_ros.core.geometry import (ArrayLike, check_offset, FloatOrArray, Geometry,
                                    MechanismState, TWO_PI)
 
@@ -150,7 +151,7 @@ def input_angle_for_flywheel_angle(geometry: Geometry, offset: ArrayLike,
     phi = np.asarray(flywheel_angle, dtype=float)
     sin_p, cos_p = np.sin(phi), np.cos(phi)
     pin_distance = offset * sin_p + np.sqrt(r1 * r1 - (offset * cos_p) ** 2)
-    return np.arctan2(pin_distance * sin_p - offset, pin_distance * cos_p)
+    return arctan2(pin_distance * sin_p - offset, pin_distance * cos_p)
 
 
 def reversal_flywheel_angles(geometry: Geometry) -> Tuple[FloatOrArray, FloatOrArray]:
@@ -160,7 +161,7 @@ def reversal_flywheel_angles(geometry: Geometry) -> Tuple[FloatOrArray, FloatOrA
     For a positive input speed the cut starts at the ram's +x end (crank at -asin(r/h)) and
     covers the long arc through +90 degrees to pi + asin(r/h).
     """
-    half_gap = np.arcsin(geometry.crank_radius / geometry.pivot_distance)
+    half_gap = arcsin(geometry.crank_radius / geometry.pivot_distance)
     return -half_gap - geometry.crank_phase, math.pi + half_gap - geometry.crank_phase
 
 

@@ -28,6 +28,7 @@ import numpy as np
 from qrm_ros.core.checks import checked_input_speed
 from qrm_ros.core.geometry import (ArrayLike, check_offset, float_or_array, FloatOrArray,
                                    Geometry, TWO_PI)
+from qrm_ros.core.portable_math import arcsin
 from qrm_ros.core.speed_rise import speed_rise_of
 
 __all__ = ['BRACKET_RESOLUTION', 'COMPILED_MIN_CONFIGURATIONS', 'NEWTON_ANGLE_TOLERANCE',
@@ -220,7 +221,7 @@ def _peak_speeds_block(problem):
     tried and fail: where the two coincide (crank phase 0) dv/dphi_c is zero there and the
     bracket is lost.
     """
-    half_gap = np.arcsin(problem.crank_radius / problem.pivot_distance)
+    half_gap = arcsin(problem.crank_radius / problem.pivot_distance)
     peaks = []
     for stroke_sign, arc_start, arc_end, samples in (
             (-1.0, -half_gap, math.pi + half_gap, PEAK_SAMPLES[0]),

@@ -29,12 +29,12 @@ sample before it. Pure numpy, and no BLAS: its sums are added in a written order
 (core.fixed_order), so the figures have the same bits on every CPU.
 """
 
-import math
 from typing import NamedTuple, Sequence, Tuple, Union
 
 import numpy as np
 
 from qrm_ros.core.fixed_order import weighted_sum
+from qrm_ros.core.gauss_legendre import gauss_legendre
 
 __all__ = ['INTEGRAL_POINTS', 'MIN_PIECE_SAMPLES', 'PieceIntegrals', 'piecewise_figures',
            'STENCIL_POINTS']
@@ -48,11 +48,10 @@ INTEGRAL_POINTS = 6
 # A piece with fewer samples takes the line through its two nearest samples instead: a
 # cubic through a few samples far apart overshoots more than a line.
 MIN_PIECE_SAMPLES = 6
-# Three-point Gauss-Legendre rule on [0, 1], exact for the quintics integrated: nodes
-# (1 -+ sqrt(3/5)) / 2 and 1/2, weights 5/18, 4/9, 5/18, in closed form (numpy's leggauss
-# finds them by an eigensolver, whose last bits follow the CPU's LAPACK kernels).
-_GAUSS_NODES = np.array([0.5 * (1.0 - math.sqrt(0.6)), 0.5, 0.5 * (1.0 + math.sqrt(0.6))])
-_GAUSS_WEIGHTS = (5.0 / 18.0, 4.0 / 9.0, 5.0 / 18.0)
+# Three-point Gauss-Legendre rule on [0, 1], exact for the quintics integrated.
+_RULE_NODES, _RULE_WEIGHTS = gauss_legendre(3)
+_GAUSS_NODES = 0.5 * (_RULE_NODES + 1.0)
+_GAUSS_WEIGHTS = tuple(0.5 * _RULE_WEIGHTS)
 # A cubic on [0, 1] from its values at 0, 1/3, 2/3, 1: the rows give its coefficients
 # c0 + c1 u + c2 u^2 + c3 u^3 (the inverse of that Vandermonde matrix, exact in binary).
 _THIRDS = np.array([0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0])

@@ -35,13 +35,14 @@ import numpy as np
 from scipy.ndimage import maximum_filter1d
 
 from qrm_ros.core.geometry import Geometry, TWO_PI
+from qrm_ros.core.portable_math import log, power
 from qrm_ros.core.mechanism_state import (input_angle_for_flywheel_angle,
                                           reversal_flywheel_angles, state)
 from qrm_ros.core.steady_figures import steady_theory, SteadyTheory
 
 __all__ = ['BOUNDED_FIGURES', 'envelope', 'figure_sampling_bounds', 'FIRST_GRID', 'gap_after',
            'GAP_PERIODS', 'GAP_SECONDS', 'GRID_AGREEMENT', 'grid_reach', 'LAST_GRID', 'MARGIN',
-           'spectral_derivative',
+           'spectral_derivative', 'step_on_grid', 'STEP_GRID_RATIO',
            'position_error_near', 'reversal_shifts', 'steady_motion', 'SteadyMotion',
            'SUPPORTED_RELATIVE_ERROR']
 
@@ -68,6 +69,14 @@ GRID_AGREEMENT = 1e-3
 # The grid's maxima are raised (its values at a reversal or a crossing lowered) by this
 # factor: a maximum between grid points is not missed.
 MARGIN = 1.05
+# Steps are rounded up to a power of this before their bounds are worked out: a few
+# distinct steps, each bounded once.
+STEP_GRID_RATIO = 1.01
+
+
+def step_on_grid(steps: np.ndarray) -> np.ndarray:
+    """Round each step up to the next power of STEP_GRID_RATIO (0 stays 0); libm's log, pow."""
+    return power(STEP_GRID_RATIO, np.ceil(log(steps) / math.log(STEP_GRID_RATIO)))
 
 
 def gap_after(usual_step: float) -> float:

@@ -26,9 +26,9 @@ import threading
 from typing import NamedTuple
 
 import numpy as np
-from scipy import special
 
 from qrm_ros.core import dynamics as dyn
+from qrm_ros.core.gauss_legendre import gauss_legendre
 from qrm_ros.core.geometry import check_offset, Geometry, KinematicsError
 from qrm_ros.core.mechanism_state import (input_angle_for_flywheel_angle,
                                           reversal_flywheel_angles, state)
@@ -41,7 +41,7 @@ __all__ = ['load_switch_angles', 'MAX_EFFORT_PANELS', 'PairEfforts', 'pair_effor
 # rule and the rule on its two halves agree to this fraction of the halves' integral of
 # |torque| and of torque^2 (the halves' own error is then smaller by orders of magnitude).
 _GAUSS_ORDER = 20
-_GAUSS_NODES, _GAUSS_WEIGHTS = special.roots_legendre(_GAUSS_ORDER)
+_GAUSS_NODES, _GAUSS_WEIGHTS = gauss_legendre(_GAUSS_ORDER)
 _PANELS_PER_REVOLUTION = 16
 _PANEL_TOLERANCE = 1e-13
 # A disagreement below _ROUNDOFF_SUSPECT that halving shrinks by less than _STALLED_RATIO

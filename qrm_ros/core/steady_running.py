@@ -25,10 +25,11 @@ import math
 from typing import Dict, NamedTuple, Tuple
 
 import numpy as np
-from scipy import integrate, optimize, special
+from scipy import integrate, optimize
 
 from qrm_ros.core import dynamics as dyn
 from qrm_ros.core.checks import positive
+from qrm_ros.core.gauss_legendre import gauss_legendre
 from qrm_ros.core.geometry import Geometry
 from qrm_ros.core.kinematics import state
 from qrm_ros.core.motor_stepper import MotorStepper
@@ -53,7 +54,7 @@ _SLOWEST_REVOLUTION = 100
 _EXTREMUM_SAMPLES = 5
 # Gauss-Legendre nodes per piece: the dense output is of degree 7 in time, so the motor's
 # torque times the speed and its square (degree 14) are integrated exactly.
-_PIECE_NODES, _PIECE_WEIGHTS = special.roots_legendre(8)
+_PIECE_NODES, _PIECE_WEIGHTS = gauss_legendre(8)
 
 
 class SpeedFluctuation(NamedTuple):
