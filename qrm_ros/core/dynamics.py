@@ -35,6 +35,7 @@ from qrm_ros.core.checks import as_float
 from qrm_ros.core.geometry import check_offset, Geometry, KinematicsError
 from qrm_ros.core.names import MOTOR_PREFIX
 from qrm_ros.core.physical_ranges import magnitude_problem
+from qrm_ros.core.portable_math import ARRAY_OPS, SCALAR_OPS
 
 __all__ = [
     'DynamicsError', 'Efforts', 'Loads', 'MassProperties', 'MotorDrive', 'checked_quantity',
@@ -44,9 +45,8 @@ __all__ = [
 
 # A float, or a numpy array of them in vectorised use.
 FloatOrArray = Union[float, np.ndarray]
-# The two arithmetic back ends of the chain: numpy for arrays, math for one sample.
-ARRAY_OPS = SimpleNamespace(sin=np.sin, cos=np.cos, sqrt=np.sqrt, atan2=np.arctan2)
-SCALAR_OPS = SimpleNamespace(sin=math.sin, cos=math.cos, sqrt=math.sqrt, atan2=math.atan2)
+# The two arithmetic back ends of the chain (ARRAY_OPS, SCALAR_OPS): numpy for arrays, math
+# for one sample (core.portable_math, with the same bits).
 
 
 class DynamicsError(KinematicsError):

@@ -28,7 +28,7 @@ from typing import Any, Tuple
 
 import numpy as np
 
-from qrm_ros.core.portable_math import arcsin, arctan2
+from qrm_ros.core.portable_math import arcsin, arctan2, ARRAY_OPS, SCALAR_OPS
 from qrm_ros.core.geometry import (ArrayLike, check_offset, FloatOrArray, Geometry,
                                    MechanismState, TWO_PI)
 
@@ -42,21 +42,13 @@ _TEN_FLOATS = (float,) * 10
 _PLAIN_NUMBERS = (float, int)
 
 
-class _ScalarMath:
-    """math's functions under numpy's names: the same formulas run ~20x faster on floats."""
-
-    cos = staticmethod(math.cos)
-    sin = staticmethod(math.sin)
-    arctan2 = staticmethod(math.atan2)
-
-
 def _plain_zero(value):
     """Say whether value is a plain number equal to zero (arrays are taken as non-zero)."""
     return type(value) in (float, int) and value == 0
 
 
 def _slot_rates(crank_radius, centre_distance, crank_angle, crank_speed, crank_acceleration,
-                centre_rate=0.0, xp=np, radius_rate=0.0, radius_acceleration=0.0):
+                centre_rate=0.0, xp=ARRAY_OPS, radius_rate=0.0, radius_acceleration=0.0):
     """
     Angular rate and acceleration of the line from a slot's centre to a crank pin.
 
@@ -109,17 +101,17 @@ def state(geometry: Geometry, offset: ArrayLike, input_angle: ArrayLike,
             and type(crank_radius_acceleration) in _PLAIN_NUMBERS)
     xp: Any
     if scalar and math.isfinite(offset) and abs(offset) < r1:  # type: ignore
-        xp, theta = _ScalarMath, input_angle
+        xp, theta = SCALAR_OPS, input_angle
     else:
         offset = check_offset(geometry, offset)
-        xp, theta = np, np.asarray(input_angle, dtype=float)
+        xp, theta = ARRAY_OPS, np.asarray(input_angle, dtype=float)
     # Output angle = input angle + a bounded correction, so it is as continuous as the input.
-    flywheel_angle = theta + xp.arctan2(offset * xp.cos(theta), r1 + offset * xp.sin(theta))
+    flywheel_angle = theta + xp.atan2(offset * xp.cos(theta), r1 + offset * xp.sin(theta))
     flywheel_speed, flywheel_acc = _slot_rates(r1, offset, theta, input_speed,
                                                input_acceleration, offset_rate, xp)
     crank_angle = flywheel_angle + geometry.crank_phase
     cos_c, sin_c = xp.cos(crank_angle), xp.sin(crank_angle)
-    lever_angle = xp.arctan2(r * cos_c, h + r * sin_c)
+    lever_angle = xp.atan2(r * cos_c, h + r * sin_c)
     slot_rate, slot_acc = _slot_rates(r, h, crank_angle, flywheel_speed, flywheel_acc, 0.0, xp,
                                       crank_radius_rate, crank_radius_acceleration)
     # The lever angle is measured from the vertical toward +x: the slot's angle, mirrored.
@@ -136,7 +128,7 @@ def state(geometry: Geometry, offset: ArrayLike, input_angle: ArrayLike,
         ram_velocity=height * lever_speed * sec2,
         ram_acceleration=height * sec2 * (lever_acc + 2.0 * lever_speed ** 2 * tan_lever),
     )
-    if xp is _ScalarMath:
+    if xp is SCALAR_OPS:
         return result
     if all(np.ndim(value) == 0 for value in result):
         return MechanismState(*(float(value) for value in result))

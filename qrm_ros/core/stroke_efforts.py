@@ -27,8 +27,9 @@ from typing import Any, Dict, Optional, Tuple
 
 import numpy as np
 
-from qrm_ros.core.dynamics import (ARRAY_OPS, Chain, checked_quantity, Efforts, evaluate_chain,
-                                   geometry_fields, MassProperties, SCALAR_OPS)
+from qrm_ros.core.dynamics import (Chain, checked_quantity, Efforts, evaluate_chain,
+                                   geometry_fields, MassProperties)
+from qrm_ros.core.portable_math import ARRAY_OPS, SCALAR_OPS
 from qrm_ros.core.geometry import check_offset, FloatOrArray, Geometry
 from qrm_ros.core.lean_chain import lean_constants, lean_efforts_of, lever_radius_coefficient_of
 

@@ -18,7 +18,9 @@ import math
 import numpy as np
 import pytest
 
-from qrm_ros.core import portable_math
+from qrm_ros.core import portable_math, portable_math_kernel
+
+pytestmark = pytest.mark.bits
 
 RNG = np.random.default_rng(20261128)
 CASES = [
@@ -63,3 +65,24 @@ def test_where_the_library_refuses_numpys_answer_stands():
     values = portable_math.log(np.array([0.0, 1.0, math.inf, math.nan, -2.0]))
     assert values[0] == -math.inf and values[1] == 0.0 and values[2] == math.inf
     assert math.isnan(values[3]) and math.isnan(values[4])
+
+
+@pytest.mark.parametrize('ours, library, numpy_function, arguments', CASES,
+                         ids=lambda case: getattr(case, '__name__', ''))
+def test_large_arrays_take_the_compiled_loops_with_the_same_bits(
+        ours, library, numpy_function, arguments):
+    count = portable_math.COMPILED_MIN_ELEMENTS
+    large = tuple(np.resize(values, count) for values in arguments)
+    assert not portable_math_kernel.USING_SVML  # so the compiled loops are taken
+    got = ours(*large)
+    assert got.tolist() == [library(*values) for values in zip(*large)]
+
+
+def test_large_arrays_refused_by_the_library_give_numpys_answers_too():
+    count = portable_math.COMPILED_MIN_ELEMENTS
+    values = portable_math.log(np.resize(np.array([0.0, -1.0, math.nan, 1.0]), count))
+    assert values[0] == -math.inf and values[3] == 0.0
+    nans = values[1::4].tolist() + values[2::4].tolist()
+    assert all(np.array(nans).view(np.uint64) == np.array(math.nan).view(np.uint64))
+    assert portable_math.power(np.full(count, 1e300), 5.0)[0] == math.inf
+    assert math.isnan(portable_math.arcsin(np.full(count, 2.0))[0])
