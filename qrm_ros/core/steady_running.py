@@ -83,6 +83,7 @@ class _RevolutionTracker:
         self.turned = self.work = self.torque_square = self.peak_offset_force = 0.0
         self.end_time = self.end_speed = None
         self.highest, self.lowest = -math.inf, math.inf
+        self.stop_time = None  # s, the end of the first piece whose speed comes to <= 0
 
     def _take(self, speed):
         self.highest, self.lowest = max(self.highest, speed), min(self.lowest, speed)
@@ -102,6 +103,8 @@ class _RevolutionTracker:
         self.turned += angle_at_end - angle_at_start
         self._extremes(start, end, dense)
         self._integrals(start, end, dense)
+        if self.lowest <= 0.0 and self.stop_time is None:
+            self.stop_time = end
 
     def _extremes(self, start, end, dense):
         step = (end - start) / _EXTREMUM_SAMPLES
@@ -180,7 +183,16 @@ def _revolution(geometry, mass, loads, motor, offset, input_speed, start_speed):
                                     'effort (a drive too stiff for its inertia)')
         if tracker.lowest <= 0.0 or stepper.input_speed <= 0.0:
             # Stopped or rolling back (the lever swings under gravity and friction): no
-            # forward revolution comes, and the swings would take ever more segments.
+            # forward revolution comes, and the swings would take ever more segments. The
+            # pieces are made ahead of the stamps: the stamps are taken past the stop, where
+            # the stepper's stall rule says why it holds, if it does (whichever the last bits
+            # of the state noticed first, the same answer).
+            stop = (tracker.stop_time or 0.0) * NANOSECONDS_PER_SECOND
+            while not stepper.stalled and stamp <= stop + step_ns:
+                stamp += step_ns
+                stepper.integrate_to(stamp)
+            if stepper.stalled:
+                raise dyn.DynamicsError(f'the machine stalls: {stepper.stall_reason}')
             raise dyn.DynamicsError(
                 'the machine stalls: the input stops within a revolution (the motor gives at '
                 f'most {motor.max_torque:.6g} N*m at the input shaft)')
