@@ -18,12 +18,22 @@ Start shaper_sim or a player of a recorded run for the length of a test, wait fo
 simulate a scenario into a run file, and use the example runs shipped with the package
 (``example_recording('steady_offset')``). The pytest plugin (qrm_ros.testing.plugin, on
 once the package is installed) offers the same as the fixtures ``shaper_sim_process``,
-``mcap_replay`` and ``simulated_run``. See doc/testing.md.
+``mcap_replay`` and ``simulated_run``. Compare two runs field by field, bit for bit or
+within ulps (``assert_runs_match(made, example_recording('steady_offset'))``), bit for bit
+where ``reference_math()`` says this machine is of the kind the examples were made on. See
+doc/testing.md and doc/reproducibility.md.
 """
 
+from qrm_ros.testing.compare import (assert_runs_match, first_difference, LOG_TIME,
+                                     MESSAGE_COUNT, MESSAGE_TYPE, RunDifference, RunSource,
+                                     ulp_distance)
+from qrm_ros.testing.reference_math import REFERENCE_GLIBC, reference_math
 from qrm_ros.testing.kit import (EXAMPLES_FOLDER, example_names, example_recording,
                                  example_scenario, McapReplay, RosProcess, simulate,
                                  spin_until, start_shaper_sim, wait_for_topics)
 
-__all__ = ['EXAMPLES_FOLDER', 'McapReplay', 'RosProcess', 'example_names', 'example_recording',
-           'example_scenario', 'simulate', 'spin_until', 'start_shaper_sim', 'wait_for_topics']
+__all__ = ['EXAMPLES_FOLDER', 'LOG_TIME', 'MESSAGE_COUNT', 'MESSAGE_TYPE', 'McapReplay',
+           'REFERENCE_GLIBC', 'RosProcess', 'RunDifference', 'RunSource', 'assert_runs_match',
+           'example_names', 'example_recording', 'example_scenario', 'first_difference',
+           'reference_math', 'simulate', 'spin_until', 'start_shaper_sim', 'ulp_distance',
+           'wait_for_topics']
