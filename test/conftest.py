@@ -32,6 +32,9 @@ def pytest_configure(config):
     isolate_ros_traffic(os.environ)
     os.environ.setdefault('RCUTILS_LOGGING_BUFFERED_STREAM', '1')
     config.addinivalue_line('markers', 'slow: longer end-to-end test (-m "not slow" skips)')
+    config.addinivalue_line('markers', 'bits: compares results bit for bit on the reference '
+                            'machines (doc/reproducibility.md); test_reproducibility.py runs '
+                            'these again under other math kernels')
 
 
 @pytest.fixture(scope='session')

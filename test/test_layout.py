@@ -45,6 +45,7 @@ DEFERRED_IMPORTS = {
     'qrm_ros.core.peak_kernel': 'numba kernels: compiled only when a peak is searched',
     'qrm_ros.core.torque_kernel': 'numba kernels: compiled only when torques are computed',
     'qrm_ros.core.drive_kernel': 'numba kernels: loaded only for a motor or an offline run',
+    'qrm_ros.core.portable_math_kernel': 'numba kernels: compiled only for large arrays',
     'qrm_ros.analysis.figures': 'matplotlib: loaded only by a command that draws',
     'qrm_ros.analysis.gearbox_figure': 'matplotlib: loaded only by a command that draws',
     'qrm_ros.analysis.animation': 'matplotlib: loaded only by a command that animates',

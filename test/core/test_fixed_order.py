@@ -14,8 +14,11 @@
 """Sums in a written order: left to right, each product rounded, for floats and arrays."""
 
 import numpy as np
+import pytest
 
 from qrm_ros.core.fixed_order import weighted_sum
+
+pytestmark = pytest.mark.bits
 
 
 def test_terms_are_added_left_to_right():

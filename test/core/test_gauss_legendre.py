@@ -19,6 +19,8 @@ import pytest
 
 from qrm_ros.core.gauss_legendre import gauss_legendre, ORDERS
 
+pytestmark = pytest.mark.bits
+
 DIGITS = 60
 
 

@@ -29,6 +29,8 @@ from qrm_ros.core.motor_equation import EquationOfMotion
 from qrm_ros.core import stroke_efforts
 from qrm_ros.core.stroke_efforts import chain_with_stroke_screw, efforts_with_stroke_screw
 
+pytestmark = pytest.mark.bits
+
 GEOMETRY = Geometry.paper()
 MASS = dyn.MassProperties.small_shaper()
 # The masses the lean forms are checked with: the small shaper's, and one without a flywheel.

@@ -16,9 +16,12 @@
 import math
 
 import numpy as np
+import pytest
 from scipy import integrate
 
 from qrm_ros.core.motor_integration import ATOL, float_dense, RTOL
+
+pytestmark = pytest.mark.bits
 
 
 def _bits(values):

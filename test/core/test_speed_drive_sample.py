@@ -33,6 +33,8 @@ from qrm_ros.core.stepping import ShaperStepper
 from qrm_ros.core.stroke_adjustment import StrokeRamp
 from qrm_ros.core.stroke_efforts import efforts_with_stroke_screw
 
+pytestmark = pytest.mark.bits
+
 GEOMETRIES = [Geometry.paper(), Geometry(0.03, 0.06, 0.15, 0.25, 0.3)]
 MASSES = [dyn.MassProperties.small_shaper(), dyn.MassProperties(
     input_inertia=0.05, flywheel_inertia=0.0, lever_mass=3.0, lever_inertia=0.4,

@@ -47,6 +47,8 @@ from qrm_ros.node.shaper_diagnostics import stroke_pair_status
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from repo_paths import TEST_DATA  # noqa: E402  (test/ on the path, as the rooms' tests do)
 
+pytestmark = pytest.mark.bits
+
 FINGERPRINTS = os.path.join(TEST_DATA, 'stroke_measurement_bits.json')
 LOGS = ('steady_positive_offset', 'steady_negative_offset', 'offset_and_speed_change',
         'motor_cutting_load')

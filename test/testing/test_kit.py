@@ -15,16 +15,23 @@
 
 import os
 
+import numpy as np
 import pytest
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 
 from qrm_ros.recording.bag_reader import open_run
-from qrm_ros.testing import (EXAMPLES_FOLDER, example_names, example_recording,
-                             example_scenario, simulate, start_shaper_sim, wait_for_topics)
+from qrm_ros.testing import (assert_runs_match, EXAMPLES_FOLDER, example_names,
+                             example_recording, example_scenario, reference_math, simulate,
+                             start_shaper_sim, wait_for_topics)
 
 EXAMPLES = ['motor_cutting', 'offset_step', 'steady_offset']
+# Off the reference machines the C library's last bits differ (doc/reproducibility.md): the
+# speed drive's samples, each a closed form, move by a few ulps (4 measured), the motor
+# drive's integration carries them on (relative 4e-11 over the 4 s example): joint values
+# within this of each other, relative to the largest of their kind in the run.
+ELSEWHERE_RELATIVE = 1e-9
 
 
 def _states(path):
@@ -43,11 +50,28 @@ def test_the_examples_are_few_and_small():
         example_recording('nothing')
 
 
+def _joint_values(path):
+    messages = [deserialize_message(message.data, JointState)
+                for message in open_run(path).messages('/joint_states')]
+    return ([(m.header.stamp.sec, m.header.stamp.nanosec) for m in messages],
+            np.array([np.concatenate([m.position, m.velocity, m.effort]) for m in messages]))
+
+
+@pytest.mark.bits
 @pytest.mark.parametrize('name', EXAMPLES)
 def test_each_example_is_what_its_scenario_gives(tmp_path, name):
-    # The shipped run is the simulator's of the shipped scenario: not stale, every bit.
+    # The shipped run is the simulator's of the shipped scenario: not stale, every bit of
+    # every topic on the reference machines, the motion within its bound elsewhere.
     made = simulate(example_scenario(name), str(tmp_path / 'again.mcap'))
-    assert _states(made) == _states(example_recording(name))
+    if reference_math():
+        assert_runs_match(made, example_recording(name))
+        assert _states(made) == _states(example_recording(name))
+    else:
+        stamps, values = _joint_values(made)
+        shipped_stamps, shipped = _joint_values(example_recording(name))
+        assert stamps == shipped_stamps
+        scale = np.max(np.abs(shipped), axis=0)
+        assert np.all(np.abs(values - shipped) <= ELSEWHERE_RELATIVE * scale)
     shipped = open_run(example_recording(name))
     assert shipped.message_count('/joint_states') >= 400
     assert not shipped.problem and shipped.counted
