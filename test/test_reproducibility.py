@@ -28,6 +28,8 @@ a process of its own (doc/reproducibility.md):
 So a change that brings a machine dependence back fails on any machine, this one included.
 """
 
+import ast
+import glob
 import os
 import re
 import subprocess
@@ -50,6 +52,42 @@ name.restype = ctypes.c_char_p
 print(name().decode())
 '''
 TIMEOUT = 900.0
+# What numpy and scipy work out with code picked by the CPU: BLAS (products, norms,
+# solvers), numpy's vector code for the inverse and exponential functions, eigensolvers.
+# The promised paths take core.fixed_order, core.portable_math, core.gauss_legendre instead.
+MACHINE_PICKED = {'dot', 'vdot', 'inner', 'matmul', 'einsum', 'tensordot', 'vander', 'polyfit',
+                  'arctan2', 'arcsin', 'arccos', 'arctan', 'tan', 'exp', 'exp2', 'expm1', 'log',
+                  'log1p', 'log2', 'log10', 'power', 'float_power', 'sinh', 'cosh', 'tanh',
+                  'arcsinh', 'arccosh', 'arctanh', 'cbrt', 'roots_legendre', 'leggauss',
+                  'solve_ivp'}
+MACHINE_PICKED_OWNERS = ('np', 'numpy', 'special', 'scipy', 'integrate', 'linalg')
+# Modules that may: what they work out is drawn, not promised.
+MAY_PICK = {os.path.join('qrm_ros', 'analysis', 'figures.py'): "a figure's geometry"}
+
+
+def _machine_picked_calls(path):
+    """Yield (line, what) of every call of MACHINE_PICKED (and every @) in a module."""
+    with open(path) as stream:
+        tree = ast.parse(stream.read())
+    for node in ast.walk(tree):
+        if isinstance(node, ast.BinOp) and isinstance(node.op, ast.MatMult):
+            yield node.lineno, '@'
+        elif isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute):
+            owner = ast.unparse(node.func.value)
+            if ('linalg' in owner.split('.') or node.func.attr in MACHINE_PICKED
+                    and owner.split('.')[0] in MACHINE_PICKED_OWNERS):
+                yield node.lineno, f'{owner}.{node.func.attr}'
+
+
+def test_the_package_calls_no_math_the_machine_picks():
+    modules = sorted(os.path.relpath(path, REPO_ROOT) for path in glob.glob(
+        os.path.join(REPO_ROOT, 'qrm_ros', '**', '*.py'), recursive=True))
+    assert len(modules) > 100
+    found = [f'{path}:{line}: {what}' for path in modules if path not in MAY_PICK
+             for line, what in _machine_picked_calls(os.path.join(REPO_ROOT, path))]
+    assert not found, '\n'.join(found)
+    assert all(any(True for _ in _machine_picked_calls(os.path.join(REPO_ROOT, path)))
+               for path in MAY_PICK)  # still needed
 
 
 def _openblas_core(environment):
