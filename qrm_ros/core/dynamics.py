@@ -35,6 +35,8 @@ from qrm_ros.core.checks import as_float
 from qrm_ros.core.geometry import check_offset, Geometry, KinematicsError
 from qrm_ros.core.names import MOTOR_PREFIX
 from qrm_ros.core.physical_ranges import magnitude_problem
+# The two arithmetic back ends of the chain: numpy for arrays, math for one sample (with the
+# same bits: core.portable_math).
 from qrm_ros.core.portable_math import ARRAY_OPS, SCALAR_OPS
 
 __all__ = [
@@ -45,8 +47,6 @@ __all__ = [
 
 # A float, or a numpy array of them in vectorised use.
 FloatOrArray = Union[float, np.ndarray]
-# The two arithmetic back ends of the chain (ARRAY_OPS, SCALAR_OPS): numpy for arrays, math
-# for one sample (core.portable_math, with the same bits).
 
 
 class DynamicsError(KinematicsError):

@@ -25,10 +25,15 @@ import platform
 import sys
 from typing import FrozenSet, Mapping, Optional
 
-__all__ = ['REFERENCE_GLIBC', 'reference_math']
+__all__ = ['OTHER_MACHINE_RELATIVE', 'REFERENCE_GLIBC', 'reference_math']
 
 # The glibc release of the machine that made the shipped runs (Debian 12).
 REFERENCE_GLIBC = '2.36'
+# Elsewhere, how far a replayed or simulated joint value may be from the shipped one, relative
+# to the largest of its kind in the run: the motor drive's integration carries the C
+# library's last bits on (measured: 4e-11 over the 4 s example, 4e-10 over 30 s of cutting;
+# the speed drive's closed forms move by a few ulps). doc/reproducibility.md.
+OTHER_MACHINE_RELATIVE = 1e-9
 # The CPU features glibc's libm picks its code by; GLIBC_TUNABLES can hide them.
 LIBM_FEATURES = frozenset({'avx2', 'fma'})
 # Names GLIBC_TUNABLES' glibc.cpu.hwcaps takes for them (AVX2 needs AVX), old and new.

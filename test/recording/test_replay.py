@@ -57,7 +57,7 @@ from qrm_ros.core.names import JOINT_NAMES, PUBLISHED_JOINT_NAMES
 from qrm_ros.core.stroke_efforts import lever_radius_coefficient
 from qrm_ros.node.shaper_parameters import MOTOR_PREFIX
 from qrm_ros.core.stepping import ShaperStepper, wrap_angle
-from qrm_ros.testing import reference_math
+from qrm_ros.testing import OTHER_MACHINE_RELATIVE, reference_math
 from repo_paths import TEST_DATA
 
 pytestmark = pytest.mark.bits
@@ -79,10 +79,7 @@ MOTOR_CHANGES = {
                            ('cutting_force', 800.0)],
 }
 STORE = get_typestore(Stores.ROS2_JAZZY)
-# Off the reference machines the C library's last bits differ (doc/reproducibility.md) and
-# the motor drive's integration carries them on (relative 4e-11 over its first 4 s): a
-# replayed value within this of the log, relative to the largest of its kind in the log.
-ELSEWHERE_RELATIVE = 1e-9
+
 # rcl_interfaces/msg/ParameterType -> the ParameterValue field holding it (scalars only).
 VALUE_FIELDS = {1: 'bool_value', 2: 'integer_value', 3: 'double_value', 4: 'string_value'}
 
@@ -255,10 +252,10 @@ def replay(log):
 
 
 def _same(got, logged, scale):
-    """Equal: bit for bit where promised, else within ELSEWHERE_RELATIVE of each scale."""
+    """Equal: bit for bit where promised, else within OTHER_MACHINE_RELATIVE of each scale."""
     if scale is None:
         return got == logged
-    return all(abs(a - b) <= ELSEWHERE_RELATIVE * s for a, b, s in zip(got, logged, scale))
+    return all(abs(a - b) <= OTHER_MACHINE_RELATIVE * s for a, b, s in zip(got, logged, scale))
 
 
 def test_stepper_replays_the_logged_trajectory_bit_for_bit(log):

@@ -23,15 +23,10 @@ from sensor_msgs.msg import JointState
 
 from qrm_ros.recording.bag_reader import open_run
 from qrm_ros.testing import (assert_runs_match, EXAMPLES_FOLDER, example_names,
-                             example_recording, example_scenario, reference_math, simulate,
-                             start_shaper_sim, wait_for_topics)
+                             example_recording, example_scenario, OTHER_MACHINE_RELATIVE,
+                             reference_math, simulate, start_shaper_sim, wait_for_topics)
 
 EXAMPLES = ['motor_cutting', 'offset_step', 'steady_offset']
-# Off the reference machines the C library's last bits differ (doc/reproducibility.md): the
-# speed drive's samples, each a closed form, move by a few ulps (4 measured), the motor
-# drive's integration carries them on (relative 4e-11 over the 4 s example): joint values
-# within this of each other, relative to the largest of their kind in the run.
-ELSEWHERE_RELATIVE = 1e-9
 
 
 def _states(path):
@@ -71,7 +66,7 @@ def test_each_example_is_what_its_scenario_gives(tmp_path, name):
         shipped_stamps, shipped = _joint_values(example_recording(name))
         assert stamps == shipped_stamps
         scale = np.max(np.abs(shipped), axis=0)
-        assert np.all(np.abs(values - shipped) <= ELSEWHERE_RELATIVE * scale)
+        assert np.all(np.abs(values - shipped) <= OTHER_MACHINE_RELATIVE * scale)
     shipped = open_run(example_recording(name))
     assert shipped.message_count('/joint_states') >= 400
     assert not shipped.problem and shipped.counted
