@@ -35,7 +35,10 @@ from ros_probe import installed_executable, stop_process, wait_for
 
 
 def test_main_job_runs_a_short_schedule_end_to_end(tmp_path, capsys):
-    speed = 4 * math.pi  # two stroke pairs a second keeps the test short
+    # One stroke pair a second (250 Hz by default). At two a second (2 ms steps) a loaded
+    # machine's late ticks near the sharp torque peak at 8 mm left its efforts unsupported
+    # by the sampling (exit 3, said honestly; test_qrm_main_live says how).
+    speed = 2 * math.pi
     code = qrm_main.main(['--offsets-mm', '-6', '8', '--pairs', '2', '--input-speed',
                           repr(speed), '--output-dir', str(tmp_path)])
     out, err = capsys.readouterr()
@@ -48,10 +51,10 @@ def test_main_job_runs_a_short_schedule_end_to_end(tmp_path, capsys):
         ['fig10_time_ratio.png', 'fig11_speed_ratio.png', 'fig12_flywheel_speed.png',
          'ram_motion.png', 'fig_input_torque.png', 'fig_offset_cost.png',
          'fig_time_ratio_stroke.png', qrm_main.TOUR_FILE])
-    # the last input revolution (0.5 s) of each offset at 20 frames per second, both ends,
+    # the last input revolution (1 s) of each offset at 20 frames per second, both ends,
     # at each recorded stroke: two offsets at the long one, two at the short one
     with Image.open(folder / 'figures' / qrm_main.TOUR_FILE) as tour:
-        assert (tour.n_frames, tour.size) == (4 * 11, linkage_figure.FRAME_SIZE)
+        assert (tour.n_frames, tour.size) == (4 * 21, linkage_figure.FRAME_SIZE)
     assert f'qrm_main: animation  {folder / "figures" / qrm_main.TOUR_FILE}' in out
     assert str(folder / 'run.mcap') in out
     document = json.loads((folder / 'results.json').read_text())

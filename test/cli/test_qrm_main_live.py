@@ -30,8 +30,14 @@ def test_the_main_job_is_watched_live_and_the_bridge_stops_with_it(tmp_path):
     executable = installed_executable('qrm_main')
     command = [executable] if executable else [sys.executable, '-m', 'qrm_ros.cli.qrm_main']
     modules = node_modules()
+    # One input revolution a second, so 4 ms steps at the default 250 samples a revolution.
+    # The Foxglove client, the bridge, the node and the recorder share the machine, and a
+    # late tick near the sharp torque peak at 8 mm widens that pair's sampling bound as its
+    # step to the 4th power (3.5e-5 at steady steps; 1e-3 is supported). At two revolutions
+    # a second, a loaded machine's ticks about 2.5 ms late used up that margin: exit 3, said
+    # honestly. At 4 ms steps the same margin takes ticks 5 ms late.
     job = subprocess.Popen(command + ['--live', '--live-port', '0', '--offsets-mm', '-6', '8',
-                                      '--pairs', '2', '--input-speed', repr(4 * math.pi),
+                                      '--pairs', '2', '--input-speed', repr(2 * math.pi),
                                       '--output-dir', str(tmp_path)],
                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     lines = []
