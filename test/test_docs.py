@@ -83,6 +83,21 @@ def _links(text):
     return _LINK.findall(text)
 
 
+# A control character in a page is a backslash lost on the way (the \v of \varphi, the \f of
+# \frac, the \r of \right, a tab for the \t of \text: LaTeX written through a Python string).
+# The math it was part of renders wrong, and Sphinx gives no warning.
+_CONTROL = re.compile('[\x00-\x08\x0b\x0c\x0e-\x1f\r]|\text')
+
+
+@pytest.mark.parametrize('page', PAGES)
+def test_pages_hold_no_control_characters(page):
+    with open(os.path.join(ROOT, page), encoding='utf-8', newline='') as handle:
+        text = handle.read()
+    found = [f'line {text.count(chr(10), 0, m.start()) + 1}: {m.group()!r}'
+             for m in _CONTROL.finditer(text)]
+    assert not found, f'{page}: ' + ', '.join(found)
+
+
 def test_link_finder():
     text = ('[a](doc/node.md) ![b](images/x.png "title") [c](https://x.org/y) `[d](e.md)`\n'
             '```\n[f](g.md)\n```\n[h](node.md#parameters) [i](#local)\n')
