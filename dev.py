@@ -27,8 +27,10 @@ definitions) works without a ROS installation.
 """
 
 import fcntl
+import glob
 import hashlib
 import os
+import shutil
 import subprocess
 import sys
 import venv
@@ -87,7 +89,12 @@ def _install_if_changed():
     if installed[:1] != wanted[:1]:
         _run(pip + ['-r', os.path.join(ROOT, REQUIREMENTS)])
     # A regular (not editable) install: it also installs the data files (config, launch,
-    # the ament index marker) that ros2-style lookups need.
+    # the ament index marker) that ros2-style lookups need. setuptools stages the package in
+    # build/ and never removes a module from there: a moved or deleted module would still
+    # be installed, so its staging starts afresh (colcon's own build/qrm_ros is left alone).
+    for staged in glob.glob(os.path.join(ROOT, 'build', 'lib*')) + glob.glob(
+            os.path.join(ROOT, 'build', 'bdist.*')):
+        shutil.rmtree(staged, ignore_errors=True)
     _run(pip + ['--quiet', '--no-deps', '--force-reinstall', ROOT])
     with open(STAMP, 'w') as handle:
         handle.write('\n'.join(wanted) + '\n')
