@@ -23,8 +23,11 @@ setup(
     version='0.1.0',
     packages=find_packages(exclude=['test', 'test.*', 'bench']),
     # PEP 561: the package is typed; type checkers read its hints once it is installed.
+    # The front doors' stubs (core, its kinematics and dynamics, analysis) are read at run
+    # time by lazy_loader as well as by type checkers.
     package_data={package_name: ['py.typed', 'testing/examples/*.mcap',
-                                 'testing/examples/*.yaml']},
+                                 'testing/examples/*.yaml', '*/__init__.pyi',
+                                 '*/*/__init__.pyi']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -34,7 +37,7 @@ setup(
         ('share/' + package_name + '/urdf', glob('urdf/*.urdf')),
     ],
     install_requires=['setuptools', 'numpy', 'scipy', 'mcap', 'rosbags', 'matplotlib', 'tqdm',
-                      'numba', 'pyyaml', 'foxglove-sdk'],
+                      'numba', 'pyyaml', 'foxglove-sdk', 'lazy_loader'],
     extras_require={
         'test': ['pytest', 'flake8', 'pydocstyle', 'mcap-ros2-support', 'pyyaml',
                  'yourdfpy', 'mypy', 'sympy'],

@@ -36,8 +36,8 @@ import numpy as np
 
 from qrm_ros import analysis
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.names import JOINT_NAMES
-from qrm_ros.node.recorder import COMPRESSIONS, McapRunFile
+from qrm_ros.core.common.names import JOINT_NAMES
+from qrm_ros.node.recorder.recorder import COMPRESSIONS, McapRunFile
 
 JOINTS = list(JOINT_NAMES)
 

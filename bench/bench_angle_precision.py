@@ -26,8 +26,8 @@ import argparse
 from decimal import Decimal, getcontext
 import math
 
-from qrm_ros.core import stepping
-from qrm_ros.core.geometry import Geometry
+from qrm_ros.core.stepping import stepping
+from qrm_ros.core.kinematics.geometry import Geometry
 
 getcontext().prec = 60
 PI = Decimal('3.14159265358979323846264338327950288419716939937510582097494459')

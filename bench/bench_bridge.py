@@ -47,8 +47,8 @@ import tempfile
 import time
 
 from process_stats import cpu_seconds, machine_cpu_seconds, rss_bytes
-from qrm_ros.node.foxglove_bridge import DEFAULT_CLIENT_QUEUE
-from qrm_ros.node.ros_isolation import isolate_ros_traffic
+from qrm_ros.node.bridge.foxglove_bridge import DEFAULT_CLIENT_QUEUE
+from qrm_ros.node.process.ros_isolation import isolate_ros_traffic
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(os.path.dirname(HERE), 'test'))
@@ -66,8 +66,9 @@ SETTLE_TIMEOUT = 60.0  # s, for processes to start and messages to flow
 def floor(kind):
     """Child: bare raw subscriptions of TOPICS that only count (the bridge's QoS), on `kind`."""
     import rclpy
-    from qrm_ros.node.recorder import adapted_request_qos
-    from qrm_ros.node.ros_process import init_rclpy, new_executor, spin_until_stopped, StopRequest
+    from qrm_ros.node.recorder.recorder import adapted_request_qos
+    from qrm_ros.node.process.ros_process import (init_rclpy, new_executor, spin_until_stopped,
+                                                  StopRequest)
     from sensor_msgs.msg import JointState
     from visualization_msgs.msg import MarkerArray
     init_rclpy()
@@ -98,7 +99,8 @@ def probe(topics):
     """Child: a DDS subscriber keeping each stamped message's stamp and latency (ms)."""
     import json
     import rclpy
-    from qrm_ros.node.ros_process import init_rclpy, new_executor, spin_until_stopped, StopRequest
+    from qrm_ros.node.process.ros_process import (init_rclpy, new_executor, spin_until_stopped,
+                                                  StopRequest)
     from sensor_msgs.msg import Image, JointState
     init_rclpy()
     node = rclpy.create_node('bench_probe')
@@ -128,7 +130,7 @@ def probe(topics):
 def images(size, rate):
     """Child: publish stamped images of `size` bytes at `rate` Hz until stopped."""
     import rclpy
-    from qrm_ros.node.ros_process import init_rclpy, StopRequest
+    from qrm_ros.node.process.ros_process import init_rclpy, StopRequest
     from sensor_msgs.msg import Image
     init_rclpy()
     node = rclpy.create_node('bench_images')

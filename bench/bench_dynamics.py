@@ -34,14 +34,15 @@ import time
 
 import numpy as np
 
-from qrm_ros.core import dynamics as dyn
-from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.drive_kernel_loading import COMPILED_DRIVE_KERNEL
-from qrm_ros.core.motor_stepper import MotorStepper
-from qrm_ros.core.speed_drive import pair_efforts
-from qrm_ros.core.stepping import ShaperStepper
-from qrm_ros.core.stroke_adjustment import StrokeRamp
-from qrm_ros.core.stroke_efforts import efforts_with_stroke_screw, lever_radius_coefficient
+from qrm_ros.core.dynamics import chain as dyn
+from qrm_ros.core.kinematics.geometry import Geometry
+from qrm_ros.core.dynamics.drive_kernel_loading import COMPILED_DRIVE_KERNEL
+from qrm_ros.core.motor.motor_stepper import MotorStepper
+from qrm_ros.core.dynamics.speed_drive import pair_efforts
+from qrm_ros.core.stepping.stepping import ShaperStepper
+from qrm_ros.core.stepping.stroke_adjustment import StrokeRamp
+from qrm_ros.core.dynamics.stroke_efforts import (efforts_with_stroke_screw,
+                                                  lever_radius_coefficient)
 
 
 def median_seconds(function, repeats):

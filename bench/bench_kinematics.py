@@ -16,7 +16,7 @@ Benchmark: closed-form TR and SR, and exact peak speeds, over an (offset, crank 
 
 Prints configurations per second, as medians over repeats with the spread (lowest-highest),
 for: closed-form TR + SR together; peak cutting and return speeds with peak SR
-(`peak_ram_speeds`: the compiled search, qrm_ros.core.peak_kernel, on sweeps of at least
+(`peak_ram_speeds`: the compiled search, qrm_ros.core.kinematics.peak_kernel, on sweeps of at least
 peak_speeds.COMPILED_MIN_CONFIGURATIONS), on grid rows and on random designs (offsets up to
 0.999 r1, random crank phases: nothing for the search to reuse between configurations);
 the previous method, the same search in numpy (`peak_speeds_numpy`), and the one before
@@ -60,8 +60,8 @@ import time
 import numpy as np
 
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core import peak_speeds
-from qrm_ros.core.peak_speeds_bracketing import peak_speeds_bracketing
+from qrm_ros.core.kinematics import peak_speeds
+from qrm_ros.core.kinematics.peak_speeds_bracketing import peak_speeds_bracketing
 
 
 def spread(values, unit=''):

@@ -30,8 +30,8 @@ import statistics
 import tempfile
 import time
 
-from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.names import GEOMETRY_METADATA, JOINT_STATES_TOPIC
+from qrm_ros.core.kinematics.geometry import Geometry
+from qrm_ros.core.common.names import GEOMETRY_METADATA, JOINT_STATES_TOPIC
 from qrm_ros.recording.bag_reader import open_run
 from qrm_ros.recording.machine_channels import MachineChannels
 from qrm_ros.recording.mcap_run_file import COMPRESSIONS, McapRunFile

@@ -32,8 +32,8 @@ from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 
 from qrm_ros.core import kinematics as kin
-from qrm_ros.node.linkage_markers import linkage_marker_array
-from qrm_ros.core.names import JOINT_NAMES
+from qrm_ros.node.shaper_sim.linkage_markers import linkage_marker_array
+from qrm_ros.core.common.names import JOINT_NAMES
 
 
 def per_call_microseconds(function, calls, repeats):

@@ -14,8 +14,8 @@
 """
 Benchmark: how late 1 kHz motor-drive ticks come while the compiled forms load on a thread.
 
-The first MotorStepper of a process loads qrm_ros.core.drive_kernel (numba) on a thread of its
-own. Each run is a fresh process that makes its first stepper and ticks it at 1 kHz (sleep
+The first MotorStepper of a process loads qrm_ros.core.dynamics.drive_kernel (numba) on a thread of
+its own. Each run is a fresh process that makes its first stepper and ticks it at 1 kHz (sleep
 to the due time, the node's 0.1 ms GIL switch interval) for --ticks ticks; it prints how late
 the ticks came (the tick's start past its due time) over the first 1000 ticks, while loading,
 and the last 1000, and the same with the loading turned off (the baseline, in its own
@@ -41,10 +41,10 @@ def _lateness(values):
 
 def ticker(ticks, load):
     sys.setswitchinterval(1e-4)
-    from qrm_ros.core import dynamics as dyn
-    from qrm_ros.core.geometry import Geometry
-    from qrm_ros.core.drive_kernel_loading import COMPILED_DRIVE_KERNEL
-    from qrm_ros.core.motor_stepper import MotorStepper
+    from qrm_ros.core.dynamics import chain as dyn
+    from qrm_ros.core.kinematics.geometry import Geometry
+    from qrm_ros.core.dynamics.drive_kernel_loading import COMPILED_DRIVE_KERNEL
+    from qrm_ros.core.motor.motor_stepper import MotorStepper
     if not load:
         COMPILED_DRIVE_KERNEL.start_loading = lambda: None
     stepper = MotorStepper(Geometry.paper(), dyn.MassProperties.small_shaper(),

@@ -61,10 +61,10 @@ import sys
 import tempfile
 import time
 
-from qrm_ros.core.names import (DIAGNOSTICS_TOPIC, JOINT_NAMES, JOINT_STATES_TOPIC,
-                                RAM_TWIST_TOPIC, STROKE_PAIR_STATUS)
-from qrm_ros.node.ros_isolation import isolate_ros_traffic
-from qrm_ros.core.units import NANOSECONDS_PER_SECOND
+from qrm_ros.core.common.names import (DIAGNOSTICS_TOPIC, JOINT_NAMES, JOINT_STATES_TOPIC,
+                                       RAM_TWIST_TOPIC, STROKE_PAIR_STATUS)
+from qrm_ros.node.process.ros_isolation import isolate_ros_traffic
+from qrm_ros.core.common.units import NANOSECONDS_PER_SECOND
 
 RATES = [100.0, 1000.0, 2000.0, 3000.0, 5000.0]
 CPU_RATES = (100.0, 1000.0)
@@ -87,7 +87,7 @@ def _executor_kind(variant):
 
 
 def _node_parameters(variant, rate):
-    from qrm_ros.core.dynamics import Loads
+    from qrm_ros.core.dynamics.chain import Loads
     from rclpy.parameter import Parameter
     parameters = [Parameter('publish_rate', value=rate)]
     if variant in ('node-cut', 'node-motor'):
@@ -104,10 +104,11 @@ def _node_parameters(variant, rate):
 def publisher_main(variant, rate, profile_path=None):
     import cProfile
     import rclpy
-    from qrm_ros.node.ros_process import init_rclpy, new_executor, spin_until_stopped, StopRequest
+    from qrm_ros.node.process.ros_process import (init_rclpy, new_executor, spin_until_stopped,
+                                                  StopRequest)
     init_rclpy()
     if variant.startswith('node'):
-        from qrm_ros.node.shaper_sim import ShaperSimNode
+        from qrm_ros.node.shaper_sim.shaper_sim import ShaperSimNode
         node = ShaperSimNode(parameter_overrides=_node_parameters(variant, rate))
     else:
         node, tick = _bare_node(rate, twist=variant == 'bare-2pub')

@@ -31,10 +31,10 @@ import time
 import numba
 import numpy as np
 
-from qrm_ros.core import dynamics as dyn
-from qrm_ros.core.geometry import Geometry
+from qrm_ros.core.dynamics import chain as dyn
+from qrm_ros.core.kinematics.geometry import Geometry
 from qrm_ros.core.kinematics import state
-from qrm_ros.core.speed_drive import pair_efforts, peak_input_torque
+from qrm_ros.core.dynamics.speed_drive import pair_efforts, peak_input_torque
 
 from bench_dynamics import median_seconds  # this folder: run as python bench/<name>.py
 

@@ -45,9 +45,9 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
-from qrm_ros.node.offline_sim import Simulation
-from qrm_ros.node.ros_isolation import isolate_ros_traffic
-from qrm_ros.node.scenario import scenario_from_mapping
+from qrm_ros.node.offline.offline_sim import Simulation
+from qrm_ros.node.process.ros_isolation import isolate_ros_traffic
+from qrm_ros.node.offline.scenario import scenario_from_mapping
 from qrm_ros.recording.bag_reader import open_run
 
 QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)

@@ -47,7 +47,7 @@ import tempfile
 import time
 
 from process_stats import cpu_seconds, machine_cpu_seconds
-from qrm_ros.node.ros_isolation import isolate_ros_traffic
+from qrm_ros.node.process.ros_isolation import isolate_ros_traffic
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 TOPICS = ('joint_states', 'ram/twist')
@@ -105,7 +105,8 @@ def floor(kind):
     import rclpy
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import JointState
-    from qrm_ros.node.ros_process import init_rclpy, new_executor, spin_until_stopped, StopRequest
+    from qrm_ros.node.process.ros_process import (init_rclpy, new_executor, spin_until_stopped,
+                                                  StopRequest)
     init_rclpy()
     node = rclpy.create_node('bench_floor')
     count = [0]

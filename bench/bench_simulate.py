@@ -52,11 +52,11 @@ from rclpy.serialization import serialize_message
 from rosbags.typesys import get_typestore, Stores
 from sensor_msgs.msg import JointState
 
-from qrm_ros.core.drive_kernel_loading import COMPILED_DRIVE_KERNEL
-from qrm_ros.core.names import PUBLISHED_JOINT_NAMES, TF_MESSAGE_TYPE
-from qrm_ros.node import shaper_sim
-from qrm_ros.node.offline_sim import RecordingPublisher, Simulation
-from qrm_ros.node.scenario import scenario_from_mapping
+from qrm_ros.core.dynamics.drive_kernel_loading import COMPILED_DRIVE_KERNEL
+from qrm_ros.core.common.names import PUBLISHED_JOINT_NAMES, TF_MESSAGE_TYPE
+from qrm_ros.node.shaper_sim import shaper_sim
+from qrm_ros.node.offline.offline_sim import RecordingPublisher, Simulation
+from qrm_ros.node.offline.scenario import scenario_from_mapping
 from qrm_ros.recording.machine_channels import MachineChannels
 from qrm_ros.recording.mcap_run_file import CHUNK_SIZE_BYTES
 from qrm_ros.recording.typestore import exact_cdr

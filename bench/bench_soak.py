@@ -33,7 +33,7 @@ import time
 
 from bench_recorder import recorder_command
 from process_stats import cpu_seconds, rss_bytes
-from qrm_ros.node.ros_isolation import isolate_ros_traffic
+from qrm_ros.node.process.ros_isolation import isolate_ros_traffic
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 BENCH_RECORDER = os.path.join(HERE, 'bench_recorder.py')

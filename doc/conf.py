@@ -51,7 +51,9 @@ extensions = [
     'sphinx.ext.mathjax',
 ]
 source_suffix = {'.md': 'markdown', '.rst': 'restructuredtext'}
-templates_path = ['_templates']
+# Absolute: autosummary looks templates up from the source folder, which is the repository
+# root here (a relative path would silently fall back to Sphinx's own template).
+templates_path = [os.path.join(DOC, '_templates')]
 # The repository root is the source folder: read only the documentation in it.
 root_doc = 'doc/index'
 include_patterns = ['README.md', 'CONTRIBUTING.md', 'bench/README.md', 'test/data/README.md',
@@ -65,6 +67,8 @@ autosummary_generate = True
 autosummary_ignore_module_all = False  # a module's __all__ says what it offers
 autodoc_default_options = {'members': True, 'show-inheritance': True}
 autodoc_member_order = 'bysource'
+# Annotations written as strings of a name imported only for type checkers: the front door's.
+autodoc_type_aliases = {'MassProperties': 'qrm_ros.core.MassProperties'}
 default_role = 'code'  # the docstrings write `name` for code
 
 html_theme = 'alabaster'

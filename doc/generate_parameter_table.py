@@ -14,9 +14,10 @@
 """
 Print the parameter table of doc/node.md, generated from the node's own parameter table.
 
-The node's parameters are data (``PARAMETERS`` in ``qrm_ros.node.shaper_parameters``: default,
-unit, meaning, rule, read-only flag); this script turns that data into the Markdown table that
-doc/node.md holds between the marker comments, and test/test_docs.py fails when the two differ.
+The node's parameters are data (``PARAMETERS`` in ``qrm_ros.node.shaper_sim.shaper_parameters``:
+default, unit, meaning, rule, read-only flag); this script turns that data into the Markdown table
+that doc/node.md holds between the marker comments, and test/test_docs.py fails when the two
+differ.
 After adding or changing a parameter, regenerate the table in place:
 
     python3 dev.py run python doc/generate_parameter_table.py --write
@@ -52,8 +53,8 @@ def parameter_table():
     # The working tree's package, not an installed copy of it.
     if ROOT not in sys.path:
         sys.path.insert(0, ROOT)
-    from qrm_ros.core.geometry import Geometry
-    from qrm_ros.node import shaper_parameters as sp
+    from qrm_ros.core.kinematics.geometry import Geometry
+    from qrm_ros.node.shaper_sim import shaper_parameters as sp
     values = sp.default_values()
     geometry = Geometry(**{name: values[name] for name in sp.GEOMETRY_NAMES})
     view = sp.View(values, geometry, values['input_speed'])

@@ -15,8 +15,8 @@
 Test-session set-up shared by every test module.
 
 Each pytest run takes a ROS domain no other concurrent run on this machine holds and limits
-discovery to localhost (qrm_ros.node.ros_isolation), so parallel runs and other ROS traffic never
-cross. Subprocesses inherit the environment.
+discovery to localhost (qrm_ros.node.process.ros_isolation), so parallel runs and other ROS traffic
+never cross. Subprocesses inherit the environment.
 """
 
 import os
@@ -25,7 +25,7 @@ import pytest
 import rclpy
 from rclpy.context import Context
 
-from qrm_ros.node.ros_isolation import isolate_ros_traffic
+from qrm_ros.node.process.ros_isolation import isolate_ros_traffic
 
 
 def pytest_configure(config):

@@ -43,8 +43,8 @@ from rosbags.typesys import get_typestore, Stores
 
 from qrm_ros.analysis.measurement import ALL_BOUNDED_FIGURES
 from qrm_ros.analysis.report import MISSED_STROKE_TURNS, sampling_relative_bound
-from qrm_ros.core.names import CRANK_RADIUS_JOINT, GEOMETRY_METADATA, JOINT_STATE_TYPE
-from qrm_ros.core.sampling_bounds import SUPPORTED_RELATIVE_ERROR
+from qrm_ros.core.common.names import CRANK_RADIUS_JOINT, GEOMETRY_METADATA, JOINT_STATE_TYPE
+from qrm_ros.core.measurement.sampling_bounds import SUPPORTED_RELATIVE_ERROR
 
 JOINT_STATES = '/joint_states'
 ANY_OUTCOME = frozenset({0, 2, 3})

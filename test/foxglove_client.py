@@ -30,7 +30,7 @@ import subprocess
 import threading
 import time
 
-from qrm_ros.core.names import BRIDGE_SERVING_PREFIX
+from qrm_ros.core.common.names import BRIDGE_SERVING_PREFIX
 
 from repo_paths import TEST_FOLDER
 

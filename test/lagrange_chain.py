@@ -22,7 +22,7 @@ from typing import Any, List, NamedTuple
 
 import sympy
 
-from qrm_ros.core import dynamics as dyn
+from qrm_ros.core.dynamics import chain as dyn
 
 
 class ChainLagrangian(NamedTuple):

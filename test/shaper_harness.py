@@ -21,7 +21,7 @@ the node's publish_at with synthetic stamps, as its timer does with the node clo
 import math
 
 from diagnostic_msgs.msg import DiagnosticArray
-from qrm_ros.node.shaper_sim import ShaperSimNode
+from qrm_ros.node.shaper_sim.shaper_sim import ShaperSimNode
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState

@@ -25,10 +25,10 @@ import math
 import numpy as np
 
 from qrm_ros.analysis import recorded_run
-from qrm_ros.core import dynamics as dyn
+from qrm_ros.core.dynamics import chain as dyn
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core import names
-from qrm_ros.core.strokes import find_stroke_pairs, workpiece_edge_times
+from qrm_ros.core.common import names
+from qrm_ros.core.measurement.strokes import find_stroke_pairs, workpiece_edge_times
 
 JOINT_NAMES = list(names.JOINT_NAMES)
 PAPER = kin.Geometry.paper()

@@ -182,7 +182,7 @@ def test_parameter_table_matches_the_code():
 
 
 def test_parameter_table_has_every_parameter():
-    from qrm_ros.node.shaper_parameters import PARAMETERS
+    from qrm_ros.node.shaper_sim.shaper_parameters import PARAMETERS
     table = _generator().parameter_table()
     assert [row.split('`')[1] for row in table.splitlines()[2:]] == list(PARAMETERS)
 
@@ -208,7 +208,7 @@ def test_the_readme_main_job_table_shows_the_closed_form():
     import dataclasses
     from qrm_ros.cli.qrm_main import DEFAULT_OFFSETS_MM, SHORT_STROKE_MM
     from qrm_ros.core import Geometry, peak_speed_ratio, speed_ratio, time_ratio
-    from qrm_ros.core.offset_inverses import offset_for_time_ratio
+    from qrm_ros.core.kinematics.offset_inverses import offset_for_time_ratio
     geometry = Geometry.paper()
     stroke = SHORT_STROKE_MM * 1e-3  # its crank radius written out (doc/mechanism.md)
     short = dataclasses.replace(geometry, crank_radius=stroke * geometry.pivot_distance

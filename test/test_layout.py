@@ -15,8 +15,9 @@
 The house's rules, read from the source with ``ast``: a newcomer finds things where they belong.
 
 Rooms are the sub-packages of qrm_ros; imports run one way (cli -> analysis / node ->
-recording -> core), commands live in cli, modules and classes stay small enough to read, and
-nothing points outside the repository.
+recording -> core). The two big rooms, core and node, are made of parts (their
+sub-packages), which import one way too. Commands live in cli, modules, classes and parts
+stay small enough to read, and nothing points outside the repository.
 """
 
 import ast
@@ -39,13 +40,42 @@ ALLOWED_IMPORTS = {
     'recording': {'recording', 'core'},
     'core': {'core'},
 }
+# The parts of the rooms that have them, and the parts each may import from (itself
+# included), bottom up. Every module of such a room sits in one of its parts.
+_CORE_BELOW_MOTOR = {'stepping', 'dynamics', 'kinematics', 'numerics', 'common'}
+PART_IMPORTS = {
+    'core': {
+        'common': {'common'},
+        'numerics': {'numerics', 'common'},
+        'kinematics': {'kinematics', 'numerics', 'common'},
+        'dynamics': {'dynamics', 'kinematics', 'numerics', 'common'},
+        'stepping': {'stepping', 'dynamics', 'kinematics', 'numerics', 'common'},
+        'motor': {'motor'} | _CORE_BELOW_MOTOR,
+        'measurement': {'measurement', 'motor'} | _CORE_BELOW_MOTOR,
+        'design': {'design', 'motor'} | _CORE_BELOW_MOTOR,
+    },
+    'node': {
+        'process': {'process'},
+        'shaper_sim': {'shaper_sim', 'process'},
+        'recorder': {'recorder', 'process'},
+        'player': {'player', 'process'},
+        'bridge': {'bridge', 'recorder', 'process'},  # the recorder's message forms
+        'offline': {'offline', 'shaper_sim', 'recorder', 'process'},
+        'main_job': {'main_job', 'process'},
+    },
+}
+MAX_PART_MODULES = 12
 # The only qrm_ros modules that may be imported inside a function, and why: each defers a
 # heavy optional dependency to the moment it is needed.
 DEFERRED_IMPORTS = {
-    'qrm_ros.core.peak_kernel': 'numba kernels: compiled only when a peak is searched',
-    'qrm_ros.core.torque_kernel': 'numba kernels: compiled only when torques are computed',
-    'qrm_ros.core.drive_kernel': 'numba kernels: loaded only for a motor or an offline run',
-    'qrm_ros.core.portable_math_kernel': 'numba kernels: compiled only for large arrays',
+    'qrm_ros.core.kinematics.peak_kernel':
+        'numba kernels: compiled only when a peak is searched',
+    'qrm_ros.core.dynamics.torque_kernel':
+        'numba kernels: compiled only when torques are computed',
+    'qrm_ros.core.dynamics.drive_kernel':
+        'numba kernels: loaded only for a motor or an offline run',
+    'qrm_ros.core.numerics.portable_math_kernel':
+        'numba kernels: compiled only for large arrays',
     'qrm_ros.analysis.figures': 'matplotlib: loaded only by a command that draws',
     'qrm_ros.analysis.gearbox_figure': 'matplotlib: loaded only by a command that draws',
     'qrm_ros.analysis.animation': 'matplotlib: loaded only by a command that animates',
@@ -184,6 +214,59 @@ def test_the_package_itself_imports_no_room():
     package = next(m for m in MODULES if m.room is None)
     imported = [f'{package.path}:{i.line}: {i.module}' for i in _imports(package)]
     assert not imported, _report(imported, 'qrm_ros/__init__.py imports no room')
+
+
+def _part_of(module_name: str) -> Optional[str]:
+    """The part of a room with parts that a module sits in (None: the room's own __init__)."""
+    parts = module_name.split('.')
+    return parts[2] if len(parts) > 2 and parts[1] in PART_IMPORTS else None
+
+
+def test_every_module_of_a_room_with_parts_sits_in_a_part():
+    problems = [f'{m.path}: in no part of {m.room} ({", ".join(PART_IMPORTS[m.room])})'
+                for m in MODULES if m.room in PART_IMPORTS and m.name != f'{PACKAGE}.{m.room}'
+                and _part_of(m.name) not in PART_IMPORTS[m.room]]
+    assert not problems, _report(problems, 'every module in a part')
+
+
+def test_parts_import_one_way():
+    problems = []
+    for module in MODULES:
+        part = _part_of(module.name)
+        if part is None:
+            continue
+        allowed = PART_IMPORTS[module.room][part]
+        for imported in _imports(module):
+            if _room_of(imported.module) != module.room:
+                continue
+            target = _part_of(imported.module)
+            if target not in allowed:
+                where = "the room's front door" if target is None else target
+                problems.append(f'{module.path}:{imported.line}: {module.room}.{part} imports '
+                                f'{imported.module} ({where})')
+    assert not problems, _report(problems, 'parts import one way')
+
+
+def test_no_part_over_the_module_limit():
+    sizes: Dict[str, int] = {}
+    for module in MODULES:
+        part = _part_of(module.name)
+        if part is not None and not module.path.endswith('__init__.py'):
+            sizes[f'{module.room}.{part}'] = sizes.get(f'{module.room}.{part}', 0) + 1
+    problems = [f'{part}: {count} modules' for part, count in sorted(sizes.items())
+                if count > MAX_PART_MODULES]
+    assert not problems, _report(problems, f'no part over {MAX_PART_MODULES} modules')
+
+
+def test_the_tests_mirror_the_parts():
+    problems = []
+    for room, parts in PART_IMPORTS.items():
+        folder = os.path.join(REPO_ROOT, 'test', room)
+        for name in sorted(os.listdir(folder)):
+            if os.path.isdir(os.path.join(folder, name)) and name != '__pycache__' and (
+                    name not in parts):
+                problems.append(f'test/{room}/{name}: no part {room}.{name}')
+    assert not problems, _report(problems, 'test folders named after the parts')
 
 
 # --- (b) no import inside a function except to defer a heavy dependency --------------------

@@ -54,7 +54,8 @@ print(name().decode())
 TIMEOUT = 900.0
 # What numpy and scipy work out with code picked by the CPU: BLAS (products, norms,
 # solvers), numpy's vector code for the inverse and exponential functions, eigensolvers.
-# The promised paths take core.fixed_order, core.portable_math, core.gauss_legendre instead.
+# The promised paths take core.numerics.fixed_order, core.numerics.portable_math,
+# core.numerics.gauss_legendre instead.
 MACHINE_PICKED = {'dot', 'vdot', 'inner', 'matmul', 'einsum', 'tensordot', 'vander', 'polyfit',
                   'arctan2', 'arcsin', 'arccos', 'arctan', 'tan', 'exp', 'exp2', 'expm1', 'log',
                   'log1p', 'log2', 'log10', 'power', 'float_power', 'sinh', 'cosh', 'tanh',

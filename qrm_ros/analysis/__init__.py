@@ -30,17 +30,7 @@ The names below are loaded on first use, from the module that defines them: impo
 module of the package (qrm_design's design_table, say) does not load the run reader.
 """
 
-from typing import TYPE_CHECKING
+import lazy_loader
 
-from qrm_ros.core.exports import declared_exports, lazy_attributes
-
-if TYPE_CHECKING:  # the one list of what this package exports (qrm_ros.core.exports)
-    from qrm_ros.analysis.measurement import analyse, Analysis
-    from qrm_ros.analysis.recorded_run import AnalysisError, read_recording, Recording
-    from qrm_ros.analysis.report import (format_table, incompleteness, shortfalls, to_document,
-                                         write_outputs)
-    from qrm_ros.analysis.streamed_run import analyse_file
-
-EXPORTED_FROM = declared_exports(__file__)  # name -> the module that defines it
-__all__ = sorted(EXPORTED_FROM, key=str.lower)
-__getattr__, __dir__ = lazy_attributes(globals(), EXPORTED_FROM)
+# The names of __init__.pyi, each loaded from its module on first use.
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

@@ -36,9 +36,9 @@ from qrm_ros.analysis.linkage_figure import FRAME_SIZE, LinkageFigure
 from qrm_ros.analysis.measurement import analyse, Analysis
 from qrm_ros.analysis.recorded_run import Recording, Samples
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.names import (absolute_topic, JOINT_NAMES, JOINT_STATE_TYPE,
-                                JOINT_STATES_TOPIC, PARAMETERS_METADATA)
-from qrm_ros.core.units import NANOSECONDS_PER_SECOND
+from qrm_ros.core.common.names import (absolute_topic, JOINT_NAMES, JOINT_STATE_TYPE,
+                                       JOINT_STATES_TOPIC, PARAMETERS_METADATA)
+from qrm_ros.core.common.units import NANOSECONDS_PER_SECOND
 from qrm_ros.recording.atomic_files import staged_outputs
 from qrm_ros.recording.bag_reader import open_run, RunFileError
 

@@ -31,10 +31,9 @@ from typing import Iterator, List, NamedTuple, Optional, Set, TextIO, Tuple
 
 import numpy as np
 
-from qrm_ros.analysis.animation import (animate_plan, check_offsets, check_output,
-                                        check_rates, frame_plan, largest_crank_radius,
-                                        render_frames, segment_at, tour_segments,
-                                        write_frames)
+from qrm_ros.analysis.animation import (animate_plan, check_offsets, check_output, check_rates,
+                                        frame_plan, largest_crank_radius, render_frames,
+                                        segment_at, tour_segments, write_frames)
 from qrm_ros.analysis.linkage_figure import LinkageFigure
 from qrm_ros.analysis.joint_state_decoding import decoded_blocks, MessageCounter
 from qrm_ros.analysis.measurement import Analysis

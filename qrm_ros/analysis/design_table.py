@@ -17,8 +17,8 @@ Design tables of the mechanism: what each coupling offset does to the ram's stro
 Printed by ``qrm_design`` (qrm_ros.cli.qrm_design), straight from the kinematics and
 dynamics cores, so a designer can pick an offset before running anything: the stroke
 figures, then what the drive must give per stroke pair (and, asked for, the speed
-fluctuation under the motor); the gearbox plan (qrm_ros.core.gearbox) and the flywheel
-sizing (qrm_ros.core.flywheel_design) as text. Each table is a JSON-ready dict in SI units
+fluctuation under the motor); the gearbox plan (qrm_ros.core.design.gearbox) and the flywheel
+sizing (qrm_ros.core.design.flywheel_design) as text. Each table is a JSON-ready dict in SI units
 first, then its text.
 """
 
@@ -28,12 +28,12 @@ from typing import Any, Dict, Iterable, List, Optional
 import numpy as np
 from numpy.typing import ArrayLike
 
-from qrm_ros.core import dynamics as dyn
-from qrm_ros.core import flywheel_design
+from qrm_ros.core.dynamics import chain as dyn
+from qrm_ros.core.design import flywheel_design
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.gearbox import GearboxPlan
-from qrm_ros.core.speed_drive import pair_efforts
-from qrm_ros.core.steady_running import speed_fluctuation
+from qrm_ros.core.design.gearbox import GearboxPlan
+from qrm_ros.core.dynamics.speed_drive import pair_efforts
+from qrm_ros.core.motor.steady_running import speed_fluctuation
 
 DEFAULT_OFFSETS_MM = np.arange(-20.0, 20.0 + 1e-9, 2.5)
 

@@ -31,8 +31,8 @@ from qrm_ros.analysis.measurement import Analysis
 from qrm_ros.analysis.plotting import plt
 from qrm_ros.analysis.theory import flywheel_speed_swing, input_torque_parts
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.geometry import crank_radius_for_stroke
-from qrm_ros.core.speed_drive import pair_efforts
+from qrm_ros.core.kinematics.geometry import crank_radius_for_stroke
+from qrm_ros.core.dynamics.speed_drive import pair_efforts
 
 THEORY = 'theory'
 THEORY_FAMILY = 'theory-family'

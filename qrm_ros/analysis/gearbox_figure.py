@@ -26,7 +26,7 @@ from matplotlib.figure import Figure
 import numpy as np
 
 from qrm_ros.analysis.plotting import plt
-from qrm_ros.core.gearbox import ConventionalGearbox, GearboxPlan
+from qrm_ros.core.design.gearbox import ConventionalGearbox, GearboxPlan
 from qrm_ros.recording.atomic_files import staged_outputs
 
 BAND = 'band'

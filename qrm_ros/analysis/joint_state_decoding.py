@@ -30,9 +30,10 @@ from typing import Any, Callable, Dict, Iterator, List, NamedTuple, Optional, Tu
 
 import numpy as np
 
-from qrm_ros.core import names
-from qrm_ros.core.names import absolute_topic, CRANK_RADIUS_JOINT, JOINT_NAMES, JOINT_STATE_TYPE
-from qrm_ros.core.units import NANOSECONDS_PER_SECOND
+from qrm_ros.core.common import names
+from qrm_ros.core.common.names import (absolute_topic, CRANK_RADIUS_JOINT, JOINT_NAMES,
+                                       JOINT_STATE_TYPE)
+from qrm_ros.core.common.units import NANOSECONDS_PER_SECOND
 from qrm_ros.recording.bag_reader import Loss, open_run, Run
 from qrm_ros.recording.typestore import jazzy_typestore
 

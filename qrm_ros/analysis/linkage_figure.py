@@ -14,7 +14,7 @@
 """
 The animation's picture: the linkage at one joint state over time-synced traces.
 
-Every pin is drawn where ``qrm_ros.core.linkage`` puts it for the recorded input angle,
+Every pin is drawn where ``qrm_ros.core.kinematics.linkage`` puts it for the recorded input angle,
 offset and crank radius; the ram's guides and the workpiece are those of the stroke in force
 in each frame. The figure draws on its own Agg canvas (no pyplot, no display): only the
 moving artists are redrawn per frame, and ``drawn_points`` reads back what they show.
@@ -28,8 +28,8 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Rectangle
 import numpy as np
 
-from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.linkage import COLOURS, linkage_points, linkage_sizes, workpiece_span
+from qrm_ros.core.kinematics.geometry import Geometry
+from qrm_ros.core.kinematics.linkage import COLOURS, linkage_points, linkage_sizes, workpiece_span
 
 # Pixels (width, height): multiples of 16, as H.264 encoders want.
 FRAME_SIZE = (800, 640)

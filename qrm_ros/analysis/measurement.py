@@ -14,8 +14,8 @@
 """
 Measurement of a recorded run against the closed form, one steady segment at a time.
 
-In each segment every stroke pair is measured (qrm_ros.core.strokes: reversals and peaks
-located between samples): the time ratio TR, the speed ratio SR, stroke times and speeds,
+In each segment every stroke pair is measured (qrm_ros.core.measurement.strokes: reversals and
+peaks located between samples): the time ratio TR, the speed ratio SR, stroke times and speeds,
 and, when the joint states carry them, the drive's efforts, speed fluctuation and flywheel
 speed swing. Each figure's mean and spread over the pairs stands beside its theory for the
 recorded geometry and drive, with the relative error.
@@ -34,18 +34,18 @@ from qrm_ros.analysis.recorded_run import Recording, Samples
 from qrm_ros.analysis.segments import Segment, split_segments
 from qrm_ros.analysis.theory import flywheel_speed_swing
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.effort_theory import (EFFORT_FIGURES, Setting,
-                                        steady_effort_theory_and_problem, THEORY_FIGURES,
-                                        ZERO_CAN_BE_EXACT)
-from qrm_ros.core.joint_consistency import misplaced_stamps
-from qrm_ros.core.effort_sampling_bounds import (EFFORT_BOUNDED_FIGURES,
-                                                 effort_sampling_bounds, steady_efforts,
-                                                 switch_shift)
-from qrm_ros.core.sampling_bounds import (BOUNDED_FIGURES, figure_sampling_bounds,
-                                          step_on_grid, steady_motion,
-                                          SUPPORTED_RELATIVE_ERROR)
-from qrm_ros.core.strokes import (find_stroke_pairs, measure_pair_efforts,
-                                  workpiece_edge_times)
+from qrm_ros.core.measurement.effort_theory import (EFFORT_FIGURES, Setting,
+                                                    steady_effort_theory_and_problem,
+                                                    THEORY_FIGURES, ZERO_CAN_BE_EXACT)
+from qrm_ros.core.measurement.joint_consistency import misplaced_stamps
+from qrm_ros.core.measurement.effort_sampling_bounds import (EFFORT_BOUNDED_FIGURES,
+                                                             effort_sampling_bounds,
+                                                             steady_efforts, switch_shift)
+from qrm_ros.core.measurement.sampling_bounds import (BOUNDED_FIGURES, figure_sampling_bounds,
+                                                      step_on_grid, steady_motion,
+                                                      SUPPORTED_RELATIVE_ERROR)
+from qrm_ros.core.measurement.strokes import (find_stroke_pairs, measure_pair_efforts,
+                                              workpiece_edge_times)
 
 # Every figure given a bound from the sampling: the stroke's, then the drive's.
 ALL_BOUNDED_FIGURES = BOUNDED_FIGURES + EFFORT_BOUNDED_FIGURES
@@ -219,7 +219,7 @@ def _leave_out_unsupported_efforts(row: Dict[str, Any], efforts: Any,
 
 class _EffortBounds:
     """
-    The effort figures' bounds of one segment (core.effort_sampling_bounds), per pair.
+    The effort figures' bounds of one segment (core.measurement.effort_sampling_bounds), per pair.
 
     Only the ideal speed drive's efforts are bounded (its theory is exact); the motor's
     steady running is simulated, so its figures have none. A constant recorded speed
@@ -280,12 +280,12 @@ def _add_sampling_bounds(row: Dict[str, Any], samples: Samples, span: slice, pai
                          edges: Optional[np.ndarray] = None
                          ) -> List[Dict[str, Optional[float]]]:
     """
-    Add each figure's bound from the sampling alone (core.sampling_bounds), or None.
+    Add each figure's bound from the sampling alone (core.measurement.sampling_bounds), or None.
 
     Each pair is bounded at its own longest step (a late sample spoils only its pair), and
     the mean over the pairs by the mean of their bounds; steps are rounded up to 1 % so
     that a long run needs only a few bounds worked out. The effort figures likewise
-    (core.effort_sampling_bounds). Return each pair's bounds.
+    (core.measurement.effort_sampling_bounds). Return each pair's bounds.
     """
     time = samples.time[span]
     edges = np.empty(0) if edges is None else edges

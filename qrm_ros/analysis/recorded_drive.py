@@ -23,11 +23,11 @@ import json
 import math
 from typing import Any, Dict, List, NamedTuple, Optional, Tuple
 
-from qrm_ros.core import dynamics as dyn
+from qrm_ros.core.dynamics import chain as dyn
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.names import (MOTOR_DRIVE, PARAMETER_EVENTS_TOPIC, PARAMETERS_METADATA,
-                                SIM_NODE_NAME, SPEED_DRIVE)
-from qrm_ros.core.units import NANOSECONDS_PER_SECOND
+from qrm_ros.core.common.names import (MOTOR_DRIVE, PARAMETER_EVENTS_TOPIC, PARAMETERS_METADATA,
+                                       SIM_NODE_NAME, SPEED_DRIVE)
+from qrm_ros.core.common.units import NANOSECONDS_PER_SECOND
 from qrm_ros.recording.bag_reader import Run
 from qrm_ros.recording.typestore import jazzy_typestore
 

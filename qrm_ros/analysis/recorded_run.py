@@ -29,16 +29,15 @@ from typing import Any, Callable, Dict, List, NamedTuple, Optional, Sequence, Te
 import numpy as np
 
 from qrm_ros.analysis.joint_state_decoding import (decode_in_parallel, decode_part, DecodedBlock,
-                                                   DecodedPart, JOINT_STATES_TOPIC,
-                                                   MessageCounter)
+                                                   DecodedPart, JOINT_STATES_TOPIC, MessageCounter)
 from qrm_ros.analysis.recorded_drive import Drive, drive_changes, drive_from_metadata, DriveSpan
 from qrm_ros.analysis.sample_consistency import foreign_geometry_problem
 # The loss stages and Lost are read from here too (they were defined here first).
 from qrm_ros.analysis.sample_checks import (CheckedBlock, IN_EFFORTS, IN_FILE,  # noqa: F401
                                             IN_MESSAGE, Lost, merge_counts, SampleChecks)
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.names import GEOMETRY_METADATA, JOINT_STATE_TYPE, PARAMETERS_METADATA
-from qrm_ros.core.units import NANOSECONDS_PER_SECOND
+from qrm_ros.core.common.names import GEOMETRY_METADATA, JOINT_STATE_TYPE, PARAMETERS_METADATA
+from qrm_ros.core.common.units import NANOSECONDS_PER_SECOND
 from qrm_ros.recording.bag_reader import open_run, Run, RunFileError
 from qrm_ros.recording.mcap_recover import recovered_losses
 from qrm_ros.recording.typestore import jazzy_typestore

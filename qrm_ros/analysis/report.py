@@ -29,7 +29,7 @@ from qrm_ros.analysis.joint_state_decoding import JOINT_STATES_TOPIC
 from qrm_ros.analysis.measurement import (ALL_BOUNDED_FIGURES, Analysis, finite_or_none,
                                           relative_bound)
 from qrm_ros.analysis.recorded_run import IN_EFFORTS, IN_FILE, IN_MESSAGE, Recording
-from qrm_ros.core.sampling_bounds import SUPPORTED_RELATIVE_ERROR
+from qrm_ros.core.measurement.sampling_bounds import SUPPORTED_RELATIVE_ERROR
 from qrm_ros.recording.atomic_files import staged_outputs
 
 # Below this, the between-sample interpolation can miss sharp speed peaks (large offsets).

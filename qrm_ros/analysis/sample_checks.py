@@ -27,8 +27,8 @@ import numpy as np
 
 from qrm_ros.analysis.joint_state_decoding import DecodedBlock, JOINT_STATES_TOPIC
 from qrm_ros.analysis.sample_consistency import contradicted
-from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.units import NANOSECONDS_PER_SECOND
+from qrm_ros.core.kinematics.geometry import Geometry
+from qrm_ros.core.common.units import NANOSECONDS_PER_SECOND
 from qrm_ros.recording.bag_reader import Loss, Run
 
 # The loss stages: not read from the file at all, read but not usable as a sample, or used

@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 """
-The recorded joint states judged by the physics (core.joint_consistency), for the analysis.
+The recorded joint states judged by the physics (core.measurement.joint_consistency).
 
 A sample that the closed form contradicts is dropped and said, with its time and the check
 that caught it; a recording most of whose samples it contradicts was made with another
@@ -23,8 +23,8 @@ from typing import List, Optional, Tuple
 
 import numpy as np
 
-from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.joint_consistency import CONSISTENCY_CHECKS, inconsistent_samples
+from qrm_ros.core.kinematics.geometry import Geometry
+from qrm_ros.core.measurement.joint_consistency import CONSISTENCY_CHECKS, inconsistent_samples
 
 __all__ = ['contradicted', 'FOREIGN_FRACTION', 'foreign_geometry_problem']
 

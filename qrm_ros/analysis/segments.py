@@ -26,7 +26,7 @@ import numpy as np
 
 from qrm_ros.analysis.recorded_drive import Drive, drive_differences, DriveSpan
 from qrm_ros.analysis.recorded_run import MIN_SEGMENT_SAMPLES, Samples
-from qrm_ros.core.sampling_bounds import gap_after
+from qrm_ros.core.measurement.sampling_bounds import gap_after
 
 # Samples whose offset and input speed differ by less than this (relative) are one setting.
 STEADY_TOLERANCE = 1e-12

@@ -31,14 +31,12 @@ from typing import Any, Callable, Dict, Iterator, List, Optional, TextIO, Tuple
 import numpy as np
 
 from qrm_ros.analysis.joint_state_decoding import decoded_blocks, MessageCounter
-from qrm_ros.analysis.measurement import (Analysis, measure_segment, segment_geometry,
-                                          with_stroke)
+from qrm_ros.analysis.measurement import Analysis, measure_segment, segment_geometry, with_stroke
 from qrm_ros.analysis.recorded_drive import drive_changes, DriveSpan
-from qrm_ros.analysis.recorded_run import (AnalysisError, JOINT_STATES_TOPIC,
-                                           MIN_SEGMENT_SAMPLES, open_for_analysis, OpenedRun,
-                                           progress_bar, PROGRESS_MIN_MESSAGES, Recording,
-                                           RunExtent, Samples, samples_of, too_few_samples,
-                                           with_recovery_losses)
+from qrm_ros.analysis.recorded_run import (AnalysisError, JOINT_STATES_TOPIC, MIN_SEGMENT_SAMPLES,
+                                           open_for_analysis, OpenedRun, progress_bar,
+                                           PROGRESS_MIN_MESSAGES, Recording, RunExtent, Samples,
+                                           samples_of, too_few_samples, with_recovery_losses)
 from qrm_ros.analysis.sample_checks import CheckedBlock, SampleChecks
 from qrm_ros.analysis.sample_consistency import foreign_geometry_problem
 from qrm_ros.analysis.segments import (largest_speed, Segment, setting_changes, setting_speeds,

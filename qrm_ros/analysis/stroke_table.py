@@ -26,8 +26,8 @@ from typing import Any, Dict, Iterable
 
 from qrm_ros.analysis.theory import flywheel_speed_swing
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.geometry import crank_radius_for_stroke
-from qrm_ros.core.time_ratio_hold import hold_time_ratio
+from qrm_ros.core.kinematics.geometry import crank_radius_for_stroke
+from qrm_ros.core.design.time_ratio_hold import hold_time_ratio
 
 __all__ = ['format_stroke_table', 'stroke_table_data']
 

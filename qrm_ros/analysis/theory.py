@@ -23,7 +23,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from qrm_ros.analysis.recorded_drive import Drive
-from qrm_ros.core import dynamics as dyn
+from qrm_ros.core.dynamics import chain as dyn
 from qrm_ros.core import kinematics as kin
 
 

@@ -23,10 +23,11 @@ import argparse
 import math
 from typing import Any, Dict, Optional, Tuple
 
-from qrm_ros.core import dynamics as dyn
-from qrm_ros.core.geometry import crank_radius_for_stroke, Geometry, KinematicsError
-from qrm_ros.core.physical_ranges import (MAX_INPUT_SPEED, MIN_INPUT_SPEED,
-                                          motor_speed_band_problem, motor_time_constant_problem)
+from qrm_ros.core.dynamics import chain as dyn
+from qrm_ros.core.kinematics.geometry import crank_radius_for_stroke, Geometry, KinematicsError
+from qrm_ros.core.dynamics.physical_ranges import (MAX_INPUT_SPEED, MIN_INPUT_SPEED,
+                                                   motor_speed_band_problem,
+                                                   motor_time_constant_problem)
 
 
 def add_geometry_arguments(parser: Any, defaults: bool = True) -> None:

@@ -18,7 +18,7 @@ Importing a command's module (rclpy, numpy, scipy) takes a moment, longer on a l
 machine; a Ctrl-C or a launch system's SIGTERM in that moment would otherwise end in a
 KeyboardInterrupt traceback (or a bare kill). So each script first makes both signals a quiet
 exit, then imports its module; the long-running commands replace these handlers with their
-own clean-stop handling (qrm_ros.node.ros_process) once they are up.
+own clean-stop handling (qrm_ros.node.process.ros_process) once they are up.
 """
 
 import importlib

@@ -32,11 +32,11 @@ from typing import Any, Dict, List
 from qrm_ros.cli.main_job_plan import short_stroke_plan, STROKE_RATE_LIMIT
 from qrm_ros.cli.qrm_simulate import simulate
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.geometry import crank_radius_for_stroke
-from qrm_ros.core.time_ratio_hold import hold_time_ratio
-from qrm_ros.node.main_job_conductor import Interrupted, MainJobError
-from qrm_ros.node.ros_process import StopRequest
-from qrm_ros.node.scenario import Scenario, scenario_from_mapping, ScenarioError
+from qrm_ros.core.kinematics.geometry import crank_radius_for_stroke
+from qrm_ros.core.design.time_ratio_hold import hold_time_ratio
+from qrm_ros.node.main_job.main_job_conductor import Interrupted, MainJobError
+from qrm_ros.node.process.ros_process import StopRequest
+from qrm_ros.node.offline.scenario import Scenario, scenario_from_mapping, ScenarioError
 from qrm_ros.recording.mcap_run_file import RecorderError
 
 __all__ = ['SETTLING_PAIRS', 'offline_scenario', 'simulate_schedule']

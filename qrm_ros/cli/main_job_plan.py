@@ -23,8 +23,8 @@ import math
 from typing import NamedTuple
 
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.stroke_adjustment import largest_stroke
-from qrm_ros.node.main_job_conductor import MainJobError
+from qrm_ros.core.stepping.stroke_adjustment import largest_stroke
+from qrm_ros.node.main_job.main_job_conductor import MainJobError
 
 __all__ = ['SHORT_STROKE_MM', 'ShortStroke', 'short_stroke_plan', 'STROKE_RATE_LIMIT',
            'UsageError']

@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 """
-``mcap_player RUN.mcap``: a recording played back onto its ROS topics (qrm_ros.node.mcap_player).
+``mcap_player RUN.mcap``: a recording played back onto its ROS topics (node.player).
 
 ROS arguments after ``--ros-args``. Exit codes (qrm_ros.cli.exit_codes): 0 played to the end
 or stopped by Ctrl-C or SIGTERM; 1 a failure while running; 2 bad options or a file that is
@@ -27,11 +27,11 @@ import threading
 from typing import List, Optional
 
 from qrm_ros.cli.exit_codes import EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_INCOMPLETE, EXIT_OK
-from qrm_ros.node.mcap_player import (DEFAULT_CLOCK_RATE, McapPlayer, PLAYER_NODE_NAME,
-                                      PlaybackError, PlayOptions)
-from qrm_ros.node.ros_process import (executor_kind, ExecutorChoiceError, init_rclpy,
-                                      new_executor, own_arguments_of, RCLError,
-                                      rcl_error_text, spin_until_stopped, StopRequest)
+from qrm_ros.node.player.mcap_player import (DEFAULT_CLOCK_RATE, McapPlayer, PLAYER_NODE_NAME,
+                                             PlaybackError, PlayOptions)
+from qrm_ros.node.process.ros_process import (executor_kind, ExecutorChoiceError, init_rclpy,
+                                              new_executor, own_arguments_of, RCLError,
+                                              rcl_error_text, spin_until_stopped, StopRequest)
 from qrm_ros.recording.bag_reader import open_run, Run, RunFileError
 from rclpy.utilities import try_shutdown
 

@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 """
-The ``mcap_recorder`` command: records a shaper_sim run (qrm_ros.node.recorder) to MCAP.
+The ``mcap_recorder`` command: records a shaper_sim run (qrm_ros.node.recorder.recorder) to MCAP.
 
 ``mcap_recorder --ros-args -p output:=runs/run.mcap`` records until Ctrl-C or SIGTERM;
 ``mcap_recorder --recover BROKEN.mcap FIXED.mcap`` finishes a file left by SIGKILL, a power
@@ -29,10 +29,10 @@ import sys
 from typing import List, Optional
 
 from qrm_ros.cli.exit_codes import EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_OK
-from qrm_ros.core.names import RECORDER_NODE_NAME
-from qrm_ros.node.recorder import Recorder
-from qrm_ros.node.ros_process import (ExecutorChoiceError, own_arguments_of, run_node,
-                                      start_rclpy)
+from qrm_ros.core.common.names import RECORDER_NODE_NAME
+from qrm_ros.node.recorder.recorder import Recorder
+from qrm_ros.node.process.ros_process import (ExecutorChoiceError, own_arguments_of, run_node,
+                                              start_rclpy)
 from qrm_ros.recording.mcap_recover import recover_command
 from qrm_ros.recording.mcap_run_file import ConfigurationError, RecorderError
 from rclpy.exceptions import NameValidationException, ParameterException

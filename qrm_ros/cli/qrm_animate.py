@@ -26,8 +26,8 @@ import argparse
 import sys
 from typing import Optional, Sequence
 
-from qrm_ros.analysis.animation import (AnimationError, check_output, check_rates,
-                                        MAX_GIF_FPS, recorded_cutting_length)
+from qrm_ros.analysis.animation import (AnimationError, check_output, check_rates, MAX_GIF_FPS,
+                                        recorded_cutting_length)
 from qrm_ros.analysis.animation_window import write_window_animation
 from qrm_ros.analysis.linkage_figure import FRAME_SIZE
 from qrm_ros.analysis.recorded_run import AnalysisError

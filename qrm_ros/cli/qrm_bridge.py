@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 """
-The ``qrm_bridge`` command: the ROS 2 graph, live, in the Foxglove app (node.foxglove_bridge).
+The ``qrm_bridge`` command: the ROS 2 graph, live, in the Foxglove app (node.bridge).
 
 ``qrm_bridge`` serves every topic; ``--topics joint_states linkage_markers`` only those. It
 listens on the loopback address unless ``--address`` says otherwise, and prints the address
@@ -28,12 +28,12 @@ import sys
 from typing import List, Optional
 
 from qrm_ros.cli.exit_codes import EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_OK
-from qrm_ros.core.names import BRIDGE_NODE_NAME, BRIDGE_SERVING_PREFIX
-from qrm_ros.node.foxglove_bridge import (BridgeNode, BridgeSettings, DEFAULT_ADDRESS,
-                                          DEFAULT_CLIENT_QUEUE, DEFAULT_PORT,
-                                          DEFAULT_SEND_PERIOD)
-from qrm_ros.node.ros_process import (ExecutorChoiceError, own_arguments_of, run_node,
-                                      start_rclpy)
+from qrm_ros.core.common.names import BRIDGE_NODE_NAME, BRIDGE_SERVING_PREFIX
+from qrm_ros.node.bridge.foxglove_bridge import (BridgeNode, BridgeSettings, DEFAULT_ADDRESS,
+                                                 DEFAULT_CLIENT_QUEUE, DEFAULT_PORT,
+                                                 DEFAULT_SEND_PERIOD)
+from qrm_ros.node.process.ros_process import (ExecutorChoiceError, own_arguments_of, run_node,
+                                              start_rclpy)
 
 __all__ = ['main']
 

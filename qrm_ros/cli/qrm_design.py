@@ -16,8 +16,8 @@
 
 ``qrm_design`` prints what each coupling offset does to the ram's strokes and what the drive
 must give per stroke pair (qrm_ros.analysis.design_table); ``qrm_design gearbox`` plans the
-gear steps (qrm_ros.core.gearbox), ``qrm_design flywheel`` sizes the input side's inertia
-for a speed fluctuation (qrm_ros.core.flywheel_design). A further subcommand is one line in
+gear steps (qrm_ros.core.design.gearbox), ``qrm_design flywheel`` sizes the input side's inertia
+for a speed fluctuation (qrm_ros.core.design.flywheel_design). A further subcommand is one line in
 SUBCOMMANDS. Exit status: 0 printed; 2 bad options (one line on stderr says why).
 """
 
@@ -37,7 +37,7 @@ from qrm_ros.cli.arguments import (add_drive_arguments, add_geometry_arguments,
                                    drive_from_arguments, geometry_from_arguments,
                                    input_speed_problem, motor_problem)
 from qrm_ros.cli.exit_codes import EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_OK
-from qrm_ros.core import gearbox
+from qrm_ros.core.design import gearbox
 from qrm_ros.core import kinematics as kin
 
 

@@ -21,7 +21,7 @@ diagnostics report enough steady stroke pairs at each offset, stops the recorder
 (SIGINT), and analyses the recording offline like ``qrm_analyze --plot``.
 
 Its own ROS node, which sets the parameters and counts the pairs, is the Conductor
-(qrm_ros.node.main_job_conductor).
+(qrm_ros.node.main_job.main_job_conductor).
 
 Exit codes (qrm_ros.cli.exit_codes): 0 done, 1 a failure while running (a child that exits, a
 time-out, a refused setting, an analysis error), 2 bad options (argparse), 3 analysed but the
@@ -47,14 +47,14 @@ from qrm_ros.cli.main_job_plan import (SHORT_STROKE_MM, short_stroke_plan, STROK
 from qrm_ros.cli.exit_codes import (EXIT_FAILURE, EXIT_INCOMPLETE, EXIT_INTERRUPTED, EXIT_OK,
                                     exit_code_for_signal)
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.dynamics import DynamicsError, Loads
-from qrm_ros.core.names import (BRIDGE_DEFAULT_PORT, BRIDGE_NODE_NAME, BRIDGE_SERVING_PREFIX,
-                                DRIVES, LINKAGE_MARKERS_TOPIC, RECORDER_NODE_NAME,
-                                SIM_NODE_NAME)
-from qrm_ros.node.main_job_conductor import (Conductor, Interrupted, MainJobError,
-                                             START_TIMEOUT)
-from qrm_ros.node.recorder import DEFAULT_TOPICS
-from qrm_ros.node.ros_process import StopRequest
+from qrm_ros.core.dynamics.chain import DynamicsError, Loads
+from qrm_ros.core.common.names import (BRIDGE_DEFAULT_PORT, BRIDGE_NODE_NAME,
+                                       BRIDGE_SERVING_PREFIX, DRIVES, LINKAGE_MARKERS_TOPIC,
+                                       RECORDER_NODE_NAME, SIM_NODE_NAME)
+from qrm_ros.node.main_job.main_job_conductor import (Conductor, Interrupted, MainJobError,
+                                                      START_TIMEOUT)
+from qrm_ros.node.recorder.recorder import DEFAULT_TOPICS
+from qrm_ros.node.process.ros_process import StopRequest
 
 # Both signs, and the offset of equal mid-stroke speeds (SR = 1, paper eq. 26: -r r1 / h).
 UNITY_SPEED_RATIO_MM = kin.offset_for_speed_ratio(kin.Geometry.paper(), 1.0) * 1e3

@@ -15,8 +15,8 @@
 ``qrm_simulate [SCENARIO.yaml] -o RUN.mcap``: a shaper_sim run, offline, as fast as the CPU allows.
 
 Writes the MCAP file mcap_recorder would write of the same run live
-(qrm_ros.node.offline_sim): the node itself ticked on a simulated clock, no DDS traffic (its
-discovery is off). Without a scenario file, ``--duration`` and ``-p name:=value`` say it all.
+(qrm_ros.node.offline.offline_sim): the node itself ticked on a simulated clock, no DDS traffic
+(its discovery is off). Without a scenario file, ``--duration`` and ``-p name:=value`` say it all.
 
 Exit codes (qrm_ros.cli.exit_codes): 0 written; 1 a write error; 2 a bad option, scenario or
 parameter value (one line says which and what is allowed; no file is left); 130 / 143
@@ -31,13 +31,13 @@ from typing import Any, Dict, List, Optional, Sequence
 from tqdm import tqdm
 import yaml
 
-from qrm_ros.cli.exit_codes import (EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_OK,
-                                    exit_code_for_signal)
-from qrm_ros.core.names import SIM_NODE_NAME
-from qrm_ros.node.offline_sim import Simulation, SimulationSummary, summary_line
-from qrm_ros.node.recorder import default_output_path, DEFAULT_TOPICS
-from qrm_ros.node.ros_process import RCLError, rcl_error_text, StopRequest
-from qrm_ros.node.scenario import load_scenario, Scenario, scenario_from_mapping, ScenarioError
+from qrm_ros.cli.exit_codes import EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_OK, exit_code_for_signal
+from qrm_ros.core.common.names import SIM_NODE_NAME
+from qrm_ros.node.offline.offline_sim import Simulation, SimulationSummary, summary_line
+from qrm_ros.node.recorder.recorder import default_output_path, DEFAULT_TOPICS
+from qrm_ros.node.process.ros_process import RCLError, rcl_error_text, StopRequest
+from qrm_ros.node.offline.scenario import (load_scenario, Scenario, scenario_from_mapping,
+                                           ScenarioError)
 from qrm_ros.recording.mcap_run_file import (COMPRESSIONS, ConfigurationError, RecorderError,
                                              WriteFailed)
 from rclpy.logging import LoggingSeverity, set_logger_level

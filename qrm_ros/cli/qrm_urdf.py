@@ -26,7 +26,7 @@ from typing import Optional, Sequence
 
 from qrm_ros.cli.arguments import add_geometry_arguments, geometry_from_arguments
 from qrm_ros.cli.exit_codes import EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_OK
-from qrm_ros.core.geometry import KinematicsError
+from qrm_ros.core.kinematics.geometry import KinematicsError
 from qrm_ros.recording.atomic_files import staged_outputs
 from qrm_ros.recording.foxglove_layout import foxglove_layout_text
 from qrm_ros.recording.urdf_model import urdf_text, write_urdf

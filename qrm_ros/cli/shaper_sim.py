@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 """
-The ``shaper_sim`` command: runs the shaper_sim node (qrm_ros.node.shaper_sim).
+The ``shaper_sim`` command: runs the shaper_sim node (qrm_ros.node.shaper_sim.shaper_sim).
 
 ROS arguments after ``--ros-args`` (``-p name:=value``, ``--params-file``). Exit codes
 (qrm_ros.cli.exit_codes): 0 stopped by Ctrl-C or SIGTERM, 2 bad start-up arguments or
@@ -23,9 +23,9 @@ import sys
 from typing import List, Optional
 
 from qrm_ros.cli.exit_codes import EXIT_BAD_INPUT, EXIT_OK
-from qrm_ros.core.names import SIM_NODE_NAME
-from qrm_ros.node.ros_process import run_node, start_rclpy
-from qrm_ros.node.shaper_sim import ShaperSimNode
+from qrm_ros.core.common.names import SIM_NODE_NAME
+from qrm_ros.node.process.ros_process import run_node, start_rclpy
+from qrm_ros.node.shaper_sim.shaper_sim import ShaperSimNode
 
 __all__ = ['main']
 

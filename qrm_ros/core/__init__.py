@@ -15,55 +15,23 @@
 The mechanism's physics, pure numpy/scipy: no ROS, no files, no argparse.
 
 A script needs no map of the modules: ``from qrm_ros.core import Geometry, time_ratio``.
-The names load on first use (PEP 562), so a command that needs one light module (the
-recorder takes ``core.units`` and ``core.geometry``) does not load scipy with the rest. The
-imports under ``TYPE_CHECKING`` below are the one list of what is exported and from where:
-type checkers read them, and ``core.exports`` reads the same lines from this file's source.
+The names listed in ``__init__.pyi`` load with their module on first use (lazy_loader), so
+a command that needs one light module (the recorder takes ``core.common.units`` and
+``core.kinematics.geometry``) does not load scipy with the rest.
+
+The parts, each importing only from those before it:
+
+* ``common``: names, units and input checks every part shares;
+* ``numerics``: arithmetic that gives the same bits on every machine, quadrature, ramps;
+* ``kinematics``: the geometry and the exact motion, its stroke times and peak speeds;
+* ``dynamics``: masses, loads, efforts, and the ideal speed drive's exact figures;
+* ``stepping``: the node's stepper interface, the speed drive and the stroke screw in time;
+* ``motor``: the motor drive in time, and its steady running;
+* ``measurement`` and ``design``: stroke pairs measured from samples (with what the
+  sampling can support), and the tools that choose an offset, a gearbox or a flywheel.
 """
 
-from typing import TYPE_CHECKING
+import lazy_loader
 
-from qrm_ros.core.exports import declared_exports, lazy_attributes
-
-if TYPE_CHECKING:
-    from qrm_ros.core.cutting_speed_hold import (cutting_speed, hold_offset, HoldAnswer,
-                                                 reachable_cutting_speeds)
-    from qrm_ros.core.cutting_speeds import mean_cutting_speed, offset_for_mean_cutting_speed
-    from qrm_ros.core.dynamics import (DynamicsError, Efforts, efforts, generalized_inertia,
-                                       Loads, MassProperties, MotorDrive, ram_load_force)
-    from qrm_ros.core.flywheel_design import FlywheelSizing, size_flywheel
-    from qrm_ros.core.gearbox import (conventional_gearbox, GearboxPlan, GearStep,
-                                      plan_gearbox)
-    from qrm_ros.core.geometry import (check_offset, crank_radius_for_stroke, Geometry,
-                                       KinematicsError, MechanismState, SAFE_OFFSET_FRACTION,
-                                       stroke_for_crank_radius)
-    from qrm_ros.core.linkage import linkage_points, linkage_sizes, LinkagePoints, LinkageSizes
-    from qrm_ros.core.mechanism_state import (input_angle_for_flywheel_angle,
-                                              reversal_flywheel_angles, state)
-    from qrm_ros.core.motor_stepper import MotorStepper, simulate, Simulation
-    from qrm_ros.core.offset_inverses import (offset_for_cutting_speed, offset_for_speed_ratio,
-                                              offset_for_time_ratio)
-    from qrm_ros.core.peak_speeds import peak_ram_speeds, peak_speed_ratio
-    from qrm_ros.core.sampling_bounds import (BOUNDED_FIGURES, figure_sampling_bounds,
-                                              gap_after, GAP_PERIODS, GAP_SECONDS,
-                                              steady_motion, SteadyMotion,
-                                              SUPPORTED_RELATIVE_ERROR)
-    from qrm_ros.core.speed_drive import pair_efforts, PairEfforts, peak_input_torque
-    from qrm_ros.core.steady_figures import steady_theory, SteadyTheory
-    from qrm_ros.core.steady_running import (energy_method_inertia,
-                                             input_inertia_for_speed_fluctuation,
-                                             speed_fluctuation, SpeedFluctuation)
-    from qrm_ros.core.stepper import Stepper
-    from qrm_ros.core.stepping import ShaperStepper
-    from qrm_ros.core.stroke_adjustment import check_stroke, StrokeRamp
-    from qrm_ros.core.stroke_efforts import efforts_with_stroke_screw
-    from qrm_ros.core.stroke_monitor import PairReport, StrokeMonitor
-    from qrm_ros.core.stroke_timing import (speed_ratio, speed_ratio_eq25, stroke_times,
-                                            time_ratio, time_ratio_rk4)
-    from qrm_ros.core.strokes import (find_reversals, find_stroke_pairs, measure_pair_efforts,
-                                      PairEffortsMeasured, StrokePairs)
-
-
-EXPORTED_FROM = declared_exports(__file__)  # name -> the module that defines it
-__all__ = sorted(EXPORTED_FROM, key=str.lower)
-__getattr__, __dir__ = lazy_attributes(globals(), EXPORTED_FROM)
+# The names of __init__.pyi, each loaded from its module on first use.
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

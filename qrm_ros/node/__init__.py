@@ -11,4 +11,11 @@
 # WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
 # See the License for the specific language governing permissions and
 # limitations under the License.
-"""The ROS 2 adapters: everything that imports rclpy (the shaper_sim and mcap_recorder nodes)."""
+"""
+The ROS 2 adapters: everything that imports rclpy, thin over the core.
+
+The parts, each a program's node and what only it uses, over ``process`` (starting,
+spinning and stopping a ROS process), which they all share: ``shaper_sim``, ``recorder``,
+``player``, ``bridge`` (it takes the recorder's message forms), ``offline`` (shaper_sim and
+the recorder ticked by a loop) and ``main_job`` (qrm_main's own node).
+"""

@@ -27,11 +27,11 @@ The shipped ``config/foxglove_layout.json`` is this module's output for the defa
 import json
 from typing import Any, Dict, NamedTuple
 
-from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.linkage import linkage_sizes
-from qrm_ros.core.names import (absolute_topic, DIAGNOSTICS_TOPIC, JOINT_NAMES,
-                                JOINT_STATES_TOPIC, LINKAGE_MARKERS_TOPIC, MACHINE_NAME,
-                                ROBOT_DESCRIPTION_TOPIC, STROKE_PAIR_STATUS)
+from qrm_ros.core.kinematics.geometry import Geometry
+from qrm_ros.core.kinematics.linkage import linkage_sizes
+from qrm_ros.core.common.names import (absolute_topic, DIAGNOSTICS_TOPIC, JOINT_NAMES,
+                                       JOINT_STATES_TOPIC, LINKAGE_MARKERS_TOPIC, MACHINE_NAME,
+                                       ROBOT_DESCRIPTION_TOPIC, STROKE_PAIR_STATUS)
 from qrm_ros.recording.urdf_model import BASE_LINK, urdf_joints
 
 __all__ = ['FOXGLOVE_LAYOUT_FILE_NAME', 'MARKERS_THE_URDF_DRAWS', 'PANEL_ASPECT', 'ViewBounds',

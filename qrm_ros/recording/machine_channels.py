@@ -26,9 +26,9 @@ or two, which MCAP's index and every reader of it allow for.
 from collections import deque
 from typing import Deque, Optional, Sequence, Tuple
 
-from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.names import (ROBOT_DESCRIPTION_TOPIC, ROBOT_DESCRIPTION_TYPE, TF_MESSAGE_TYPE,
-                                TF_STATIC_TOPIC, TF_TOPIC)
+from qrm_ros.core.kinematics.geometry import Geometry
+from qrm_ros.core.common.names import (ROBOT_DESCRIPTION_TOPIC, ROBOT_DESCRIPTION_TYPE,
+                                       TF_MESSAGE_TYPE, TF_STATIC_TOPIC, TF_TOPIC)
 from qrm_ros.recording.machine_transforms import MachineMessages
 from qrm_ros.recording.mcap_run_file import McapRunFile
 from qrm_ros.recording.rosbag2_formats import publisher_qos_profile_yaml

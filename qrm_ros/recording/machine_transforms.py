@@ -31,10 +31,10 @@ import math
 import threading
 from typing import Any, List, Mapping, NamedTuple, Optional, Sequence, Tuple
 
-from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.names import (CRANK_RADIUS_JOINT, JOINT_STATE_TYPE, PUBLISHED_JOINT_NAMES,
-                                ROBOT_DESCRIPTION_TYPE, TF_MESSAGE_TYPE)
-from qrm_ros.core.units import NANOSECONDS_PER_SECOND
+from qrm_ros.core.kinematics.geometry import Geometry
+from qrm_ros.core.common.names import (CRANK_RADIUS_JOINT, JOINT_STATE_TYPE, PUBLISHED_JOINT_NAMES,
+                                       ROBOT_DESCRIPTION_TYPE, TF_MESSAGE_TYPE)
+from qrm_ros.core.common.units import NANOSECONDS_PER_SECOND
 from qrm_ros.recording.typestore import jazzy_typestore
 from qrm_ros.recording.urdf_model import urdf_joints, urdf_text, UrdfJoint
 

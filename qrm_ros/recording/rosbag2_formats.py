@@ -29,7 +29,7 @@ from typing import Callable, List, Optional, Sequence, Set, Tuple, TYPE_CHECKING
 
 from ament_index_python.packages import get_package_share_directory, PackageNotFoundError
 
-from qrm_ros.core.units import NANOSECONDS_PER_SECOND
+from qrm_ros.core.common.units import NANOSECONDS_PER_SECOND
 
 if TYPE_CHECKING:  # the recorder hands over rclpy's profiles; this module never imports ROS
     from rclpy.duration import Duration

@@ -32,12 +32,12 @@ import tempfile
 from typing import Dict, NamedTuple, Optional, Tuple, TYPE_CHECKING
 import xml.etree.ElementTree as ET
 
-from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.linkage import COLOURS, linkage_sizes
-from qrm_ros.core.names import CRANK_RADIUS_JOINT, JOINT_NAMES, MACHINE_NAME
+from qrm_ros.core.kinematics.geometry import Geometry
+from qrm_ros.core.kinematics.linkage import COLOURS, linkage_sizes
+from qrm_ros.core.common.names import CRANK_RADIUS_JOINT, JOINT_NAMES, MACHINE_NAME
 
 if TYPE_CHECKING:  # the fields it reads; any object with them will do
-    from qrm_ros.core.dynamics import MassProperties
+    from qrm_ros.core.dynamics.chain import MassProperties
 
 __all__ = ['BASE_LINK', 'ROBOT_NAME', 'URDF_FILE_NAME', 'UrdfJoint', 'urdf_joints', 'urdf_text',
            'write_urdf']

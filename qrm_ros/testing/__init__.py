@@ -24,14 +24,12 @@ where ``reference_math()`` says this machine is of the kind the examples were ma
 doc/testing.md and doc/reproducibility.md.
 """
 
-from qrm_ros.testing.compare import (assert_runs_match, first_difference, LOG_TIME,
-                                     MESSAGE_COUNT, MESSAGE_TYPE, RunDifference, RunSource,
-                                     ulp_distance)
-from qrm_ros.testing.reference_math import (OTHER_MACHINE_RELATIVE, REFERENCE_GLIBC,
-                                            reference_math)
+from qrm_ros.testing.compare import (assert_runs_match, first_difference, LOG_TIME, MESSAGE_COUNT,
+                                     MESSAGE_TYPE, RunDifference, RunSource, ulp_distance)
+from qrm_ros.testing.reference_math import OTHER_MACHINE_RELATIVE, REFERENCE_GLIBC, reference_math
 from qrm_ros.testing.kit import (EXAMPLES_FOLDER, example_names, example_recording,
-                                 example_scenario, McapReplay, RosProcess, simulate,
-                                 spin_until, start_shaper_sim, wait_for_topics)
+                                 example_scenario, McapReplay, RosProcess, simulate, spin_until,
+                                 start_shaper_sim, wait_for_topics)
 
 __all__ = ['EXAMPLES_FOLDER', 'LOG_TIME', 'MESSAGE_COUNT', 'MESSAGE_TYPE', 'McapReplay',
            'OTHER_MACHINE_RELATIVE', 'REFERENCE_GLIBC', 'RosProcess', 'RunDifference',

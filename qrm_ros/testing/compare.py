@@ -32,7 +32,7 @@ import numpy as np
 from rosbags.interfaces import Nodetype
 from rosbags.typesys import get_types_from_idl, get_types_from_msg, get_typestore, Stores
 
-from qrm_ros.core.names import absolute_topic
+from qrm_ros.core.common.names import absolute_topic
 from qrm_ros.recording.bag_reader import MessageTuple, open_run, Run, RunFileError, Topics
 from qrm_ros.recording.mcap_structure import describe_error
 from qrm_ros.recording.typestore import jazzy_typestore

@@ -35,8 +35,8 @@ from rclpy.node import Node
 from std_srvs.srv import Trigger
 import yaml
 
-from qrm_ros.core.names import absolute_topic
-from qrm_ros.node.mcap_player import PLAYER_NODE_NAME
+from qrm_ros.core.common.names import absolute_topic
+from qrm_ros.node.player.mcap_player import PLAYER_NODE_NAME
 from qrm_ros.recording.bag_reader import open_run, Run
 
 __all__ = ['EXAMPLES_FOLDER', 'McapReplay', 'RosProcess', 'example_names', 'example_recording',

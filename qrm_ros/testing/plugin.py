@@ -15,8 +15,8 @@
 The pytest plugin of qrm_ros (registered with the ``pytest11`` entry point, so installed means on).
 
 At start-up it gives the test run a ROS domain no other run on the machine holds and keeps
-discovery on this host (qrm_ros.node.ros_isolation), so the processes the fixtures start and
-the test's own nodes see each other and nothing else; ``QRM_ROS_ISOLATE=0`` leaves the
+discovery on this host (qrm_ros.node.process.ros_isolation), so the processes the fixtures start
+and the test's own nodes see each other and nothing else; ``QRM_ROS_ISOLATE=0`` leaves the
 environment alone. The fixtures:
 
 - ``shaper_sim_process(**parameters)``: a running shaper_sim, stopped after the test;
@@ -33,7 +33,7 @@ from typing import Any, Callable, Dict, Iterator, List, Mapping, Union
 
 import pytest
 
-from qrm_ros.node.ros_isolation import isolate_ros_traffic
+from qrm_ros.node.process.ros_isolation import isolate_ros_traffic
 from qrm_ros.testing.kit import (example_names, example_recording, McapReplay, RosProcess,
                                  simulate, start_shaper_sim)
 

@@ -19,11 +19,15 @@ import sys
 
 import qrm_ros.analysis as analysis
 
+from front_doors import stub_exports
+
 
 def test_every_exported_name_is_the_object_its_module_defines():
     assert {'analyse', 'format_table', 'read_recording'} <= set(analysis.__all__)
+    exported = stub_exports('qrm_ros.analysis')
+    assert sorted(analysis.__all__) == sorted(exported)
     for name in analysis.__all__:
-        module = importlib.import_module(analysis.EXPORTED_FROM[name])
+        module = importlib.import_module(exported[name])
         assert getattr(analysis, name) is getattr(module, name)
 
 

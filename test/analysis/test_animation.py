@@ -33,8 +33,8 @@ from qrm_ros.analysis import linkage_figure
 from qrm_ros.analysis import measurement
 from qrm_ros.analysis import recorded_run
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.linkage import COLOURS, linkage_sizes
-from qrm_ros.core.names import PARAMETERS_METADATA
+from qrm_ros.core.kinematics.linkage import COLOURS, linkage_sizes
+from qrm_ros.core.common.names import PARAMETERS_METADATA
 from damaged_runs import decode_joint_state, encode_joint_state, put_together, take_apart
 from synthetic_run import EFFORTS_SCHEDULE, made_up_efforts, PHASED, schedule_states
 from repo_paths import TEST_DATA

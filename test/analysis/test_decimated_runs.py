@@ -31,7 +31,7 @@ from qrm_ros.analysis import measurement
 from qrm_ros.analysis import recorded_run
 from qrm_ros.analysis import report
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.sampling_bounds import BOUNDED_FIGURES, SUPPORTED_RELATIVE_ERROR
+from qrm_ros.core.measurement.sampling_bounds import BOUNDED_FIGURES, SUPPORTED_RELATIVE_ERROR
 from repo_paths import TEST_DATA
 from synthetic_run import samples_for
 
@@ -118,8 +118,8 @@ def test_a_motor_runs_varying_speed_gets_no_kinematic_bound():
     15 mm swings 30 % in speed within a revolution: its segment gets none.
     """
     from qrm_ros.analysis.recorded_drive import Drive
-    from qrm_ros.core import dynamics as dyn
-    from qrm_ros.core.motor_stepper import simulate
+    from qrm_ros.core.dynamics import chain as dyn
+    from qrm_ros.core.motor.motor_stepper import simulate
     offset = 0.015
     drive = Drive(dyn.MassProperties.small_shaper(), dyn.Loads.small_shaper(),
                   dyn.MotorDrive.small_shaper())

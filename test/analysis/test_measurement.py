@@ -29,7 +29,7 @@ from qrm_ros.analysis import measurement
 from qrm_ros.analysis import recorded_run
 from qrm_ros.analysis import report
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.sampling_bounds import gap_after, GAP_SECONDS
+from qrm_ros.core.measurement.sampling_bounds import gap_after, GAP_SECONDS
 from synthetic_run import samples_for, SCHEDULE
 
 PAPER = kin.Geometry.paper()

@@ -46,11 +46,11 @@ from qrm_ros.analysis import report
 from qrm_ros.analysis import segments
 from qrm_ros.analysis import theory
 from qrm_ros.analysis import figures
-from qrm_ros.core import dynamics as dyn
+from qrm_ros.core.dynamics import chain as dyn
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.effort_theory import EFFORT_FIGURES, ZERO_CAN_BE_EXACT
-from qrm_ros.core.motor_stepper import simulate
-from qrm_ros.core.speed_drive import pair_efforts
+from qrm_ros.core.measurement.effort_theory import EFFORT_FIGURES, ZERO_CAN_BE_EXACT
+from qrm_ros.core.motor.motor_stepper import simulate
+from qrm_ros.core.dynamics.speed_drive import pair_efforts
 from synthetic_run import write_run
 from repo_paths import TEST_DATA
 
@@ -294,7 +294,7 @@ REAL_RATE = 250.0
 @pytest.fixture(scope='module')
 def real_run(tmp_path_factory):
     from qrm_ros.cli.qrm_main import RECORDER_SETTLE_TIME, start_child, stop_child
-    from qrm_ros.node.main_job_conductor import Conductor
+    from qrm_ros.node.main_job.main_job_conductor import Conductor
     folder = tmp_path_factory.mktemp('real_efforts')
     path = str(folder / 'run.mcap')
     env = dict(os.environ)

@@ -30,12 +30,12 @@ from qrm_ros.analysis.measurement import analyse, measure_segment, segment_geome
 from qrm_ros.analysis.recorded_run import read_recording
 from qrm_ros.analysis.streamed_run import analyse_file
 from qrm_ros.analysis.segments import split_segments
-from qrm_ros.core.geometry import crank_radius_for_stroke, Geometry
-from qrm_ros.core.mechanism_state import state
-from qrm_ros.core.names import PUBLISHED_JOINT_NAMES
-from qrm_ros.core.stepping import ShaperStepper
-from qrm_ros.core.stroke_adjustment import StrokeRamp
-from qrm_ros.core.stroke_timing import time_ratio
+from qrm_ros.core.kinematics.geometry import crank_radius_for_stroke, Geometry
+from qrm_ros.core.kinematics.mechanism_state import state
+from qrm_ros.core.common.names import PUBLISHED_JOINT_NAMES
+from qrm_ros.core.stepping.stepping import ShaperStepper
+from qrm_ros.core.stepping.stroke_adjustment import StrokeRamp
+from qrm_ros.core.kinematics.stroke_timing import time_ratio
 
 PAPER = Geometry.paper()
 RATE = 1000  # Hz

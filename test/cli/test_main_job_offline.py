@@ -24,8 +24,8 @@ from qrm_ros.cli import qrm_main
 from qrm_ros.cli.main_job_offline import offline_scenario, SETTLING_PAIRS
 from qrm_ros.cli.main_job_plan import short_stroke_plan, STROKE_RATE_LIMIT
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.dynamics import Loads
-from qrm_ros.node.scenario import Event
+from qrm_ros.core.dynamics.chain import Loads
+from qrm_ros.node.offline.scenario import Event
 
 
 def test_each_offset_is_held_for_its_travel_and_its_pairs():

@@ -24,8 +24,8 @@ from qrm_ros.cli import exit_codes
 from qrm_ros.cli import qrm_analyze
 from qrm_ros.analysis import figures
 from qrm_ros.analysis import report
-from qrm_ros.core.sampling_bounds import BOUNDED_FIGURES
-from qrm_ros.core import dynamics as dyn
+from qrm_ros.core.measurement.sampling_bounds import BOUNDED_FIGURES
+from qrm_ros.core.dynamics import chain as dyn
 from qrm_ros.core import kinematics as kin
 from synthetic_run import write_run, write_truncated_run
 

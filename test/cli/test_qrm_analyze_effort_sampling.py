@@ -34,11 +34,11 @@ from qrm_ros.analysis import recorded_run
 from qrm_ros.analysis import report
 from qrm_ros.cli import exit_codes
 from qrm_ros.cli import qrm_analyze
-from qrm_ros.core import dynamics as dyn
+from qrm_ros.core.dynamics import chain as dyn
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.effort_sampling_bounds import EFFORT_BOUNDED_FIGURES
-from qrm_ros.core.sampling_bounds import SUPPORTED_RELATIVE_ERROR
-from qrm_ros.core.speed_drive import pair_efforts
+from qrm_ros.core.measurement.effort_sampling_bounds import EFFORT_BOUNDED_FIGURES
+from qrm_ros.core.measurement.sampling_bounds import SUPPORTED_RELATIVE_ERROR
+from qrm_ros.core.dynamics.speed_drive import pair_efforts
 from ros_probe import installed_executable
 from synthetic_run import write_run
 

@@ -39,7 +39,7 @@ from qrm_ros.analysis import fleet_figure
 from qrm_ros.analysis import streamed_run
 from qrm_ros.cli import exit_codes
 from qrm_ros.cli import qrm_analyze
-from qrm_ros.core.geometry import Geometry
+from qrm_ros.core.kinematics.geometry import Geometry
 from repo_paths import TEST_DATA
 from synthetic_run import write_run, write_truncated_run
 

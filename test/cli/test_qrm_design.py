@@ -222,7 +222,7 @@ def test_gearbox_figure_draws_the_plan(tmp_path, capsys):
     assert code == 0
     assert path.stat().st_size > 20000
     assert [p.name for p in tmp_path.iterdir()] == ['ladder.png']  # no temporary left
-    from qrm_ros.core import gearbox
+    from qrm_ros.core.design import gearbox
     from qrm_ros.analysis import gearbox_figure
     from qrm_ros.analysis.plotting import plt
     data = json.loads(out)

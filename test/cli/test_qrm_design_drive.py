@@ -36,9 +36,9 @@ from scipy import integrate
 from qrm_ros.analysis import design_table
 from qrm_ros.cli import arguments
 from qrm_ros.cli import qrm_design
-from qrm_ros.core import dynamics as dyn
-from qrm_ros.core.motor_stepper import simulate
-from qrm_ros.core.geometry import Geometry
+from qrm_ros.core.dynamics import chain as dyn
+from qrm_ros.core.motor.motor_stepper import simulate
+from qrm_ros.core.kinematics.geometry import Geometry
 from qrm_ros.core.kinematics import state
 
 import synthetic_run
@@ -437,7 +437,7 @@ def test_documented_speed_fluctuation_at_the_largest_default_offset(capsys):
 
 
 def test_drive_options_are_the_node_parameter_names():
-    from qrm_ros.node import shaper_parameters
+    from qrm_ros.node.shaper_sim import shaper_parameters
     names = {name for kind, prefix, _ in arguments.DRIVE_PARAMETER_SETS
              for name in (prefix + field for field in kind.field_names())}
     assert names <= set(shaper_parameters.PARAMETERS)

@@ -28,7 +28,7 @@ import pytest
 from qrm_ros.analysis import linkage_figure
 from qrm_ros.cli import qrm_main
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.dynamics import Loads
+from qrm_ros.core.dynamics.chain import Loads
 from qrm_ros.recording.bag_reader import open_run
 
 from ros_probe import installed_executable, stop_process, wait_for

@@ -14,7 +14,7 @@
 """
 qrm_simulate as a user runs it: its file read by the analysis and by rosbags, its refusals.
 
-The content itself is checked against a live recording in test/node/test_offline_sim.py.
+The content itself is checked against a live recording in test/node/offline/test_offline_sim.py.
 """
 
 import errno

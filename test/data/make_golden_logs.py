@@ -36,8 +36,8 @@ import tempfile
 import time
 
 from qrm_ros.cli.qrm_main import RECORDER_SETTLE_TIME, start_child, stop_child
-from qrm_ros.node.main_job_conductor import Conductor, MainJobError
-from qrm_ros.core.names import RECORDER_NODE_NAME
+from qrm_ros.node.main_job.main_job_conductor import Conductor, MainJobError
+from qrm_ros.core.common.names import RECORDER_NODE_NAME
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 TWO_PI = 2 * math.pi

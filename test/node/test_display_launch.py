@@ -26,8 +26,9 @@ import pytest
 import yaml
 
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.names import absolute_topic, LINKAGE_MARKERS_TOPIC, ROBOT_DESCRIPTION_TOPIC
-from qrm_ros.node.shaper_parameters import PARAMETERS
+from qrm_ros.core.common.names import (absolute_topic, LINKAGE_MARKERS_TOPIC,
+                                       ROBOT_DESCRIPTION_TOPIC)
+from qrm_ros.node.shaper_sim.shaper_parameters import PARAMETERS
 from qrm_ros.recording.urdf_model import BASE_LINK, urdf_text
 
 

@@ -30,10 +30,11 @@ from rosbags.typesys.base import Nodetype
 
 from qrm_ros.recording.bag_reader import open_run
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.names import (absolute_topic, DIAGNOSTICS_TOPIC, JOINT_NAMES, JOINT_STATE_TYPE,
-                                JOINT_STATES_TOPIC, LINKAGE_MARKERS_TOPIC, LINKAGE_MARKERS_TYPE,
-                                MACHINE_NAME, RAM_TWIST_TOPIC, ROBOT_DESCRIPTION_TOPIC,
-                                ROBOT_DESCRIPTION_TYPE, STROKE_PAIR_STATUS)
+from qrm_ros.core.common.names import (absolute_topic, DIAGNOSTICS_TOPIC, JOINT_NAMES,
+                                       JOINT_STATE_TYPE, JOINT_STATES_TOPIC, LINKAGE_MARKERS_TOPIC,
+                                       LINKAGE_MARKERS_TYPE, MACHINE_NAME, RAM_TWIST_TOPIC,
+                                       ROBOT_DESCRIPTION_TOPIC, ROBOT_DESCRIPTION_TYPE,
+                                       STROKE_PAIR_STATUS)
 from qrm_ros.cli.qrm_urdf import main as qrm_urdf
 from qrm_ros.recording.foxglove_layout import (foxglove_layout_text, machine_view_bounds,
                                                PANEL_ASPECT)

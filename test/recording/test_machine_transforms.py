@@ -34,9 +34,9 @@ import yaml
 
 from qrm_ros.cli import qrm_analyze
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.names import (GEOMETRY_METADATA, JOINT_NAMES, JOINT_STATE_TYPE,
-                                JOINT_STATES_TOPIC, PUBLISHED_JOINT_NAMES,
-                                ROBOT_DESCRIPTION_TOPIC, TF_STATIC_TOPIC, TF_TOPIC)
+from qrm_ros.core.common.names import (GEOMETRY_METADATA, JOINT_NAMES, JOINT_STATE_TYPE,
+                                       JOINT_STATES_TOPIC, PUBLISHED_JOINT_NAMES,
+                                       ROBOT_DESCRIPTION_TOPIC, TF_STATIC_TOPIC, TF_TOPIC)
 from qrm_ros.recording.bag_reader import open_run
 from qrm_ros.recording.machine_channels import MachineChannels
 from qrm_ros.recording.machine_transforms import (fixed_transforms, MachineMessages,

@@ -20,7 +20,7 @@ from mcap.reader import make_reader
 from mcap.records import Chunk
 import pytest
 
-from qrm_ros.core.geometry import Geometry
+from qrm_ros.core.kinematics.geometry import Geometry
 from qrm_ros.recording.mcap_structure import (chunk_records, data_section_matches_crc,
                                               describe_error, indexed_message_count,
                                               MAX_CHUNK_BYTES, read_chunk, read_summary,

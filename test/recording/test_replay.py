@@ -48,15 +48,15 @@ from qrm_ros.analysis import measurement
 from qrm_ros.analysis import recorded_drive
 from qrm_ros.analysis import recorded_run
 from qrm_ros.analysis import segments
-from qrm_ros.core import dynamics as dyn
+from qrm_ros.core.dynamics import chain as dyn
 from qrm_ros.core import kinematics as kin
 from qrm_ros.recording.bag_reader import open_run
-from qrm_ros.core.motor_stepper import MotorStepper
-from qrm_ros.core.sampling_bounds import BOUNDED_FIGURES
-from qrm_ros.core.names import JOINT_NAMES, PUBLISHED_JOINT_NAMES
-from qrm_ros.core.stroke_efforts import lever_radius_coefficient
-from qrm_ros.node.shaper_parameters import MOTOR_PREFIX
-from qrm_ros.core.stepping import ShaperStepper, wrap_angle
+from qrm_ros.core.motor.motor_stepper import MotorStepper
+from qrm_ros.core.measurement.sampling_bounds import BOUNDED_FIGURES
+from qrm_ros.core.common.names import JOINT_NAMES, PUBLISHED_JOINT_NAMES
+from qrm_ros.core.dynamics.stroke_efforts import lever_radius_coefficient
+from qrm_ros.node.shaper_sim.shaper_parameters import MOTOR_PREFIX
+from qrm_ros.core.stepping.stepping import ShaperStepper, wrap_angle
 from qrm_ros.testing import OTHER_MACHINE_RELATIVE, reference_math
 from repo_paths import TEST_DATA
 

@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.names import PUBLISHED_JOINT_NAMES
+from qrm_ros.core.common.names import PUBLISHED_JOINT_NAMES
 from qrm_ros.cli.qrm_urdf import main
 from qrm_ros.recording.urdf_model import BASE_LINK, URDF_FILE_NAME, urdf_text, write_urdf
 from repo_paths import REPO_ROOT

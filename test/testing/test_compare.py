@@ -34,9 +34,9 @@ from rosbags.typesys import get_types_from_msg, get_typestore, Stores
 from qrm_ros.recording.bag_reader import open_run, RunFileError
 from qrm_ros.recording.mcap_run_file import COMPRESSIONS, McapRunFile
 from qrm_ros.recording.typestore import exact_cdr, jazzy_typestore
-from qrm_ros.testing import (assert_runs_match, example_names, example_recording,
-                             first_difference, LOG_TIME, MESSAGE_COUNT,
-                             MESSAGE_TYPE, RunDifference, simulate, ulp_distance)
+from qrm_ros.testing import (assert_runs_match, example_names, example_recording, first_difference,
+                             LOG_TIME, MESSAGE_COUNT, MESSAGE_TYPE, RunDifference, simulate,
+                             ulp_distance)
 from repo_paths import REPO_ROOT
 
 STEADY = 'steady_offset'

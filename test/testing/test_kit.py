@@ -22,9 +22,9 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 
 from qrm_ros.recording.bag_reader import open_run
-from qrm_ros.testing import (assert_runs_match, EXAMPLES_FOLDER, example_names,
-                             example_recording, example_scenario, OTHER_MACHINE_RELATIVE,
-                             reference_math, simulate, start_shaper_sim, wait_for_topics)
+from qrm_ros.testing import (assert_runs_match, EXAMPLES_FOLDER, example_names, example_recording,
+                             example_scenario, OTHER_MACHINE_RELATIVE, reference_math, simulate,
+                             start_shaper_sim, wait_for_topics)
 
 EXAMPLES = ['motor_cutting', 'offset_step', 'steady_offset']
 

@@ -24,11 +24,12 @@ from typing import Callable, NamedTuple, Optional, Tuple
 
 import numpy as np
 
-from qrm_ros.core.checks import KinematicsError
-from qrm_ros.core.cutting_speeds import mean_cutting_speed, offset_for_mean_cutting_speed
-from qrm_ros.core.geometry import ArrayLike, FloatOrArray, Geometry
-from qrm_ros.core.offset_inverses import offset_for_cutting_speed
-from qrm_ros.core.peak_speeds import peak_ram_speeds
+from qrm_ros.core.common.checks import KinematicsError
+from qrm_ros.core.kinematics.cutting_speeds import (mean_cutting_speed,
+                                                    offset_for_mean_cutting_speed)
+from qrm_ros.core.kinematics.geometry import ArrayLike, FloatOrArray, Geometry
+from qrm_ros.core.kinematics.offset_inverses import offset_for_cutting_speed
+from qrm_ros.core.kinematics.peak_speeds import peak_ram_speeds
 
 __all__ = ['CUTTING_SPEED_DEFINITIONS', 'CUTTING_SPEED_FIGURES', 'HoldAnswer', 'cutting_speed',
            'exact_or_nearest_offset', 'hold_offset', 'unreachable_reason',
@@ -37,7 +38,7 @@ __all__ = ['CUTTING_SPEED_DEFINITIONS', 'CUTTING_SPEED_FIGURES', 'HoldAnswer', '
 # 'mean': stroke length / cutting time, the figure of shop tables; 'peak': the largest
 # cutting speed in the stroke.
 CUTTING_SPEED_DEFINITIONS = ('mean', 'peak')
-# The stroke-pair measurement (qrm_ros.core.strokes.StrokePairs) of each definition.
+# The stroke-pair measurement (qrm_ros.core.measurement.strokes.StrokePairs) of each definition.
 CUTTING_SPEED_FIGURES = {'mean': 'mean_cutting_speed', 'peak': 'peak_cutting_speed'}
 # Offsets tried across the safe range to find what it reaches (ends included).
 _RANGE_SAMPLES = 201

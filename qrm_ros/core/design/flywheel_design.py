@@ -35,9 +35,9 @@ from typing import NamedTuple, Optional
 
 import numpy as np
 
-from qrm_ros.core import dynamics as dyn
-from qrm_ros.core.geometry import Geometry
-from qrm_ros.core import steady_running
+from qrm_ros.core.dynamics import chain as dyn
+from qrm_ros.core.kinematics.geometry import Geometry
+from qrm_ros.core.motor import steady_running
 
 __all__ = ['FlywheelSizing', 'revolution_mean_inertia', 'size_flywheel']
 

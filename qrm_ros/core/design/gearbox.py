@@ -40,13 +40,13 @@ import numpy as np
 from scipy import optimize
 from scipy.optimize import elementwise
 
-from qrm_ros.core.checks import as_float, KinematicsError
-from qrm_ros.core.cutting_speeds import mean_cutting_speed
-from qrm_ros.core.geometry import ArrayLike, FloatOrArray, Geometry
-from qrm_ros.core.offset_inverses import offset_for_time_ratio
-from qrm_ros.core.peak_speeds import peak_ram_speeds
-from qrm_ros.core.portable_math import power
-from qrm_ros.core.stroke_timing import time_ratio
+from qrm_ros.core.common.checks import as_float, KinematicsError
+from qrm_ros.core.kinematics.cutting_speeds import mean_cutting_speed
+from qrm_ros.core.kinematics.geometry import ArrayLike, FloatOrArray, Geometry
+from qrm_ros.core.kinematics.offset_inverses import offset_for_time_ratio
+from qrm_ros.core.kinematics.peak_speeds import peak_ram_speeds
+from qrm_ros.core.numerics.portable_math import power
+from qrm_ros.core.kinematics.stroke_timing import time_ratio
 
 __all__ = ['ConventionalGearbox', 'DEFAULT_MIN_TIME_RATIO', 'DEFINITIONS', 'GearStep',
            'GearboxPlan', 'MAX_STEPS', 'OffsetRange', 'STANDARD_PROGRESSION_RATIOS',

@@ -26,10 +26,10 @@ from typing import Optional, Tuple
 
 import numpy as np
 
-from qrm_ros.core.cutting_speed_hold import HoldAnswer, exact_or_nearest_offset
-from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.offset_inverses import offset_for_time_ratio
-from qrm_ros.core.stroke_timing import time_ratio
+from qrm_ros.core.design.cutting_speed_hold import HoldAnswer, exact_or_nearest_offset
+from qrm_ros.core.kinematics.geometry import Geometry
+from qrm_ros.core.kinematics.offset_inverses import offset_for_time_ratio
+from qrm_ros.core.kinematics.stroke_timing import time_ratio
 
 __all__ = ['hold_time_ratio', 'reachable_time_ratios', 'time_ratio_unreachable_reason']
 

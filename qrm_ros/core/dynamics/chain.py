@@ -31,13 +31,13 @@ from typing import Any, ClassVar, Dict, NamedTuple, Optional, Tuple, Type, Union
 
 import numpy as np
 
-from qrm_ros.core.checks import as_float
-from qrm_ros.core.geometry import check_offset, Geometry, KinematicsError
-from qrm_ros.core.names import MOTOR_PREFIX
-from qrm_ros.core.physical_ranges import magnitude_problem
+from qrm_ros.core.common.checks import as_float
+from qrm_ros.core.kinematics.geometry import check_offset, Geometry, KinematicsError
+from qrm_ros.core.common.names import MOTOR_PREFIX
+from qrm_ros.core.dynamics.physical_ranges import magnitude_problem
 # The two arithmetic back ends of the chain: numpy for arrays, math for one sample (with the
-# same bits: core.portable_math).
-from qrm_ros.core.portable_math import ARRAY_OPS, SCALAR_OPS
+# same bits: core.numerics.portable_math).
+from qrm_ros.core.numerics.portable_math import ARRAY_OPS, SCALAR_OPS
 
 __all__ = [
     'DynamicsError', 'Efforts', 'Loads', 'MassProperties', 'MotorDrive', 'checked_quantity',
@@ -383,8 +383,8 @@ def speed_drive_torque_of(sin_c: Any, cos_c: Any, r1: Any, r: Any, h: Any, heigh
         torque = speed^2 w^2 (w_c D + w D_c / 2) - w (g_c + F x_c),
 
     the chain's ``phi_t * flywheel_torque`` regrouped (d(M/2)/d(theta) speed^2 for the
-    inertia). numpy only: qrm_ros.core.torque_kernel compiles it for floats, and numpy runs it on
-    arrays (the tests hold it to ``efforts``). clearance is (r1 - offset)(r1 + offset),
+    inertia). numpy only: qrm_ros.core.dynamics.torque_kernel compiles it for floats, and numpy
+    runs it on arrays (the tests hold it to ``efforts``). clearance is (r1 - offset)(r1 + offset),
     gravity_moment m_l g l_com (N m), cos0 and sin0 those of the crank phase.
     """
     sin_f = sin_c * cos0 - cos_c * sin0  # flywheel angle phi = phi_c - crank phase
@@ -532,7 +532,7 @@ def one_sample_ram_load(cutting_force: float, cutting_length: float, ram_frictio
     """
     ram_load_force on one sample of floats, the loads' fields given (N, m, N; m, m/s).
 
-    Math and floats only: the speed drive's compiled sample (qrm_ros.core.drive_kernel)
+    Math and floats only: the speed drive's compiled sample (qrm_ros.core.dynamics.drive_kernel)
     calls it too.
     """
     cutting = ram_velocity < 0.0 and abs(ram_position) <= 0.5 * cutting_length

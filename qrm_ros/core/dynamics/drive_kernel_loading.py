@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 """
-Loading the drives' compiled kernel (qrm_ros.core.drive_kernel) on a thread of its own.
+Loading the drives' compiled kernel (qrm_ros.core.dynamics.drive_kernel) on a thread of its own.
 
 The lean acceleration and efforts and the speed drive's sample compiled (numba): importing
 numba and loading the machine code take 0.3-1 s, so the first MotorStepper of a process (or
@@ -50,7 +50,7 @@ class CompiledKernel:
         gc.disable()
         try:
             # Imported here, not at the top: numba is optional and slow to load.
-            from qrm_ros.core import drive_kernel
+            from qrm_ros.core.dynamics import drive_kernel
         except ImportError:  # without numba: the Python form throughout
             pass
         else:

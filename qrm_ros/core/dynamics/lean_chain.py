@@ -18,7 +18,7 @@ The chain on plain floats, lean: the motor stepper's equation of motion (no nump
 thousands of times a second on floats, where the named tuples, the mass dict and the terms
 multiplied by an exact zero cost more than the arithmetic. These are the chain's own
 operations in its order with those left out, so they give its numbers bit for bit (the
-tests hold them to it). Math functions and floats only: qrm_ros.core.drive_kernel compiles
+tests hold them to it). Math functions and floats only: qrm_ros.core.dynamics.drive_kernel compiles
 ``lean_acceleration_of`` and ``lean_efforts_of`` (numba, no fast-math), which give the same
 numbers bit for bit too.
 """
@@ -26,8 +26,8 @@ numbers bit for bit too.
 import math
 from typing import Callable, Sequence, Tuple
 
-from qrm_ros.core.dynamics import MassProperties, one_sample_ram_load
-from qrm_ros.core.geometry import Geometry
+from qrm_ros.core.dynamics.chain import MassProperties, one_sample_ram_load
+from qrm_ros.core.kinematics.geometry import Geometry
 
 __all__ = ['coupling_and_crank', 'lean_acceleration_of', 'lean_coefficients', 'lean_constants',
            'lean_efforts_of', 'lean_ram_motion', 'lean_speed_drive_sample', 'LeanConstants',
@@ -41,8 +41,8 @@ def lean_constants(geometry: Geometry, mass: MassProperties) -> Tuple[float, ...
     """
     Return the lean chain's constants: the geometry, the masses, and their fixed groupings.
 
-    A tuple of floats in ``lean_coefficients``' order (qrm_ros.core.drive_kernel takes them
-    as an array); the groupings are the chain's own sub-expressions that hold the geometry
+    A tuple of floats in ``lean_coefficients``' order (qrm_ros.core.dynamics.drive_kernel takes
+    them as an array); the groupings are the chain's own sub-expressions that hold the geometry
     alone, grouped as it groups them.
     """
     r1, r, h = geometry.coupling_radius, geometry.crank_radius, geometry.pivot_distance
@@ -62,7 +62,7 @@ def coupling_and_crank(constants: LeanConstants, radius: float, offset: float,
 
     (phi_t, phi_d, phi_tt, phi_td, phi_dd, sin_c, cos_c, tan_l), with the crank radius given
     (m): the head shared by the lean forms at a still stroke and by the chain written out
-    for a moving one (qrm_ros.core.motor_stroke), so the two cannot drift apart.
+    for a moving one (qrm_ros.core.motor.motor_stroke), so the two cannot drift apart.
     """
     r1, h, phase = constants[0], constants[2], constants[4]
     r1_r1, two_r1, minus_two_r1 = constants[10], constants[11], constants[18]
@@ -88,7 +88,7 @@ def lean_coefficients(constants: LeanConstants, offset: float,
     (input_inertia, flywheel_inertia, lever_inertia, ram_mass, lever_weight, phi_t, phi_d,
     phi_tt, phi_td, phi_dd, psi_p, psi_pp, tan_l, sec2, x_p, x_pp): the constants and the
     part of the chain that hold the configuration alone, shared by ``lean_acceleration_of``
-    and ``lean_efforts_of`` (and compiled into them, qrm_ros.core.drive_kernel).
+    and ``lean_efforts_of`` (and compiled into them, qrm_ros.core.dynamics.drive_kernel).
     """
     (_, r, h, height, _, input_inertia, flywheel_inertia, lever_inertia, ram_mass,
      lever_weight, _, _, r_h, two_r_h, minus_r, minus_r_h, h_h_r_r, two_height,
@@ -221,8 +221,8 @@ def lean_speed_drive_sample(constants: LeanConstants, cutting_force: float,
     The operations of mechanism_state.state (positions and speeds: no powers, which a
     compiled form would turn into products), then dynamics.one_sample_ram_load,
     ``lean_efforts_of`` and ``lever_radius_coefficient_of`` on one sample, in their order,
-    so it gives their numbers bit for bit (a test holds it to them); qrm_ros.core.drive_kernel
-    compiles it for the node's tick.
+    so it gives their numbers bit for bit (a test holds it to them);
+    qrm_ros.core.dynamics.drive_kernel compiles it for the node's tick.
     """
     r1, r, h, height, phase = constants[0], constants[1], constants[2], constants[3], constants[4]
     # state(): the coupling (the first slot's rate), then the lever (the second's).

@@ -25,7 +25,7 @@ the node's rules and the commands' options all read them here. numpy-free.
 import math
 from typing import Dict, Optional
 
-from qrm_ros.core.geometry import SAFE_OFFSET_FRACTION
+from qrm_ros.core.kinematics.geometry import SAFE_OFFSET_FRACTION
 
 __all__ = ['MAX_FLUCTUATION', 'MAX_INPUT_SPEED', 'MAX_MAGNITUDES', 'MIN_FLUCTUATION',
            'MIN_INPUT_SPEED', 'MIN_MOTOR_SPEED_BAND', 'MIN_MOTOR_TIME_CONSTANT',

@@ -27,12 +27,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from qrm_ros.core import dynamics as dyn
-from qrm_ros.core.gauss_legendre import gauss_legendre
-from qrm_ros.core.geometry import check_offset, Geometry, KinematicsError
-from qrm_ros.core.mechanism_state import (input_angle_for_flywheel_angle,
-                                          reversal_flywheel_angles, state)
-from qrm_ros.core.peak_speeds import flat_design
+from qrm_ros.core.dynamics import chain as dyn
+from qrm_ros.core.numerics.gauss_legendre import gauss_legendre
+from qrm_ros.core.kinematics.geometry import check_offset, Geometry, KinematicsError
+from qrm_ros.core.kinematics.mechanism_state import (input_angle_for_flywheel_angle,
+                                                     reversal_flywheel_angles, state)
+from qrm_ros.core.kinematics.peak_speeds import flat_design
 
 __all__ = ['load_switch_angles', 'MAX_EFFORT_PANELS', 'PairEfforts', 'pair_efforts',
            'PEAK_CANDIDATE_MARGIN', 'peak_input_torque', 'ToleranceUnreachable']
@@ -278,8 +278,8 @@ def pair_efforts(geometry: Geometry, mass: dyn.MassProperties, loads: dyn.Loads,
                        peak_offset_force=peak_force)
 
 
-# peak_input_torque's search (qrm_ros.core.torque_kernel): even crank-angle samples on the cut and
-# on the return (the return's grow as sqrt(h / (h - r)); besides the load switches and the
+# peak_input_torque's search (qrm_ros.core.dynamics.torque_kernel): even crank-angle samples on the
+# cut and on the return (the return's grow as sqrt(h / (h - r)); besides the load switches and the
 # coupling's two crossings). Against 400 and 400 on 3 x 10^5 random designs (r/h to 0.97,
 # offsets to 0.99 r1) under three loads each: 12 and 8 lost no peak (8 and 6 one, by 2e-3;
 # before intervals hiding a minimum and a maximum were split, 24 and 16 lost some). Brent's
@@ -304,8 +304,8 @@ def peak_input_torque(geometry: Geometry, mass: dyn.MassProperties, loads: dyn.L
     under ``dynamics.ram_load_force``. Geometry fields (arrays allowed), offset and
     input_speed broadcast (as ``kinematics.peak_ram_speeds``); mass and loads are single
     sets. Exact to round-off: each smooth piece of the revolution (split where the load
-    switches) is searched for its peaks by the compiled qrm_ros.core.torque_kernel, piece ends
-    with the piece's own load (at a workpiece edge the torque jumps; its one-sided limits
+    switches) is searched for its peaks by the compiled qrm_ros.core.dynamics.torque_kernel, piece
+    ends with the piece's own load (at a workpiece edge the torque jumps; its one-sided limits
     count). A float for scalar arguments, an array of the broadcast shape otherwise. Large
     sweeps run on numba's threads (numba.set_num_threads); the first call in a process
     loads the kernel (0.3 s; 5 s once after an install, compiling it). Without numba each
@@ -319,7 +319,7 @@ def peak_input_torque(geometry: Geometry, mass: dyn.MassProperties, loads: dyn.L
     flat = [np.array(np.broadcast_to(value, shape).reshape(-1))
             for value in (*(value.reshape(design_shape) for value in flat), speed)]
     try:  # imported here: numba is optional and slow to load
-        from qrm_ros.core import torque_kernel
+        from qrm_ros.core.dynamics import torque_kernel
     except ImportError:  # without numba: pair_efforts for each configuration
         peaks = np.array([
             pair_efforts(Geometry(*values[:5]), mass, loads, values[5], values[6])

@@ -27,11 +27,12 @@ from typing import Any, Dict, Optional, Tuple
 
 import numpy as np
 
-from qrm_ros.core.dynamics import (Chain, checked_quantity, Efforts, evaluate_chain,
-                                   geometry_fields, MassProperties)
-from qrm_ros.core.portable_math import ARRAY_OPS, SCALAR_OPS
-from qrm_ros.core.geometry import check_offset, FloatOrArray, Geometry
-from qrm_ros.core.lean_chain import lean_constants, lean_efforts_of, lever_radius_coefficient_of
+from qrm_ros.core.dynamics.chain import (Chain, checked_quantity, Efforts, evaluate_chain,
+                                         geometry_fields, MassProperties)
+from qrm_ros.core.numerics.portable_math import ARRAY_OPS, SCALAR_OPS
+from qrm_ros.core.kinematics.geometry import check_offset, FloatOrArray, Geometry
+from qrm_ros.core.dynamics.lean_chain import (lean_constants, lean_efforts_of,
+                                              lever_radius_coefficient_of)
 
 __all__ = ['chain_with_stroke_screw', 'efforts_with_stroke_screw', 'lever_radius_coefficient',
            'still_stroke_constants']

@@ -32,9 +32,9 @@ is kept if the ends and slopes allow a peak of |torque| above the best sample. T
 brackets are solved, largest bound first, by Brent's method on the slope, started where
 the cubic through the ends' torques and slopes peaks and stopped once the torque's
 possible gain is below its round-off. Blocks of configurations go to numba's threads one
-at a time. Loading is as for qrm_ros.core.peak_kernel: machine code compiled on the first
-import for its one signature (about 8 s, with peak_kernel's) and cached, then 0.3 s to
-load.
+at a time. Loading is as for qrm_ros.core.kinematics.peak_kernel: machine code compiled on the
+first import for its one signature (about 8 s, with peak_kernel's) and cached, then 0.3 s
+to load.
 """
 
 import math
@@ -42,8 +42,8 @@ import math
 import numba
 import numpy as np
 
-from qrm_ros.core.dynamics import speed_drive_torque_of
-from qrm_ros.core.kernel_tools import compiler, rotate
+from qrm_ros.core.dynamics.chain import speed_drive_torque_of
+from qrm_ros.core.numerics.kernel_tools import compiler, rotate
 
 _TWO_PI = 2.0 * math.pi
 # Return-stroke samples grow as sqrt(h / (h - r)) times this, once above the base count.

@@ -21,12 +21,12 @@ give. Exact, through the coupling's inverse (doc/mechanism.md).
 import numpy as np
 from scipy.optimize import elementwise
 
-from qrm_ros.core.checks import as_float, checked_input_speed, KinematicsError
-from qrm_ros.core.geometry import (ArrayLike, float_or_array, FloatOrArray, Geometry,
-                                   TWO_PI)
-from qrm_ros.core.mechanism_state import forward_cut_input_arc
-from qrm_ros.core.offset_inverses import SEARCH_FRACTION
-from qrm_ros.core.stroke_timing import stroke_times
+from qrm_ros.core.common.checks import as_float, checked_input_speed, KinematicsError
+from qrm_ros.core.kinematics.geometry import (ArrayLike, float_or_array, FloatOrArray, Geometry,
+                                              TWO_PI)
+from qrm_ros.core.kinematics.mechanism_state import forward_cut_input_arc
+from qrm_ros.core.kinematics.offset_inverses import SEARCH_FRACTION
+from qrm_ros.core.kinematics.stroke_timing import stroke_times
 
 __all__ = ['mean_cutting_speed', 'offset_for_mean_cutting_speed']
 

@@ -25,7 +25,7 @@ from typing import Any, Dict, NamedTuple, Optional, Tuple, Union
 
 import numpy as np
 
-from qrm_ros.core.checks import as_float, KinematicsError
+from qrm_ros.core.common.checks import as_float, KinematicsError
 
 # KinematicsError is checks' (the error every input check raises), named here too: the
 # geometry's callers catch it.

@@ -26,8 +26,8 @@ from typing import NamedTuple, Optional, Tuple
 
 import numpy as np
 
-from qrm_ros.core.geometry import ArrayLike, Geometry, MechanismState
-from qrm_ros.core.mechanism_state import state
+from qrm_ros.core.kinematics.geometry import ArrayLike, Geometry, MechanismState
+from qrm_ros.core.kinematics.mechanism_state import state
 
 __all__ = ['COLOURS', 'LinkagePoints', 'LinkageSizes', 'linkage_points', 'linkage_sizes',
            'workpiece_span']

@@ -28,9 +28,9 @@ from typing import Any, Tuple
 
 import numpy as np
 
-from qrm_ros.core.portable_math import arcsin, arctan2, ARRAY_OPS, SCALAR_OPS
-from qrm_ros.core.geometry import (ArrayLike, check_offset, FloatOrArray, Geometry,
-                                   MechanismState, TWO_PI)
+from qrm_ros.core.numerics.portable_math import arcsin, arctan2, ARRAY_OPS, SCALAR_OPS
+from qrm_ros.core.kinematics.geometry import (ArrayLike, check_offset, FloatOrArray, Geometry,
+                                              MechanismState, TWO_PI)
 
 __all__ = ['forward_cut_input_arc', 'input_angle_for_flywheel_angle',
            'reversal_flywheel_angles', 'state']

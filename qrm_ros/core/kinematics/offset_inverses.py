@@ -23,10 +23,10 @@ import math
 import numpy as np
 from scipy import optimize
 
-from qrm_ros.core.checks import as_float, checked_input_speed, KinematicsError
-from qrm_ros.core.geometry import ArrayLike, check_offset, FloatOrArray, Geometry
-from qrm_ros.core.peak_speeds import peak_ram_speeds
-from qrm_ros.core.stroke_timing import speed_ratio, time_ratio
+from qrm_ros.core.common.checks import as_float, checked_input_speed, KinematicsError
+from qrm_ros.core.kinematics.geometry import ArrayLike, check_offset, FloatOrArray, Geometry
+from qrm_ros.core.kinematics.peak_speeds import peak_ram_speeds
+from qrm_ros.core.kinematics.stroke_timing import speed_ratio, time_ratio
 
 __all__ = ['SEARCH_FRACTION', 'offset_for_cutting_speed', 'offset_for_speed_ratio',
            'offset_for_time_ratio']

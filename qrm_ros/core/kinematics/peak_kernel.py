@@ -31,8 +31,8 @@ from typing import Tuple
 
 import numpy as np
 
-from qrm_ros.core.kernel_tools import compiler, rotate
-from qrm_ros.core.speed_rise import speed_rise_of
+from qrm_ros.core.numerics.kernel_tools import compiler, rotate
+from qrm_ros.core.kinematics.speed_rise import speed_rise_of
 
 __all__ = ['newton_peak', 'peak_speeds', 'velocity']
 

@@ -16,7 +16,7 @@ The largest ram speeds of the cutting and the return stroke (the peaks need not 
 
 Each stroke is searched for every turning point of |ram velocity|: the sign of its slope
 at evenly spread crank angles brackets each peak, and safeguarded Newton steps on closed-form
-slopes solve it. Large sweeps take the same method compiled (qrm_ros.core.peak_kernel,
+slopes solve it. Large sweeps take the same method compiled (qrm_ros.core.kinematics.peak_kernel,
 numba, loaded only for them); the rest run it in numpy. numpy only.
 """
 
@@ -25,11 +25,11 @@ from typing import Any, Callable, List, NamedTuple, Optional, Tuple
 
 import numpy as np
 
-from qrm_ros.core.checks import checked_input_speed
-from qrm_ros.core.geometry import (ArrayLike, check_offset, float_or_array, FloatOrArray,
-                                   Geometry, TWO_PI)
-from qrm_ros.core.portable_math import arcsin
-from qrm_ros.core.speed_rise import speed_rise_of
+from qrm_ros.core.common.checks import checked_input_speed
+from qrm_ros.core.kinematics.geometry import (ArrayLike, check_offset, float_or_array,
+                                              FloatOrArray, Geometry, TWO_PI)
+from qrm_ros.core.numerics.portable_math import arcsin
+from qrm_ros.core.kinematics.speed_rise import speed_rise_of
 
 __all__ = ['BRACKET_RESOLUTION', 'COMPILED_MIN_CONFIGURATIONS', 'NEWTON_ANGLE_TOLERANCE',
            'NEWTON_MAX_STEPS', 'PEAK_SAMPLES', 'PeakProblem', 'compiled_peak_search',
@@ -162,7 +162,7 @@ def compiled_peak_search() -> Optional[Callable[..., Tuple[np.ndarray, np.ndarra
     try:
         # Deferred: numba is heavy (0.3 s or more to load) and optional; only large sweeps
         # come here.
-        from qrm_ros.core import peak_kernel
+        from qrm_ros.core.kinematics import peak_kernel
     except ImportError:
         return None
     return peak_kernel.peak_speeds
@@ -174,7 +174,8 @@ def peak_speeds_forward(geometry: Geometry,
     Largest |ram velocity| on the cut and on the return, per unit input speed.
 
     Sweeps of COMPILED_MIN_CONFIGURATIONS or more take the compiled search
-    (qrm_ros.core.peak_kernel), smaller ones the same method in numpy (peak_speeds_numpy).
+    (qrm_ros.core.kinematics.peak_kernel), smaller ones the same method in numpy
+    (peak_speeds_numpy).
     """
     shape, flat = flat_design(geometry, offset)
     search = (compiled_peak_search() if flat[0].size >= COMPILED_MIN_CONFIGURATIONS

@@ -14,8 +14,8 @@
 """
 The previous peak-speed method, kept as the reference of tests and the benchmark's baseline.
 
-Slower than qrm_ros.core.peak_speeds but built only from state() and scipy's root finder,
-so it checks the closed-form slopes there independently.
+Slower than qrm_ros.core.kinematics.peak_speeds but built only from state() and scipy's root
+finder, so it checks the closed-form slopes there independently.
 """
 
 from typing import Any, List, Tuple
@@ -23,9 +23,9 @@ from typing import Any, List, Tuple
 import numpy as np
 from scipy.optimize import elementwise
 
-from qrm_ros.core.geometry import ArrayLike, check_offset, Geometry, TWO_PI
-from qrm_ros.core.mechanism_state import (input_angle_for_flywheel_angle,
-                                          reversal_flywheel_angles, state)
+from qrm_ros.core.kinematics.geometry import ArrayLike, check_offset, Geometry, TWO_PI
+from qrm_ros.core.kinematics.mechanism_state import (input_angle_for_flywheel_angle,
+                                                     reversal_flywheel_angles, state)
 
 __all__ = ['peak_speeds_bracketing']
 

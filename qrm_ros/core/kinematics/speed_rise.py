@@ -14,13 +14,13 @@
 """
 The sign test of the peak-speed search, one formula for numpy and for the compiled kernel.
 
-numpy only (no numba): qrm_ros.core.peak_speeds samples it on arrays, and
-qrm_ros.core.peak_kernel compiles this same function for its scalar loop.
+numpy only (no numba): qrm_ros.core.kinematics.peak_speeds samples it on arrays, and
+qrm_ros.core.kinematics.peak_kernel compiles this same function for its scalar loop.
 """
 
 import numpy as np
 
-from qrm_ros.core.geometry import ArrayLike, FloatOrArray
+from qrm_ros.core.kinematics.geometry import ArrayLike, FloatOrArray
 
 __all__ = ['speed_rise_of']
 

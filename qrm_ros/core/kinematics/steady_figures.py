@@ -22,9 +22,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from qrm_ros.core.geometry import ArrayLike, float_or_array, FloatOrArray, Geometry
-from qrm_ros.core.peak_speeds import peak_ram_speeds
-from qrm_ros.core.stroke_timing import speed_ratio, stroke_times
+from qrm_ros.core.kinematics.geometry import ArrayLike, float_or_array, FloatOrArray, Geometry
+from qrm_ros.core.kinematics.peak_speeds import peak_ram_speeds
+from qrm_ros.core.kinematics.stroke_timing import speed_ratio, stroke_times
 
 __all__ = ['SteadyTheory', 'steady_theory']
 

@@ -25,12 +25,12 @@ from typing import Tuple
 
 import numpy as np
 
-from qrm_ros.core.checks import checked_input_speed
-from qrm_ros.core.geometry import (ArrayLike, check_offset, float_or_array, FloatOrArray,
-                                   Geometry, TWO_PI)
-from qrm_ros.core.mechanism_state import (forward_cut_input_arc,
-                                          input_angle_for_flywheel_angle,
-                                          reversal_flywheel_angles, state)
+from qrm_ros.core.common.checks import checked_input_speed
+from qrm_ros.core.kinematics.geometry import (ArrayLike, check_offset, float_or_array,
+                                              FloatOrArray, Geometry, TWO_PI)
+from qrm_ros.core.kinematics.mechanism_state import (forward_cut_input_arc,
+                                                     input_angle_for_flywheel_angle,
+                                                     reversal_flywheel_angles, state)
 
 __all__ = ['speed_ratio', 'speed_ratio_eq25', 'stroke_times', 'time_ratio', 'time_ratio_rk4']
 

@@ -14,12 +14,12 @@
 """
 How far the sampling alone can move each measured effort figure: a bound, not an estimate.
 
-The efforts are measured piece by piece between the load switches (core.piecewise_efforts):
-each sample interval takes the polynomial through the n nearest samples of its piece (a
-quintic for the integrals, a cubic for the peaks). Under the ideal speed drive the recorded
-efforts are the theory sampled, and within a piece the theory is the efforts under that
-piece's constant load: smooth and periodic over a revolution, so its derivatives come by
-FFT (on grids doubled until they settle, raised by sampling_bounds.MARGIN). A polynomial
+The efforts are measured piece by piece between the load switches
+(core.measurement.piecewise_efforts): each sample interval takes the polynomial through the n
+nearest samples of its piece (a quintic for the integrals, a cubic for the peaks). Under the ideal
+speed drive the recorded efforts are the theory sampled, and within a piece the theory is the
+efforts under that piece's constant load: smooth and periodic over a revolution, so its derivatives
+come by FFT (on grids doubled until they settle, raised by sampling_bounds.MARGIN). A polynomial
 through n points within steps of at most h errs at t by at most max|f^(n)| / n! times
 |prod (t - t_i)|; the product's largest value over an interval, in units of h^n, depends
 only on where the interval sits in its piece (centred, near an end, or beyond the last
@@ -39,17 +39,18 @@ from typing import Dict, List, NamedTuple, Optional, Tuple
 import numpy as np
 from scipy.ndimage import maximum_filter1d
 
-from qrm_ros.core import dynamics as dyn
-from qrm_ros.core.effort_theory import EFFORT_FIGURES
-from qrm_ros.core.geometry import Geometry, TWO_PI
-from qrm_ros.core.mechanism_state import state
-from qrm_ros.core.portable_math import power
-from qrm_ros.core.piecewise_efforts import (INTEGRAL_POINTS, MIN_PIECE_SAMPLES,
-                                            STENCIL_POINTS)
-from qrm_ros.core.sampling_bounds import (envelope, FIRST_GRID, GRID_AGREEMENT, LAST_GRID,
-                                          MARGIN, position_error_near, reversal_shifts,
-                                          spectral_derivative, SteadyMotion, step_on_grid)
-from qrm_ros.core.speed_drive import load_switch_angles
+from qrm_ros.core.dynamics import chain as dyn
+from qrm_ros.core.measurement.effort_theory import EFFORT_FIGURES
+from qrm_ros.core.kinematics.geometry import Geometry, TWO_PI
+from qrm_ros.core.kinematics.mechanism_state import state
+from qrm_ros.core.numerics.portable_math import power
+from qrm_ros.core.measurement.piecewise_efforts import (INTEGRAL_POINTS, MIN_PIECE_SAMPLES,
+                                                        STENCIL_POINTS)
+from qrm_ros.core.measurement.sampling_bounds import (envelope, FIRST_GRID, GRID_AGREEMENT,
+                                                      LAST_GRID, MARGIN, position_error_near,
+                                                      reversal_shifts, spectral_derivative,
+                                                      SteadyMotion, step_on_grid)
+from qrm_ros.core.dynamics.speed_drive import load_switch_angles
 
 __all__ = ['EFFORT_BOUNDED_FIGURES', 'effort_sampling_bounds', 'steady_efforts', 'switch_shift',
            'SteadyEfforts']

@@ -33,10 +33,10 @@ import threading
 import time
 from typing import BinaryIO, Dict, NamedTuple, Optional, Tuple
 
-from qrm_ros.core import dynamics as dyn
+from qrm_ros.core.dynamics import chain as dyn
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.speed_drive import pair_efforts, ToleranceUnreachable
-from qrm_ros.core.steady_running import speed_fluctuation
+from qrm_ros.core.dynamics.speed_drive import pair_efforts, ToleranceUnreachable
+from qrm_ros.core.motor.steady_running import speed_fluctuation
 
 __all__ = ['BackgroundTheory', 'EFFORT_FIGURES', 'Setting', 'steady_effort_theory',
            'steady_effort_theory_and_problem', 'THEORY_FIGURES', 'ZERO_CAN_BE_EXACT']
@@ -145,10 +145,10 @@ class BackgroundTheory:
 
     ``lookup`` never waits: it returns the theory once it is known, else None, and starts the
     work if it is not under way. The worker is a fresh interpreter running this module
-    (``python -m qrm_ros.core.effort_theory``), started on the first lookup, at low priority and
-    in a session of its own (a terminal's Ctrl-C is the caller's to handle): not a fork of a
-    process that may hold DDS threads, and not multiprocessing's spawn, which would run the
-    caller's main script again in the worker. Requests and replies are pickled over its
+    (``python -m qrm_ros.core.measurement.effort_theory``), started on the first lookup, at low
+    priority and in a session of its own (a terminal's Ctrl-C is the caller's to handle): not a
+    fork of a process that may hold DDS threads, and not multiprocessing's spawn, which would run
+    the caller's main script again in the worker. Requests and replies are pickled over its
     standard input and output; a thread reads the replies. It ends when the caller closes
     the pipe (close(), or the caller's exit, however it happens).
     """

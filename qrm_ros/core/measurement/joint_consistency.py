@@ -28,8 +28,8 @@ from typing import Dict, Optional, Tuple
 
 import numpy as np
 
-from qrm_ros.core.geometry import Geometry, TWO_PI
-from qrm_ros.core.mechanism_state import state
+from qrm_ros.core.kinematics.geometry import Geometry, TWO_PI
+from qrm_ros.core.kinematics.mechanism_state import state
 
 __all__ = ['CONSISTENCY_CHECKS', 'CONSISTENCY_TOLERANCE', 'inconsistent_samples',
            'misplaced_stamps']

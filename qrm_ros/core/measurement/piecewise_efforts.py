@@ -26,15 +26,15 @@ quintic, for the integrals; four, a cubic, for the peaks; a line if the piece ha
 than six), which also carries the piece to its ends: sixth and fourth order in the step
 inside a piece, and a peak at a jump is the piece's one-sided limit there, not the last
 sample before it. Pure numpy, and no BLAS: its sums are added in a written order
-(core.fixed_order), so the figures have the same bits on every CPU.
+(core.numerics.fixed_order), so the figures have the same bits on every CPU.
 """
 
 from typing import NamedTuple, Sequence, Tuple, Union
 
 import numpy as np
 
-from qrm_ros.core.fixed_order import weighted_sum
-from qrm_ros.core.gauss_legendre import gauss_legendre
+from qrm_ros.core.numerics.fixed_order import weighted_sum
+from qrm_ros.core.numerics.gauss_legendre import gauss_legendre
 
 __all__ = ['INTEGRAL_POINTS', 'MIN_PIECE_SAMPLES', 'PieceIntegrals', 'piecewise_figures',
            'STENCIL_POINTS']

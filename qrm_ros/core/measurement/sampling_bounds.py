@@ -14,8 +14,8 @@
 """
 How far the sampling alone can move each measured stroke figure: a bound, not an estimate.
 
-The stroke finder (core.strokes) puts a cubic Hermite interpolant through the sampled ram
-positions and velocities. On an interval of length h its velocity differs from the true one
+The stroke finder (core.measurement.strokes) puts a cubic Hermite interpolant through the sampled
+ram positions and velocities. On an interval of length h its velocity differs from the true one
 by at most sqrt(3)/216 h^3 max|x''''| and its position by at most h^4/384 max|x''''|
 (Birkhoff and Priver's sharp constants). From these follow, with the motion's derivatives
 taken from the closed form at a steady input speed, within two sample
@@ -34,11 +34,11 @@ from typing import Dict, List, NamedTuple, Optional, Tuple
 import numpy as np
 from scipy.ndimage import maximum_filter1d
 
-from qrm_ros.core.geometry import Geometry, TWO_PI
-from qrm_ros.core.portable_math import log, power
-from qrm_ros.core.mechanism_state import (input_angle_for_flywheel_angle,
-                                          reversal_flywheel_angles, state)
-from qrm_ros.core.steady_figures import steady_theory, SteadyTheory
+from qrm_ros.core.kinematics.geometry import Geometry, TWO_PI
+from qrm_ros.core.numerics.portable_math import log, power
+from qrm_ros.core.kinematics.mechanism_state import (input_angle_for_flywheel_angle,
+                                                     reversal_flywheel_angles, state)
+from qrm_ros.core.kinematics.steady_figures import steady_theory, SteadyTheory
 
 __all__ = ['BOUNDED_FIGURES', 'envelope', 'figure_sampling_bounds', 'FIRST_GRID', 'gap_after',
            'GAP_PERIODS', 'GAP_SECONDS', 'GRID_AGREEMENT', 'grid_reach', 'LAST_GRID', 'MARGIN',

@@ -32,12 +32,12 @@ from typing import Dict, List, NamedTuple, Optional
 
 import numpy as np
 
-from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.sampling_bounds import gap_after
-from qrm_ros.core.steady_figures import steady_theory, SteadyTheory
-from qrm_ros.core.units import NANOSECONDS_PER_SECOND
-from qrm_ros.core.strokes import (pair_effort_steps, PairEffortsMeasured, run_steps, Steps,
-                                  stroke_pair_steps)
+from qrm_ros.core.kinematics.geometry import Geometry
+from qrm_ros.core.measurement.sampling_bounds import gap_after
+from qrm_ros.core.kinematics.steady_figures import steady_theory, SteadyTheory
+from qrm_ros.core.common.units import NANOSECONDS_PER_SECOND
+from qrm_ros.core.measurement.strokes import (pair_effort_steps, PairEffortsMeasured, run_steps,
+                                              Steps, stroke_pair_steps)
 
 __all__ = ['BUFFER_LIMIT', 'CompletedSamples', 'MEASURED_FIGURES', 'PairReport', 'SAMPLE_FIELDS',
            'STROKE_SAMPLE_FIELDS', 'StrokeMonitor']

@@ -33,7 +33,7 @@ from typing import Generator, NamedTuple, Optional, Sequence, Tuple, TypeVar, Un
 
 import numpy as np
 
-from qrm_ros.core.piecewise_efforts import piecewise_figures
+from qrm_ros.core.measurement.piecewise_efforts import piecewise_figures
 
 __all__ = ['PairEffortsMeasured', 'StrokePairs', 'find_reversals', 'find_stroke_pairs',
            'measure_pair_efforts', 'pair_effort_steps', 'run_steps', 'stroke_pair_steps',
@@ -385,8 +385,8 @@ def measure_pair_efforts(time: ArrayLike, input_speed: ArrayLike, input_torque: 
     error of order its jump x the sample spacing. With them (s: workpiece_edge_times,
     empty for a run without a workpiece), the torque and offset force
     are split there and at the pair's reversals and taken piece by piece
-    (core.piecewise_efforts: fourth order within a piece, a jump's one-sided limits kept);
-    a pair with a piece too short for that keeps the linear measure. These are
+    (core.measurement.piecewise_efforts: fourth order within a piece, a jump's one-sided limits
+    kept); a pair with a piece too short for that keeps the linear measure. These are
     measurements, compared with the exact theory of qrm_ros.core.dynamics. The mean input
     speed is the angle swept over the pair's time.
     """

@@ -27,11 +27,12 @@ from typing import Any, Callable, cast, Dict, List, Optional, Tuple
 
 import numpy as np
 
-from qrm_ros.core import dynamics as dyn
-from qrm_ros.core.geometry import Geometry, TWO_PI
-from qrm_ros.core.lean_chain import lean_constants, lean_ram_motion
-from qrm_ros.core.physical_ranges import motor_speed_band_problem, motor_time_constant_problem
-from qrm_ros.core.speed_drive import load_switch_angles
+from qrm_ros.core.dynamics import chain as dyn
+from qrm_ros.core.kinematics.geometry import Geometry, TWO_PI
+from qrm_ros.core.dynamics.lean_chain import lean_constants, lean_ram_motion
+from qrm_ros.core.dynamics.physical_ranges import (motor_speed_band_problem,
+                                                   motor_time_constant_problem)
+from qrm_ros.core.dynamics.speed_drive import load_switch_angles
 
 __all__ = ['ChainFixed', 'EquationOfMotion', 'sign']
 

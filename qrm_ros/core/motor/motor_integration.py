@@ -15,7 +15,7 @@
 The motor stepper's integration within one segment: DOP853 steps, a few ahead of the stamps.
 
 scipy's DOP853 (8th order) on the segment's right-hand side, its vector algebra written
-out (core.portable_dop853: the same steps on every CPU). Each step's
+out (core.numerics.portable_dop853: the same steps on every CPU). Each step's
 dense output is sampled for a switch of the segment's mode; a switch inside a step is found
 with brentq and the step is cut there, the next segment to start from it once the stamps
 pass it. Steps are taken a few at a time ahead of the stamps (the same steps, so the same
@@ -28,9 +28,9 @@ from typing import Any, Callable, Deque, List, Optional, Tuple
 import numpy as np
 from scipy import optimize
 
-from qrm_ros.core import dynamics as dyn
-from qrm_ros.core.motor_segment import SegmentFunctions
-from qrm_ros.core.portable_dop853 import PortableDop853
+from qrm_ros.core.dynamics import chain as dyn
+from qrm_ros.core.motor.motor_segment import SegmentFunctions
+from qrm_ros.core.numerics.portable_dop853 import PortableDop853
 
 __all__ = ['ATOL', 'Dop853', 'float_dense', 'Piece', 'ROOT_SAMPLES', 'RTOL',
            'SegmentIntegration', 'STEPS_AHEAD']

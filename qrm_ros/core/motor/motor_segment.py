@@ -27,13 +27,13 @@ import bisect
 import math
 from typing import Callable, List, NamedTuple, Optional, Tuple
 
-from qrm_ros.core.dynamics import Chain
-from qrm_ros.core.geometry import TWO_PI
-from qrm_ros.core.lean_chain import lean_acceleration_of
-from qrm_ros.core.motor_equation import EquationOfMotion, sign
-from qrm_ros.core.drive_kernel_loading import COMPILED_DRIVE_KERNEL
-from qrm_ros.core.motor_stroke import moving_radius_motion, StrokeSegment
-from qrm_ros.core.stepping import ramp, wrap_angle
+from qrm_ros.core.dynamics.chain import Chain
+from qrm_ros.core.kinematics.geometry import TWO_PI
+from qrm_ros.core.dynamics.lean_chain import lean_acceleration_of
+from qrm_ros.core.motor.motor_equation import EquationOfMotion, sign
+from qrm_ros.core.dynamics.drive_kernel_loading import COMPILED_DRIVE_KERNEL
+from qrm_ros.core.motor.motor_stroke import moving_radius_motion, StrokeSegment
+from qrm_ros.core.stepping.stepping import ramp, wrap_angle
 
 __all__ = ['DIRECTION', 'SATURATION', 'Segment', 'segment_functions', 'SegmentFunctions',
            'SegmentPlan', 'SPIN', 'SWITCH_ANGLE_MARGIN', 'WORK']

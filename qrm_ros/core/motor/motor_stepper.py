@@ -15,7 +15,7 @@
 The mechanism under a motor drive, stepped between stamps (pure numpy/scipy, no ROS).
 
 ``MotorStepper`` offers the node what ``stepping.ShaperStepper`` offers (the ``Stepper``
-protocol, qrm_ros.core.stepper), with the input speed a state of the equation of motion.
+protocol, qrm_ros.core.stepping.stepper), with the input speed a state of the equation of motion.
 Its parts: the equation of motion's ingredients (motor_equation), the present segment's
 plan and functions (motor_segment), the solver within a segment (motor_integration) and the
 compiled kernel loaded on a thread (drive_kernel_loading). ``simulate`` samples a run.
@@ -38,20 +38,20 @@ from typing import Callable, NamedTuple, Optional
 
 import numpy as np
 
-from qrm_ros.core import dynamics as dyn
-from qrm_ros.core.checks import finite, positive
-from qrm_ros.core.geometry import check_offset, Geometry, MechanismState
+from qrm_ros.core.dynamics import chain as dyn
+from qrm_ros.core.common.checks import finite, positive
+from qrm_ros.core.kinematics.geometry import check_offset, Geometry, MechanismState
 from qrm_ros.core.kinematics import state
-from qrm_ros.core.lean_chain import lean_efforts_of
-from qrm_ros.core.motor_equation import EquationOfMotion
-from qrm_ros.core.motor_integration import Observer, Piece, SegmentIntegration
-from qrm_ros.core.drive_kernel_loading import COMPILED_DRIVE_KERNEL
-from qrm_ros.core.motor_segment import (Segment, segment_functions, SegmentFunctions,
-                                        SegmentPlan)
-from qrm_ros.core.motor_stroke import MovingStroke, StrokeSegment
-from qrm_ros.core.stepping import checked_limits, wrap_angle
-from qrm_ros.core.stroke_adjustment import fixed_stroke, StrokeRamp
-from qrm_ros.core.units import NANOSECONDS_PER_SECOND
+from qrm_ros.core.dynamics.lean_chain import lean_efforts_of
+from qrm_ros.core.motor.motor_equation import EquationOfMotion
+from qrm_ros.core.motor.motor_integration import Observer, Piece, SegmentIntegration
+from qrm_ros.core.dynamics.drive_kernel_loading import COMPILED_DRIVE_KERNEL
+from qrm_ros.core.motor.motor_segment import (Segment, segment_functions, SegmentFunctions,
+                                              SegmentPlan)
+from qrm_ros.core.motor.motor_stroke import MovingStroke, StrokeSegment
+from qrm_ros.core.stepping.stepping import checked_limits, wrap_angle
+from qrm_ros.core.stepping.stroke_adjustment import fixed_stroke, StrokeRamp
+from qrm_ros.core.common.units import NANOSECONDS_PER_SECOND
 
 __all__ = ['MAX_PIECES_PER_STAMP', 'MotorStepper', 'PlanViews', 'Simulation', 'simulate']
 

@@ -33,12 +33,12 @@ while it moves.
 import math
 from typing import Any, Callable, Optional, Sequence, Tuple
 
-from qrm_ros.core import dynamics as dyn
-from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.lean_chain import coupling_and_crank
-from qrm_ros.core.motor_equation import EquationOfMotion
-from qrm_ros.core.ramps import ramp
-from qrm_ros.core.stroke_adjustment import crank_radius_motion, StrokeRamp
+from qrm_ros.core.dynamics import chain as dyn
+from qrm_ros.core.kinematics.geometry import Geometry
+from qrm_ros.core.dynamics.lean_chain import coupling_and_crank
+from qrm_ros.core.motor.motor_equation import EquationOfMotion
+from qrm_ros.core.numerics.ramps import ramp
+from qrm_ros.core.stepping.stroke_adjustment import crank_radius_motion, StrokeRamp
 
 __all__ = ['moving_radius_motion', 'moving_radius_motion_of', 'MovingStroke', 'StrokeSegment']
 

@@ -27,17 +27,17 @@ from typing import Dict, NamedTuple, Tuple
 import numpy as np
 from scipy import integrate, optimize
 
-from qrm_ros.core import dynamics as dyn
-from qrm_ros.core.checks import positive
-from qrm_ros.core.gauss_legendre import gauss_legendre
-from qrm_ros.core.geometry import Geometry
+from qrm_ros.core.dynamics import chain as dyn
+from qrm_ros.core.common.checks import positive
+from qrm_ros.core.numerics.gauss_legendre import gauss_legendre
+from qrm_ros.core.kinematics.geometry import Geometry
 from qrm_ros.core.kinematics import state
-from qrm_ros.core.motor_stepper import MotorStepper
-from qrm_ros.core.physical_ranges import (least_input_inertia, MAX_FLUCTUATION, MAX_INPUT_SPEED,
-                                          MAX_MAGNITUDES, MIN_FLUCTUATION, MIN_INPUT_SPEED,
-                                          range_problem)
-from qrm_ros.core.speed_drive import PairEfforts, PEAK_CANDIDATE_MARGIN
-from qrm_ros.core.units import NANOSECONDS_PER_SECOND
+from qrm_ros.core.motor.motor_stepper import MotorStepper
+from qrm_ros.core.dynamics.physical_ranges import (least_input_inertia, MAX_FLUCTUATION,
+                                                   MAX_INPUT_SPEED, MAX_MAGNITUDES,
+                                                   MIN_FLUCTUATION, MIN_INPUT_SPEED, range_problem)
+from qrm_ros.core.dynamics.speed_drive import PairEfforts, PEAK_CANDIDATE_MARGIN
+from qrm_ros.core.common.units import NANOSECONDS_PER_SECOND
 
 __all__ = ['energy_method_inertia', 'input_inertia_for_speed_fluctuation', 'SpeedFluctuation',
            'speed_fluctuation']

@@ -19,7 +19,7 @@ weights with numpy's vector functions, so their last bits follow the CPU's LAPAC
 and numpy's choice of vector code (some orders' weights change with AVX-512), and they
 are up to a few hundred ulps from the true values. The rules the core uses are written
 here once, each node and weight the double nearest the true value (worked out to 60 digits;
-test/core/test_gauss_legendre.py works them out again with mpmath). Nodes on [-1, 1] are
+test/core/numerics/test_gauss_legendre.py works them out again with mpmath). Nodes on [-1, 1] are
 symmetric: the table holds those >= 0 and their weights.
 """
 

@@ -14,8 +14,9 @@
 """
 What the compiled (numba) kernels share: their compiler options and a cheap rotation.
 
-Imported only by the kernels (qrm_ros.core.peak_kernel, qrm_ros.core.torque_kernel), which
-load only for sweeps big enough to repay numba's start-up.
+Imported only by the kernels (qrm_ros.core.kinematics.peak_kernel,
+qrm_ros.core.dynamics.torque_kernel), which load only for sweeps big enough to repay numba's
+start-up.
 """
 
 import math

@@ -19,7 +19,7 @@ np.linalg.norm, which numpy hands to BLAS; OpenBLAS picks its kernel by the CPU 
 multiply-adds or not, the terms in another order), so the last bits of a stage, of the error
 norm and so of every step size depended on the machine. Here the method is still scipy's
 (its class, tableau, step-size controller, initial step, dense output), and every
-combination is a sum of products added left to right (core.fixed_order) in plain floats.
+combination is a sum of products added left to right (core.numerics.fixed_order) in plain floats.
 Two other choices keep libm out of the controller: the error norm's square is the sum of
 squares (not the norm squared by pow), and the step factor err^(-1/8) is
 1 / sqrt(sqrt(sqrt(err))) (IEEE's sqrt is correctly rounded; libm's pow is not, and picks
@@ -34,7 +34,7 @@ from scipy import integrate
 # The step-size controller's constants, scipy's own (not part of its public API).
 from scipy.integrate._ivp.rk import Dop853DenseOutput, MAX_FACTOR, MIN_FACTOR, SAFETY
 
-from qrm_ros.core.fixed_order import weighted_sum
+from qrm_ros.core.numerics.fixed_order import weighted_sum
 
 __all__ = ['PortableDop853']
 

@@ -20,7 +20,7 @@ elsewhere: an AVX-512 machine's results differ in the last bit for a few percent
 (arctan2: 8 %), for scalars and arrays alike. The paths whose bits the docs promise
 (doc/reproducibility.md) call these instead: the C library's functions element by element,
 through Python's math (0.2 us an element, 1 us a scalar call) or, for arrays of
-COMPILED_MIN_ELEMENTS or more, through compiled loops (core.portable_math_kernel, 40 ns an
+COMPILED_MIN_ELEMENTS or more, through compiled loops (core.numerics.portable_math_kernel, 40 ns an
 element), which give the same bits. Where the library refuses (log(0), a domain error,
 an overflow), the answer is numpy's: -inf, NaN, inf. Every NaN comes out as numpy's default
 NaN. numpy's sin, cos, sqrt and hypot take no such vector code: they need no stand-in.
@@ -51,7 +51,7 @@ def _compiled(name: str) -> Optional[Callable[..., np.ndarray]]:
     try:
         # Deferred: numba is heavy (0.3 s or more to load) and optional; only large arrays
         # come here.
-        from qrm_ros.core import portable_math_kernel
+        from qrm_ros.core.numerics import portable_math_kernel
     except ImportError:
         return None
     return None if portable_math_kernel.USING_SVML else getattr(portable_math_kernel, name)

@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 """
-Compiled (numba) loops of core.portable_math for large arrays: the C library's functions.
+Compiled (numba) loops of core.numerics.portable_math for large arrays: the C library's functions.
 
 Each is the C library's function (math.atan2, ...) called element by element from machine
 code: the same bits as Python's math, about 40 ns an element against 200 ns through Python.

@@ -18,7 +18,7 @@ What the node publishes each tick under the speed drive: the kinematics core's s
 ram's load (dynamics.ram_load_force) and the chain's efforts with the stroke screw's force
 (stroke_efforts.efforts_with_stroke_screw). With the stroke still and one sample of finite
 floats (nearly every tick), lean_chain.lean_speed_drive_sample does their operations in
-their order at once, compiled (qrm_ros.core.drive_kernel) once that is loaded: the same
+their order at once, compiled (qrm_ros.core.dynamics.drive_kernel) once that is loaded: the same
 numbers bit for bit, at a fraction of the cost, which an offline run (qrm_simulate) pays
 hundreds of thousands of times. Elsewhere (the screw moving, anything not a finite float)
 the core's general forms answer.
@@ -29,12 +29,12 @@ from typing import NamedTuple, Optional, Tuple
 
 import numpy as np
 
-from qrm_ros.core.dynamics import Loads, MassProperties, ram_load_force
-from qrm_ros.core.geometry import Geometry, MechanismState
-from qrm_ros.core.lean_chain import lean_speed_drive_sample
-from qrm_ros.core.drive_kernel_loading import COMPILED_DRIVE_KERNEL
-from qrm_ros.core.stepping import ShaperStepper
-from qrm_ros.core.stroke_efforts import efforts_with_stroke_screw, still_stroke_constants
+from qrm_ros.core.dynamics.chain import Loads, MassProperties, ram_load_force
+from qrm_ros.core.kinematics.geometry import Geometry, MechanismState
+from qrm_ros.core.dynamics.lean_chain import lean_speed_drive_sample
+from qrm_ros.core.dynamics.drive_kernel_loading import COMPILED_DRIVE_KERNEL
+from qrm_ros.core.stepping.stepping import ShaperStepper
+from qrm_ros.core.dynamics.stroke_efforts import efforts_with_stroke_screw, still_stroke_constants
 
 __all__ = ['speed_drive_sample']
 

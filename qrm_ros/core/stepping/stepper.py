@@ -16,15 +16,15 @@ The interface the node's steppers offer it, stated once: ``Stepper``.
 
 Two classes step the mechanism between stamps: ``stepping.ShaperStepper`` (the ideal speed
 drive: the speed ramps to its command) and ``motor_stepper.MotorStepper`` (the motor drive:
-the speed is a state of the equation of motion). The node (qrm_ros.node.shaper_sim) holds
-either and calls the same members on it; the motor stepper offers more (efforts, stall,
+the speed is a state of the equation of motion). The node (qrm_ros.node.shaper_sim.shaper_sim)
+holds either and calls the same members on it; the motor stepper offers more (efforts, stall,
 motor torque), which the node asks of it by name.
 """
 
 from typing import Optional, Protocol, runtime_checkable
 
-from qrm_ros.core.geometry import Geometry, MechanismState
-from qrm_ros.core.stroke_adjustment import StrokeRamp
+from qrm_ros.core.kinematics.geometry import Geometry, MechanismState
+from qrm_ros.core.stepping.stroke_adjustment import StrokeRamp
 
 __all__ = ['Stepper']
 

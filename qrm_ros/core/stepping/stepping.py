@@ -17,7 +17,7 @@ Deterministic time stepping of the mechanism's driven states (no ROS).
 Only three quantities are integrated: the input shaft angle (the integral of a speed that
 ramps toward its command at a limited acceleration), the coupling offset and the ram stroke
 (each moving toward its command at a limited rate; the crank radius follows the stroke in
-closed form, core.stroke_adjustment). The profiles are piecewise linear in time, so each
+closed form, core.stepping.stroke_adjustment). The profiles are piecewise linear in time, so each
 step integrates them exactly (a ramp's integral is its trapezoid; an interval in which a ramp
 reaches its command is split there). Everything else is the kinematics core's closed form at
 the stamp, so the state is exact at every stamp whatever the spacing of the stamps.
@@ -40,14 +40,15 @@ its absolute precision does not decay over long runs at high speed.
 import math
 from typing import Optional, Tuple
 
-from qrm_ros.core.checks import finite, positive
-from qrm_ros.core.geometry import check_offset, Geometry, MechanismState
-from qrm_ros.core.mechanism_state import state
-from qrm_ros.core.ramps import ramp
-from qrm_ros.core.stroke_adjustment import fixed_stroke, StrokeRamp
-from qrm_ros.core.units import NANOSECONDS_PER_SECOND
+from qrm_ros.core.common.checks import finite, positive
+from qrm_ros.core.kinematics.geometry import check_offset, Geometry, MechanismState
+from qrm_ros.core.kinematics.mechanism_state import state
+from qrm_ros.core.numerics.ramps import ramp
+from qrm_ros.core.stepping.stroke_adjustment import fixed_stroke, StrokeRamp
+from qrm_ros.core.common.units import NANOSECONDS_PER_SECOND
 
-__all__ = ['checked_limits', 'ramp', 'ShaperStepper', 'wrap_angle']  # ramp: from core.ramps
+# ramp: from core.numerics.ramps
+__all__ = ['checked_limits', 'ramp', 'ShaperStepper', 'wrap_angle']
 
 # 2 pi split into the nearest double and the remainder. Measured, it makes no difference to
 # long-run precision (bench/bench_angle_precision.py: ~2.5e-16 rad per revolution either

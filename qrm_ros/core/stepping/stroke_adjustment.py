@@ -31,10 +31,10 @@ import copy
 import math
 from typing import Optional, Tuple
 
-from qrm_ros.core.checks import finite, KinematicsError, positive
-from qrm_ros.core.geometry import (crank_radius_for_stroke, Geometry,
-                                   stroke_for_crank_radius)
-from qrm_ros.core.ramps import ramp
+from qrm_ros.core.common.checks import finite, KinematicsError, positive
+from qrm_ros.core.kinematics.geometry import (crank_radius_for_stroke, Geometry,
+                                              stroke_for_crank_radius)
+from qrm_ros.core.numerics.ramps import ramp
 
 __all__ = ['DEFAULT_STROKE_RATE_LIMIT', 'StrokeRamp', 'check_max_crank_radius',
            'check_stroke', 'crank_radius_motion', 'fixed_stroke', 'largest_stroke']

@@ -31,7 +31,7 @@ from typing import Dict, List, Optional
 
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
-from qrm_ros.core.names import BRIDGE_CLIENTS_STATUS
+from qrm_ros.core.common.names import BRIDGE_CLIENTS_STATUS
 
 __all__ = ['ClientBook', 'ClientRecord', 'FULL_QUEUE_NOTICE', 'NOTICE_WINDOW',
            'REGISTERED_NOTICE', 'UNREGISTERED_NOTICE', 'clients_status']

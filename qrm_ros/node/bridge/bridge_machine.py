@@ -32,12 +32,12 @@ from rclpy.node import Node
 from rclpy.subscription import Subscription
 from sensor_msgs.msg import JointState
 
-from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.names import (JOINT_STATES_TOPIC, ROBOT_DESCRIPTION_TOPIC,
-                                ROBOT_DESCRIPTION_TYPE, SIM_NODE_NAME, TF_MESSAGE_TYPE,
-                                TF_STATIC_TOPIC, TF_TOPIC)
-from qrm_ros.node.bridge_parameters import NODE_SEPARATOR, ParameterBridge
-from qrm_ros.node.bridge_topics import CDR, ROS2MSG
+from qrm_ros.core.kinematics.geometry import Geometry
+from qrm_ros.core.common.names import (JOINT_STATES_TOPIC, ROBOT_DESCRIPTION_TOPIC,
+                                       ROBOT_DESCRIPTION_TYPE, SIM_NODE_NAME, TF_MESSAGE_TYPE,
+                                       TF_STATIC_TOPIC, TF_TOPIC)
+from qrm_ros.node.bridge.bridge_parameters import NODE_SEPARATOR, ParameterBridge
+from qrm_ros.node.bridge.bridge_topics import CDR, ROS2MSG
 from qrm_ros.recording.machine_transforms import MachineMessages
 from qrm_ros.recording.rosbag2_formats import (complete_definition, DEFINITION_DELIMITER,
                                                find_message_definition)

@@ -33,7 +33,7 @@ from rcl_interfaces.srv import GetParameters, ListParameters, SetParameters
 from rclpy.node import Node
 from rclpy.parameter import parameter_value_to_python
 
-from qrm_ros.node.bridge_services import call_from_thread
+from qrm_ros.node.bridge.bridge_services import call_from_thread
 
 __all__ = ['PARAMETER_CALL_TIMEOUT', 'ParameterBridge', 'ParameterRefusal', 'from_ros',
            'split_name', 'to_ros']

@@ -34,8 +34,8 @@ from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.serialization import deserialize_message, serialize_message
 
-from qrm_ros.node.bridge_topics import CDR, message_class, ROS2MSG
-from qrm_ros.node.ros_process import rcl_error_text
+from qrm_ros.node.bridge.bridge_topics import CDR, message_class, ROS2MSG
+from qrm_ros.node.process.ros_process import rcl_error_text
 from qrm_ros.recording.rosbag2_formats import find_service_definitions
 
 __all__ = ['ClientPublishers', 'PublishRefusal', 'SERVICE_CALL_TIMEOUT', 'ServiceBridge',

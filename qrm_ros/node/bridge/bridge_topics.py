@@ -42,7 +42,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.subscription import Subscription
 
-from qrm_ros.node.recorder import adapted_request_qos
+from qrm_ros.node.recorder.recorder import adapted_request_qos
 from qrm_ros.recording.rosbag2_formats import find_message_definition
 
 __all__ = ['CDR', 'ROS2MSG', 'SendBatch', 'TopicChannels', 'message_class']

@@ -44,13 +44,13 @@ from rcl_interfaces.msg import ParameterEvent
 from rclpy.node import Node
 from std_msgs.msg import Header
 
-from qrm_ros.node.bridge_clients import ClientBook, clients_status
-from qrm_ros.node.bridge_machine import MACHINE_TOPICS, MachineView
-from qrm_ros.node.bridge_parameters import from_ros, NODE_SEPARATOR, ParameterBridge
-from qrm_ros.node.bridge_services import ClientPublishers, PublishRefusal, ServiceBridge
-from qrm_ros.node.bridge_topics import CDR, TopicChannels
-from qrm_ros.core.names import (absolute_topic, BRIDGE_DEFAULT_PORT, BRIDGE_NODE_NAME,
-                                DIAGNOSTICS_TOPIC, PARAMETER_EVENTS_TOPIC)
+from qrm_ros.node.bridge.bridge_clients import ClientBook, clients_status
+from qrm_ros.node.bridge.bridge_machine import MACHINE_TOPICS, MachineView
+from qrm_ros.node.bridge.bridge_parameters import from_ros, NODE_SEPARATOR, ParameterBridge
+from qrm_ros.node.bridge.bridge_services import ClientPublishers, PublishRefusal, ServiceBridge
+from qrm_ros.node.bridge.bridge_topics import CDR, TopicChannels
+from qrm_ros.core.common.names import (absolute_topic, BRIDGE_DEFAULT_PORT, BRIDGE_NODE_NAME,
+                                       DIAGNOSTICS_TOPIC, PARAMETER_EVENTS_TOPIC)
 
 __all__ = ['BridgeNode', 'BridgeSettings', 'DEFAULT_ADDRESS',
            'DEFAULT_CLIENT_QUEUE', 'DEFAULT_PORT', 'DEFAULT_SEND_PERIOD', 'package_asset']

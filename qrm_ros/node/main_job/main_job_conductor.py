@@ -27,9 +27,9 @@ import time
 from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 from diagnostic_msgs.msg import DiagnosticArray
-from qrm_ros.core.names import (absolute_topic, DIAGNOSTICS_TOPIC, JOINT_STATES_TOPIC,
-                                RECORDER_NODE_NAME, SIM_NODE_NAME, STROKE_PAIR_STATUS)
-from qrm_ros.node.ros_process import init_rclpy, StopRequest
+from qrm_ros.core.common.names import (absolute_topic, DIAGNOSTICS_TOPIC, JOINT_STATES_TOPIC,
+                                       RECORDER_NODE_NAME, SIM_NODE_NAME, STROKE_PAIR_STATUS)
+from qrm_ros.node.process.ros_process import init_rclpy, StopRequest
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter

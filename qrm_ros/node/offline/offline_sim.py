@@ -39,15 +39,15 @@ import os
 import time
 from typing import Any, Callable, Dict, List, NamedTuple, Optional, Sequence, Tuple
 
-from qrm_ros.core.drive_kernel_loading import COMPILED_DRIVE_KERNEL
-from qrm_ros.core.names import (JOINT_STATE_TYPE, JOINT_STATES_TOPIC, LINKAGE_MARKERS_TOPIC,
-                                RAM_TWIST_TOPIC, SPEED_COMMAND_TOPIC)
-from qrm_ros.core.units import NANOSECONDS_PER_SECOND
-from qrm_ros.node.recorder import (DEFAULT_TOPICS, MAX_CHUNK_DURATION_RANGE,
-                                   sim_metadata_records)
-from qrm_ros.node.ros_process import init_rclpy
-from qrm_ros.node.scenario import Event, Scenario, ScenarioError
-from qrm_ros.node.shaper_sim import ShaperSimNode
+from qrm_ros.core.dynamics.drive_kernel_loading import COMPILED_DRIVE_KERNEL
+from qrm_ros.core.common.names import (JOINT_STATE_TYPE, JOINT_STATES_TOPIC, LINKAGE_MARKERS_TOPIC,
+                                       RAM_TWIST_TOPIC, SPEED_COMMAND_TOPIC)
+from qrm_ros.core.common.units import NANOSECONDS_PER_SECOND
+from qrm_ros.node.recorder.recorder import (DEFAULT_TOPICS, MAX_CHUNK_DURATION_RANGE,
+                                            sim_metadata_records)
+from qrm_ros.node.process.ros_process import init_rclpy
+from qrm_ros.node.offline.scenario import Event, Scenario, ScenarioError
+from qrm_ros.node.shaper_sim.shaper_sim import ShaperSimNode
 from qrm_ros.recording.machine_channels import MachineChannels
 from qrm_ros.recording.mcap_run_file import COMPRESSIONS, McapRunFile
 from qrm_ros.recording.typestore import exact_cdr

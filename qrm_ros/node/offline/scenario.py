@@ -28,7 +28,7 @@ Written in YAML::
 
 Only the form is checked here (names, numbers, times within the run); the values are judged
 by the node itself, with its own rules and reasons, when the simulator starts it and when an
-event sets them (qrm_ros.node.shaper_parameters). ROS-free.
+event sets them (qrm_ros.node.shaper_sim.shaper_parameters). ROS-free.
 """
 
 import difflib
@@ -37,7 +37,7 @@ from typing import Any, Dict, List, Mapping, NamedTuple, Optional, Tuple
 
 import yaml
 
-from qrm_ros.node.shaper_parameters import PARAMETERS
+from qrm_ros.node.shaper_sim.shaper_parameters import PARAMETERS
 
 __all__ = ['EVENT_KINDS', 'Event', 'MAX_DURATION', 'Scenario', 'ScenarioError', 'load_scenario',
            'parameter_value', 'scenario_from_mapping']

@@ -34,8 +34,8 @@ import time
 from typing import Any, Dict, Iterator, List, NamedTuple, Optional, Sequence
 
 from builtin_interfaces.msg import Time as TimeMessage
-from qrm_ros.core.names import absolute_topic
-from qrm_ros.core.units import NANOSECONDS_PER_SECOND
+from qrm_ros.core.common.names import absolute_topic
+from qrm_ros.core.common.units import NANOSECONDS_PER_SECOND
 from qrm_ros.recording.bag_reader import Loss, MessageTuple, Run
 from rclpy.duration import Duration
 from rclpy.node import Node

@@ -41,15 +41,16 @@ from rclpy.parameter import parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from qrm_ros.core.geometry import Geometry, KinematicsError
+from qrm_ros.core.kinematics.geometry import Geometry, KinematicsError
 from qrm_ros.recording.machine_channels import MachineChannels
 from qrm_ros.recording.typestore import preload_typestore
 from qrm_ros.recording.mcap_run_file import COMPRESSIONS, ConfigurationError, McapRunFile
-from qrm_ros.core.names import (DIAGNOSTICS_TOPIC, GEOMETRY_METADATA, JOINT_STATE_TYPE,
-                                JOINT_STATES_TOPIC, PARAMETER_EVENTS_TOPIC, PARAMETERS_METADATA,
-                                RAM_TWIST_TOPIC, RECORDER_NODE_NAME, SPEED_COMMAND_TOPIC)
-from qrm_ros.node.ros_process import MESSAGE_INFO_SIGNATURE, message_and_info
-from qrm_ros.core.units import NANOSECONDS_PER_SECOND
+from qrm_ros.core.common.names import (DIAGNOSTICS_TOPIC, GEOMETRY_METADATA, JOINT_STATE_TYPE,
+                                       JOINT_STATES_TOPIC, PARAMETER_EVENTS_TOPIC,
+                                       PARAMETERS_METADATA, RAM_TWIST_TOPIC, RECORDER_NODE_NAME,
+                                       SPEED_COMMAND_TOPIC)
+from qrm_ros.node.process.ros_process import MESSAGE_INFO_SIGNATURE, message_and_info
+from qrm_ros.core.common.units import NANOSECONDS_PER_SECOND
 
 DEFAULT_TOPICS = [JOINT_STATES_TOPIC, RAM_TWIST_TOPIC, SPEED_COMMAND_TOPIC, DIAGNOSTICS_TOPIC,
                   PARAMETER_EVENTS_TOPIC]

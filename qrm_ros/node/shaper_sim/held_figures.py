@@ -22,11 +22,11 @@ depends on changes, and goes through the offset's rate limit. A mixin of ShaperS
 
 from typing import Any, Dict
 
-from qrm_ros.core.cutting_speed_hold import hold_offset
-from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.stroke_adjustment import StrokeRamp
-from qrm_ros.core.time_ratio_hold import hold_time_ratio
-from qrm_ros.node.shaper_diagnostics import cutting_speed_status, time_ratio_status
+from qrm_ros.core.design.cutting_speed_hold import hold_offset
+from qrm_ros.core.kinematics.geometry import Geometry
+from qrm_ros.core.stepping.stroke_adjustment import StrokeRamp
+from qrm_ros.core.design.time_ratio_hold import hold_time_ratio
+from qrm_ros.node.shaper_sim.shaper_diagnostics import cutting_speed_status, time_ratio_status
 
 __all__ = ['HeldFigures']
 

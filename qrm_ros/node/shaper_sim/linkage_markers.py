@@ -40,8 +40,8 @@ from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import Marker, MarkerArray
 
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.linkage import COLOURS, linkage_points, linkage_sizes, workpiece_span
-from qrm_ros.core.units import NANOSECONDS_PER_SECOND
+from qrm_ros.core.kinematics.linkage import COLOURS, linkage_points, linkage_sizes, workpiece_span
+from qrm_ros.core.common.units import NANOSECONDS_PER_SECOND
 
 __all__ = ['LINK_BARS', 'MARKER_KEYS', 'MOVING_KEYS', 'delete_all_marker_array', 'label_text',
            'linkage_marker_array', 'stamp_message']

@@ -17,17 +17,17 @@ When the shaper_sim node sends its linkage markers, and how much of them.
 Right after a tick, at marker_rate: the whole array when what the still markers show changes
 and at least every MARKER_REFRESH_PERIOD, the moving markers alone in between; above a
 publish rate of MARKER_SLICING_RATE a frame goes out one marker a tick. The markers
-themselves are drawn by qrm_ros.node.linkage_markers.
+themselves are drawn by qrm_ros.node.shaper_sim.linkage_markers.
 """
 
 import time
 from typing import Callable, List, NamedTuple, Optional
 
-from qrm_ros.core.dynamics import Loads
-from qrm_ros.core.geometry import Geometry, MechanismState
-from qrm_ros.core.units import NANOSECONDS_PER_SECOND
-from qrm_ros.node.linkage_markers import delete_all_marker_array, linkage_marker_array
-from qrm_ros.node.shaper_parameters import MARKER_SLICING_RATE
+from qrm_ros.core.dynamics.chain import Loads
+from qrm_ros.core.kinematics.geometry import Geometry, MechanismState
+from qrm_ros.core.common.units import NANOSECONDS_PER_SECOND
+from qrm_ros.node.shaper_sim.linkage_markers import delete_all_marker_array, linkage_marker_array
+from qrm_ros.node.shaper_sim.shaper_parameters import MARKER_SLICING_RATE
 from rclpy.publisher import Publisher
 from visualization_msgs.msg import MarkerArray
 

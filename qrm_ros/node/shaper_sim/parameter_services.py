@@ -14,8 +14,8 @@
 """
 The shaper_sim parameters through rclpy: descriptors, start-up values, the set services.
 
-The rules themselves are data (qrm_ros.node.shaper_parameters); this module is where they
-meet rclpy, and the one place that uses rclpy internals. Three things rclpy does not offer
+The rules themselves are data (qrm_ros.node.shaper_sim.shaper_parameters); this module is where
+they meet rclpy, and the one place that uses rclpy internals. Three things rclpy does not offer
 publicly: the start-up overrides (to name a refused value and to report unknown names), a
 check before rclpy's descriptor checks (whose wording names no allowed range), and the
 parameter services' request decoding (which raises out of the executor on a malformed
@@ -26,10 +26,10 @@ an rclpy update that breaks them fails a test.
 import difflib
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 
-from qrm_ros.core.geometry import Geometry
-from qrm_ros.node.shaper_parameters import (allowed_text, change_refusal, default_values,
-                                            GEOMETRY_NAMES, PARAMETERS, refusal_reason,
-                                            start_up_refusal, View)
+from qrm_ros.core.kinematics.geometry import Geometry
+from qrm_ros.node.shaper_sim.shaper_parameters import (allowed_text, change_refusal,
+                                                       default_values, GEOMETRY_NAMES, PARAMETERS,
+                                                       refusal_reason, start_up_refusal, View)
 from rcl_interfaces.msg import (FloatingPointRange, Parameter as ParameterMessage,
                                 ParameterDescriptor, SetParametersResult)
 from rcl_interfaces.srv import SetParameters, SetParametersAtomically

@@ -15,9 +15,9 @@
 What the shaper_sim node says on /diagnostics, as DiagnosticArray messages.
 
 Three statuses: a stroke pair's measured figures (with their theory and the cutting speed
-held), the motor drive's stall, the cutting-speed hold. Their names are in qrm_ros.core.names
-(the main job and the analysis read them back); their hardware_id is the machine's
-(diagnostic_updater's convention: viewers show ``hardware_id: name``).
+held), the motor drive's stall, the cutting-speed hold. Their names are in
+qrm_ros.core.common.names (the main job and the analysis read them back); their hardware_id is the
+machine's (diagnostic_updater's convention: viewers show ``hardware_id: name``).
 """
 
 import math
@@ -25,12 +25,12 @@ from typing import List, Mapping, Optional
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from qrm_ros.core.cutting_speed_hold import CUTTING_SPEED_FIGURES, HoldAnswer
-from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.names import (CUTTING_SPEED_STATUS, DRIVE_STATUS, MACHINE_NAME,
-                                STROKE_PAIR_STATUS, TIME_RATIO_STATUS)
-from qrm_ros.core.stroke_monitor import PairReport
-from qrm_ros.node.linkage_markers import stamp_message
+from qrm_ros.core.design.cutting_speed_hold import CUTTING_SPEED_FIGURES, HoldAnswer
+from qrm_ros.core.kinematics.geometry import Geometry
+from qrm_ros.core.common.names import (CUTTING_SPEED_STATUS, DRIVE_STATUS, MACHINE_NAME,
+                                       STROKE_PAIR_STATUS, TIME_RATIO_STATUS)
+from qrm_ros.core.measurement.stroke_monitor import PairReport
+from qrm_ros.node.shaper_sim.linkage_markers import stamp_message
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.publisher import Publisher
 

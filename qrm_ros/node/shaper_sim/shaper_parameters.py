@@ -23,16 +23,17 @@ parameter_services turns specs into descriptors and reasons into SetParametersRe
 import math
 from typing import Any, Callable, NamedTuple, Optional, Tuple
 
-from qrm_ros.core.cutting_speed_hold import CUTTING_SPEED_DEFINITIONS, unreachable_reason
-from qrm_ros.core.dynamics import Loads, MassProperties, MotorDrive, parameter_names
-from qrm_ros.core.geometry import Geometry, KinematicsError
-from qrm_ros.core.names import DRIVES, MOTOR_PREFIX
-from qrm_ros.core.physical_ranges import (MAX_INPUT_SPEED, MAX_MAGNITUDES, MIN_INPUT_SPEED,
-                                          motor_speed_band_problem, motor_time_constant_problem)
-from qrm_ros.node.stroke_rules import (commanded_geometry, commanded_stroke,
-                                       one_hold_at_a_time, slot_holds_crank,
-                                       stroke_holds_workpiece, StrokeLengthRange,
-                                       time_ratio_reachable)
+from qrm_ros.core.design.cutting_speed_hold import CUTTING_SPEED_DEFINITIONS, unreachable_reason
+from qrm_ros.core.dynamics.chain import Loads, MassProperties, MotorDrive, parameter_names
+from qrm_ros.core.kinematics.geometry import Geometry, KinematicsError
+from qrm_ros.core.common.names import DRIVES, MOTOR_PREFIX
+from qrm_ros.core.dynamics.physical_ranges import (MAX_INPUT_SPEED, MAX_MAGNITUDES,
+                                                   MIN_INPUT_SPEED, motor_speed_band_problem,
+                                                   motor_time_constant_problem)
+from qrm_ros.node.shaper_sim.stroke_rules import (commanded_geometry, commanded_stroke,
+                                                  one_hold_at_a_time, slot_holds_crank,
+                                                  stroke_holds_workpiece, StrokeLengthRange,
+                                                  time_ratio_reachable)
 
 __all__ = ['AtLeast', 'DoubleRange', 'DRIVES', 'GEOMETRY_NAMES', 'MARKER_SLICING_RATE',
            'MOTOR_PREFIX', 'NonEmptyText', 'OffOrRange', 'OneOf', 'ParameterSpec', 'PARAMETERS',

@@ -14,8 +14,8 @@
 """
 The shaper_sim node: the mechanism stepped in time, published as joint states.
 
-A thin adapter: ShaperStepper (qrm_ros.core.stepping) integrates the input angle and moves the
-offset and the stroke; the kinematics core gives every other state in closed form. The rest
+A thin adapter: ShaperStepper (qrm_ros.core.stepping.stepping) integrates the input angle and moves
+the offset and the stroke; the kinematics core gives every other state in closed form. The rest
 has a module of its own: what the parameters command (the stroke, the offset and its holds:
 held_figures), the parameters, their rules and effects are data (shaper_parameters) that
 parameter_services declares and guards through rclpy; the stroke-pair reports are measured
@@ -32,22 +32,22 @@ import time
 from typing import Optional
 
 from diagnostic_msgs.msg import DiagnosticArray
-from qrm_ros.core.dynamics import Loads, MassProperties, MotorDrive, parameter_names
-from qrm_ros.core.motor_stepper import MotorStepper
-from qrm_ros.core.stepper import Stepper
-from qrm_ros.core.names import (DIAGNOSTICS_TOPIC, LINKAGE_MARKERS_TOPIC, SIM_NODE_NAME,
-                                SPEED_COMMAND_TOPIC)
-from qrm_ros.core.stepping import ShaperStepper, wrap_angle
-from qrm_ros.core.stroke_adjustment import StrokeRamp
-from qrm_ros.core.speed_drive_sample import speed_drive_sample
-from qrm_ros.core.stroke_efforts import lever_radius_coefficient
-from qrm_ros.node.held_figures import HeldFigures
-from qrm_ros.node.marker_schedule import LinkageMarkerSchedule, MarkerScene
-from qrm_ros.node.parameter_services import ShaperParameterNode, WARNING_PERIOD
-from qrm_ros.node.shaper_diagnostics import DriveStatusReport
-from qrm_ros.node.shaper_parameters import shown
-from qrm_ros.node.state_publishers import MechanismStatePublishers, MIN_PUBLISHER_DEPTH
-from qrm_ros.node.stroke_pair_reports import StrokePairReports
+from qrm_ros.core.dynamics.chain import Loads, MassProperties, MotorDrive, parameter_names
+from qrm_ros.core.motor.motor_stepper import MotorStepper
+from qrm_ros.core.stepping.stepper import Stepper
+from qrm_ros.core.common.names import (DIAGNOSTICS_TOPIC, LINKAGE_MARKERS_TOPIC, SIM_NODE_NAME,
+                                       SPEED_COMMAND_TOPIC)
+from qrm_ros.core.stepping.stepping import ShaperStepper, wrap_angle
+from qrm_ros.core.stepping.stroke_adjustment import StrokeRamp
+from qrm_ros.core.stepping.speed_drive_sample import speed_drive_sample
+from qrm_ros.core.dynamics.stroke_efforts import lever_radius_coefficient
+from qrm_ros.node.shaper_sim.held_figures import HeldFigures
+from qrm_ros.node.shaper_sim.marker_schedule import LinkageMarkerSchedule, MarkerScene
+from qrm_ros.node.shaper_sim.parameter_services import ShaperParameterNode, WARNING_PERIOD
+from qrm_ros.node.shaper_sim.shaper_diagnostics import DriveStatusReport
+from qrm_ros.node.shaper_sim.shaper_parameters import shown
+from qrm_ros.node.shaper_sim.state_publishers import MechanismStatePublishers, MIN_PUBLISHER_DEPTH
+from qrm_ros.node.shaper_sim.stroke_pair_reports import StrokePairReports
 from rclpy.qos import qos_profile_parameters
 from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, Trigger

@@ -15,16 +15,15 @@
 What the shaper_sim node publishes every tick: the joint states and the ram's twist.
 
 The messages are built once; each tick only fills in its values (the joints in
-qrm_ros.core.names.PUBLISHED_JOINT_NAMES order).
+qrm_ros.core.common.names.PUBLISHED_JOINT_NAMES order).
 """
 
 from array import array
 import math
 
 from geometry_msgs.msg import TwistStamped
-from qrm_ros.core.names import (JOINT_STATES_TOPIC, PUBLISHED_JOINT_NAMES,
-                                RAM_TWIST_TOPIC)
-from qrm_ros.core.units import NANOSECONDS_PER_SECOND
+from qrm_ros.core.common.names import JOINT_STATES_TOPIC, PUBLISHED_JOINT_NAMES, RAM_TWIST_TOPIC
+from qrm_ros.core.common.units import NANOSECONDS_PER_SECOND
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 

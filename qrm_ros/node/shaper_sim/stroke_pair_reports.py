@@ -14,13 +14,13 @@
 """
 The shaper_sim node's stroke-pair reports: measured a step at a time between the ticks.
 
-StrokeMonitor (qrm_ros.core.stroke_monitor) cuts the published samples into completed
+StrokeMonitor (qrm_ros.core.measurement.stroke_monitor) cuts the published samples into completed
 stroke pairs; measuring a pair of thousands of samples takes about a millisecond, which no
 tick may wait for. So each pair becomes a job of small steps, run after a tick while less
 than PAIR_STEP_SHARE of the timer's period has gone since the tick began. Not on a thread:
 there a pair held a 4 kHz node's ticks back for its whole length (the GIL), whatever the
 switch interval. Each report carries the pair's effort theory, worked out in the background
-(qrm_ros.core.effort_theory), when the setting held steady through the pair.
+(qrm_ros.core.measurement.effort_theory), when the setting held steady through the pair.
 """
 
 from collections import deque
@@ -29,14 +29,14 @@ import time
 from typing import Any, Deque, Generator, List, Optional, Tuple
 
 from diagnostic_msgs.msg import KeyValue
-from qrm_ros.core.dynamics import Loads, MassProperties, MotorDrive
-from qrm_ros.core.effort_theory import BackgroundTheory, Setting, THEORY_FIGURES
-from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.motor_stepper import MotorStepper
-from qrm_ros.core.stroke_monitor import CompletedSamples, PairReport, StrokeMonitor
-from qrm_ros.core.strokes import run_steps
-from qrm_ros.core.units import NANOSECONDS_PER_SECOND
-from qrm_ros.node.shaper_diagnostics import stroke_pair_status
+from qrm_ros.core.dynamics.chain import Loads, MassProperties, MotorDrive
+from qrm_ros.core.measurement.effort_theory import BackgroundTheory, Setting, THEORY_FIGURES
+from qrm_ros.core.kinematics.geometry import Geometry
+from qrm_ros.core.motor.motor_stepper import MotorStepper
+from qrm_ros.core.measurement.stroke_monitor import CompletedSamples, PairReport, StrokeMonitor
+from qrm_ros.core.measurement.strokes import run_steps
+from qrm_ros.core.common.units import NANOSECONDS_PER_SECOND
+from qrm_ros.node.shaper_sim.shaper_diagnostics import stroke_pair_status
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.publisher import Publisher
 

@@ -24,9 +24,9 @@ import dataclasses
 import math
 from typing import Any, NamedTuple, Optional, Tuple
 
-from qrm_ros.core.geometry import crank_radius_for_stroke, Geometry, KinematicsError
-from qrm_ros.core.stroke_adjustment import largest_stroke
-from qrm_ros.core.time_ratio_hold import time_ratio_unreachable_reason
+from qrm_ros.core.kinematics.geometry import crank_radius_for_stroke, Geometry, KinematicsError
+from qrm_ros.core.stepping.stroke_adjustment import largest_stroke
+from qrm_ros.core.design.time_ratio_hold import time_ratio_unreachable_reason
 
 __all__ = ['StrokeLengthRange', 'commanded_geometry', 'commanded_stroke',
            'one_hold_at_a_time', 'slot_holds_crank', 'stroke_holds_workpiece',

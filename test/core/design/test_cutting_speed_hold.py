@@ -21,8 +21,9 @@ import math
 import numpy as np
 import pytest
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.cutting_speed_hold import (cutting_speed, hold_offset, reachable_cutting_speeds)
-from qrm_ros.core.names import CUTTING_SPEED_STATUS, STROKE_PAIR_STATUS
+from qrm_ros.core.design.cutting_speed_hold import (cutting_speed, hold_offset,
+                                                    reachable_cutting_speeds)
+from qrm_ros.core.common.names import CUTTING_SPEED_STATUS, STROKE_PAIR_STATUS
 from rclpy.parameter import Parameter
 from std_msgs.msg import Float64
 

@@ -25,7 +25,7 @@ import math
 import numpy as np
 import pytest
 
-from qrm_ros.core import gearbox
+from qrm_ros.core.design import gearbox
 from qrm_ros.core import kinematics as kin
 
 PAPER = kin.Geometry.paper()

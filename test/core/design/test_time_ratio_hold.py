@@ -24,10 +24,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from qrm_ros.core.geometry import crank_radius_for_stroke, Geometry
-from qrm_ros.core.stroke_timing import time_ratio_rk4
-from qrm_ros.core.time_ratio_hold import (hold_time_ratio, reachable_time_ratios,
-                                          time_ratio_unreachable_reason)
+from qrm_ros.core.kinematics.geometry import crank_radius_for_stroke, Geometry
+from qrm_ros.core.kinematics.stroke_timing import time_ratio_rk4
+from qrm_ros.core.design.time_ratio_hold import (hold_time_ratio, reachable_time_ratios,
+                                                 time_ratio_unreachable_reason)
 
 PAPER = Geometry.paper()
 

@@ -25,8 +25,8 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from qrm_ros.core import dynamics as dyn
-from qrm_ros.core.geometry import Geometry
+from qrm_ros.core.dynamics import chain as dyn
+from qrm_ros.core.kinematics.geometry import Geometry
 from qrm_ros.core.kinematics import state
 
 CHECK_GEOMETRY = Geometry(0.025, 0.0505, 0.113, 0.2)

@@ -14,20 +14,20 @@
 """
 The lean chain (the motor stepper's equation of motion) gives the chain's numbers bit for bit.
 
-In its Python form and compiled (qrm_ros.core.drive_kernel), on random states with exact
+In its Python form and compiled (qrm_ros.core.dynamics.drive_kernel), on random states with exact
 zeros among them; and as the speed drive's efforts at a still stroke (stroke_efforts).
 """
 
 import numpy as np
 import pytest
 
-from qrm_ros.core import dynamics as dyn
-from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.lean_chain import (lean_acceleration_of, lean_constants, lean_efforts_of,
-                                     lean_ram_motion)
-from qrm_ros.core.motor_equation import EquationOfMotion
-from qrm_ros.core import stroke_efforts
-from qrm_ros.core.stroke_efforts import chain_with_stroke_screw, efforts_with_stroke_screw
+from qrm_ros.core.dynamics import chain as dyn
+from qrm_ros.core.kinematics.geometry import Geometry
+from qrm_ros.core.dynamics.lean_chain import (lean_acceleration_of, lean_constants,
+                                              lean_efforts_of, lean_ram_motion)
+from qrm_ros.core.motor.motor_equation import EquationOfMotion
+from qrm_ros.core.dynamics import stroke_efforts
+from qrm_ros.core.dynamics.stroke_efforts import chain_with_stroke_screw, efforts_with_stroke_screw
 
 pytestmark = pytest.mark.bits
 
@@ -92,7 +92,7 @@ def test_the_lean_chain_gives_the_chains_numbers_bit_for_bit(mass):
 
 def _kernel():
     pytest.importorskip('numba')
-    from qrm_ros.core import drive_kernel
+    from qrm_ros.core.dynamics import drive_kernel
     return drive_kernel
 
 

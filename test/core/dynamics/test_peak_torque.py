@@ -28,10 +28,10 @@ import numba
 import numpy as np
 import pytest
 
-from qrm_ros.core import dynamics as dyn
+from qrm_ros.core.dynamics import chain as dyn
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core import speed_drive as sd
-from qrm_ros.core import torque_kernel
+from qrm_ros.core.dynamics import speed_drive as sd
+from qrm_ros.core.dynamics import torque_kernel
 from repo_paths import REPO_ROOT
 
 MASS = dyn.MassProperties.small_shaper()
@@ -247,9 +247,9 @@ def test_the_documented_sweep():
 _CONCURRENT_CALLS = '''
 import math, threading
 import numpy as np
-from qrm_ros.core import dynamics as dyn
-from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.speed_drive import peak_input_torque
+from qrm_ros.core.dynamics import chain as dyn
+from qrm_ros.core.kinematics.geometry import Geometry
+from qrm_ros.core.dynamics.speed_drive import peak_input_torque
 geometry = Geometry.paper()
 mass, loads = dyn.MassProperties.small_shaper(), dyn.Loads.small_shaper()
 offsets = np.linspace(-0.02, 0.02, 20000)

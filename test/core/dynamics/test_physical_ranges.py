@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 """
-Finite but absurd values (qrm_ros.core.physical_ranges) and the motor stepper's bounds.
+Finite but absurd values (qrm_ros.core.dynamics.physical_ranges) and the motor stepper's bounds.
 
 Every field of the dynamics' parameter sets has a bound no shaper leaves; the motor's time
 constant has a floor derived from the coupling's speed ratio (checked here against the
@@ -25,13 +25,13 @@ import math
 
 import numpy as np
 import pytest
-from qrm_ros.core import dynamics as dyn
-from qrm_ros.core.geometry import Geometry, SAFE_OFFSET_FRACTION
+from qrm_ros.core.dynamics import chain as dyn
+from qrm_ros.core.kinematics.geometry import Geometry, SAFE_OFFSET_FRACTION
 from qrm_ros.core.kinematics import state
-from qrm_ros.core.motor_stepper import MAX_PIECES_PER_STAMP, MotorStepper
-from qrm_ros.core.physical_ranges import (MAX_MAGNITUDES, MIN_MOTOR_SPEED_BAND,
-                                          MIN_MOTOR_TIME_CONSTANT, motor_time_constant)
-from qrm_ros.core.units import NANOSECONDS_PER_SECOND
+from qrm_ros.core.motor.motor_stepper import MAX_PIECES_PER_STAMP, MotorStepper
+from qrm_ros.core.dynamics.physical_ranges import (MAX_MAGNITUDES, MIN_MOTOR_SPEED_BAND,
+                                                   MIN_MOTOR_TIME_CONSTANT, motor_time_constant)
+from qrm_ros.core.common.units import NANOSECONDS_PER_SECOND
 
 PAPER = Geometry.paper()
 MASS = dyn.MassProperties.small_shaper()

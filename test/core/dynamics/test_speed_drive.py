@@ -27,9 +27,9 @@ import numpy as np
 import pytest
 from scipy import integrate, optimize
 
-from qrm_ros.core import dynamics as dyn
-from qrm_ros.core import speed_drive as sd
-from qrm_ros.core.geometry import Geometry, KinematicsError
+from qrm_ros.core.dynamics import chain as dyn
+from qrm_ros.core.dynamics import speed_drive as sd
+from qrm_ros.core.kinematics.geometry import Geometry, KinematicsError
 from qrm_ros.core.kinematics import state
 from synthetic_run import dense_revolution
 

@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.linkage import linkage_points, linkage_sizes, workpiece_span
+from qrm_ros.core.kinematics.linkage import linkage_points, linkage_sizes, workpiece_span
 
 GEOMETRIES = [kin.Geometry.paper(),
               kin.Geometry(0.03, 0.07, 0.16, ram_height=0.35, crank_phase=0.4),

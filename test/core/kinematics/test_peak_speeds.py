@@ -27,9 +27,9 @@ import pytest
 from scipy import optimize
 
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core import peak_kernel, peak_speeds
-from qrm_ros.core.kernel_tools import rotate
-from qrm_ros.core.peak_speeds_bracketing import peak_speeds_bracketing
+from qrm_ros.core.kinematics import peak_kernel, peak_speeds
+from qrm_ros.core.numerics.kernel_tools import rotate
+from qrm_ros.core.kinematics.peak_speeds_bracketing import peak_speeds_bracketing
 
 PAPER = kin.Geometry.paper()
 OFFSETS = [-0.02, -0.015, -0.0111725663716814, -0.005, 0.0, 0.005, 0.01, 0.015, 0.02]
@@ -47,8 +47,8 @@ def peak_search(request, monkeypatch):
     """
     Run a test through each peak search: the numpy one, and the compiled one at any size.
 
-    peak_ram_speeds takes the compiled search (qrm_ros.core.peak_kernel) only on sweeps of
-    peak_speeds.COMPILED_MIN_CONFIGURATIONS or more; the threshold is moved to pick one.
+    peak_ram_speeds takes the compiled search (qrm_ros.core.kinematics.peak_kernel) only on sweeps
+    of peak_speeds.COMPILED_MIN_CONFIGURATIONS or more; the threshold is moved to pick one.
     """
     compiled = request.param == 'compiled'
     if compiled:
@@ -306,9 +306,9 @@ def test_large_sweeps_take_the_compiled_search(monkeypatch):
 
 
 def test_without_numba_large_sweeps_take_the_numpy_search(monkeypatch):
-    import qrm_ros.core
-    monkeypatch.delattr(qrm_ros.core, 'peak_kernel', raising=False)
-    monkeypatch.setitem(sys.modules, 'qrm_ros.core.peak_kernel', None)  # import fails
+    import qrm_ros.core.kinematics
+    monkeypatch.delattr(qrm_ros.core.kinematics, 'peak_kernel', raising=False)
+    monkeypatch.setitem(sys.modules, 'qrm_ros.core.kinematics.peak_kernel', None)  # import fails
     assert peak_speeds.compiled_peak_search() is None
     monkeypatch.setattr(peak_speeds, 'COMPILED_MIN_CONFIGURATIONS', 10)
     offsets = np.linspace(-0.02, 0.02, 20)

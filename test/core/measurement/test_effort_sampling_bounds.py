@@ -26,13 +26,14 @@ import time
 import numpy as np
 import pytest
 
-from qrm_ros.core import dynamics as dyn
+from qrm_ros.core.dynamics import chain as dyn
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.effort_sampling_bounds import (EFFORT_BOUNDED_FIGURES,
-                                                 effort_sampling_bounds, steady_efforts)
-from qrm_ros.core.sampling_bounds import steady_motion, SUPPORTED_RELATIVE_ERROR
-from qrm_ros.core.speed_drive import pair_efforts
-from qrm_ros.core.strokes import measure_pair_efforts
+from qrm_ros.core.measurement.effort_sampling_bounds import (EFFORT_BOUNDED_FIGURES,
+                                                             effort_sampling_bounds,
+                                                             steady_efforts)
+from qrm_ros.core.measurement.sampling_bounds import steady_motion, SUPPORTED_RELATIVE_ERROR
+from qrm_ros.core.dynamics.speed_drive import pair_efforts
+from qrm_ros.core.measurement.strokes import measure_pair_efforts
 
 from synthetic_run import sampled_speed_drive
 

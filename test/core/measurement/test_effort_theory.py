@@ -20,11 +20,12 @@ import sys
 import time
 
 import pytest
-from qrm_ros.core import dynamics as dyn
+from qrm_ros.core.dynamics import chain as dyn
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.effort_theory import (BackgroundTheory, Setting, steady_effort_theory,
-                                        THEORY_FIGURES, WORKER_NICENESS)
-from qrm_ros.core.speed_drive import pair_efforts
+from qrm_ros.core.measurement.effort_theory import (BackgroundTheory, Setting,
+                                                    steady_effort_theory, THEORY_FIGURES,
+                                                    WORKER_NICENESS)
+from qrm_ros.core.dynamics.speed_drive import pair_efforts
 
 GEOMETRY = kin.Geometry.paper()
 LOADS = dyn.Loads(400.0, 20.0, 0.15)
@@ -88,9 +89,9 @@ def test_a_failing_theory_is_a_problem_with_its_reason_not_an_exception(theory):
 
 SCRIPT = '''
 import math, os, sys
-from qrm_ros.core import dynamics as dyn
+from qrm_ros.core.dynamics import chain as dyn
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.effort_theory import BackgroundTheory, Setting
+from qrm_ros.core.measurement.effort_theory import BackgroundTheory, Setting
 print('script ran', flush=True)  # once: the worker must not run the caller's script
 theory = BackgroundTheory()
 setting = Setting(kin.Geometry.paper(), dyn.MassProperties.small_shaper(), dyn.Loads.none(),

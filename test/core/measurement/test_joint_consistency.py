@@ -12,7 +12,8 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 """
-Joint states judged by the closed form (qrm_ros.core.joint_consistency), sample by sample.
+Joint states judged by the closed form (qrm_ros.core.measurement.joint_consistency), sample by
+sample.
 
 The check is judged on what it must tell apart: exact samples pass, round-off passes, one
 flipped bit in any tied value is caught in that sample (by that value's own check, for a
@@ -24,9 +25,9 @@ import struct
 
 import numpy as np
 import pytest
-from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.joint_consistency import (CONSISTENCY_CHECKS, CONSISTENCY_TOLERANCE,
-                                            inconsistent_samples, misplaced_stamps)
+from qrm_ros.core.kinematics.geometry import Geometry
+from qrm_ros.core.measurement.joint_consistency import (CONSISTENCY_CHECKS, CONSISTENCY_TOLERANCE,
+                                                        inconsistent_samples, misplaced_stamps)
 from qrm_ros.core.kinematics import state
 
 PAPER = Geometry.paper()

@@ -19,8 +19,8 @@ import numpy as np
 import pytest
 
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.dynamics import efforts, Loads, MassProperties, ram_load_force
-from qrm_ros.core.strokes import find_stroke_pairs, measure_pair_efforts, StrokePairs
+from qrm_ros.core.dynamics.chain import efforts, Loads, MassProperties, ram_load_force
+from qrm_ros.core.measurement.strokes import find_stroke_pairs, measure_pair_efforts, StrokePairs
 
 PAPER = kin.Geometry.paper()
 

@@ -25,12 +25,12 @@ import math
 import numpy as np
 import pytest
 
-from qrm_ros.core import dynamics as dyn
+from qrm_ros.core.dynamics import chain as dyn
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.piecewise_efforts import MIN_PIECE_SAMPLES, piecewise_figures
-from qrm_ros.core.speed_drive import load_switch_angles, pair_efforts
-from qrm_ros.core.strokes import (find_stroke_pairs, measure_pair_efforts,
-                                  workpiece_edge_times)
+from qrm_ros.core.measurement.piecewise_efforts import MIN_PIECE_SAMPLES, piecewise_figures
+from qrm_ros.core.dynamics.speed_drive import load_switch_angles, pair_efforts
+from qrm_ros.core.measurement.strokes import (find_stroke_pairs, measure_pair_efforts,
+                                              workpiece_edge_times)
 
 from synthetic_run import sampled_speed_drive
 

@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 """
-core.sampling_bounds against the stroke finder run on the exact motion at every phase.
+core.measurement.sampling_bounds against the stroke finder run on the exact motion at every phase.
 
 The closed-form motion is sampled at a coarse step starting at many input angles; every
 pair the stroke finder measures must lie within the stated bound of the closed form (the
@@ -25,10 +25,9 @@ import numpy as np
 import pytest
 
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.sampling_bounds import (BOUNDED_FIGURES, figure_sampling_bounds,
-                                          steady_motion,
-                                          SUPPORTED_RELATIVE_ERROR)
-from qrm_ros.core.strokes import find_stroke_pairs
+from qrm_ros.core.measurement.sampling_bounds import (BOUNDED_FIGURES, figure_sampling_bounds,
+                                                      steady_motion, SUPPORTED_RELATIVE_ERROR)
+from qrm_ros.core.measurement.strokes import find_stroke_pairs
 
 PAPER = kin.Geometry.paper()
 SPEED = 2 * math.pi

@@ -20,7 +20,7 @@ with a stall, made-up efforts), plus integer-valued random walks (exact zeros of
 ties, crossings on samples); their results are held to fingerprints (sha256 of the values'
 bytes) in test/data/stroke_measurement_bits.json, written by the code before such a change:
 
-    python3 dev.py run python test/core/test_stroke_measurement_bits.py --write
+    python3 dev.py run python test/core/measurement/test_stroke_measurement_bits.py --write
 
 The inputs are read from files or made by exact arithmetic, never by a transcendental
 function, so the fingerprints do not depend on the CPU's vector units. The theory figures
@@ -38,11 +38,11 @@ from diagnostic_msgs.msg import KeyValue
 import numpy as np
 import pytest
 from qrm_ros.analysis.recorded_run import read_recording
-from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.stroke_monitor import StrokeMonitor
-from qrm_ros.core.strokes import (find_reversals, find_stroke_pairs, measure_pair_efforts,
-                                  workpiece_edge_times)
-from qrm_ros.node.shaper_diagnostics import stroke_pair_status
+from qrm_ros.core.kinematics.geometry import Geometry
+from qrm_ros.core.measurement.stroke_monitor import StrokeMonitor
+from qrm_ros.core.measurement.strokes import (find_reversals, find_stroke_pairs,
+                                              measure_pair_efforts, workpiece_edge_times)
+from qrm_ros.node.shaper_sim.shaper_diagnostics import stroke_pair_status
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from repo_paths import TEST_DATA  # noqa: E402  (test/ on the path, as the rooms' tests do)

@@ -17,10 +17,10 @@ import math
 
 import numpy as np
 import pytest
-from qrm_ros.core.geometry import Geometry
+from qrm_ros.core.kinematics.geometry import Geometry
 from qrm_ros.core.kinematics import state, stroke_times, time_ratio
-from qrm_ros.core.stroke_monitor import MEASURED_FIGURES, SAMPLE_FIELDS, StrokeMonitor
-from qrm_ros.core.strokes import find_stroke_pairs, measure_pair_efforts
+from qrm_ros.core.measurement.stroke_monitor import MEASURED_FIGURES, SAMPLE_FIELDS, StrokeMonitor
+from qrm_ros.core.measurement.strokes import find_stroke_pairs, measure_pair_efforts
 
 NS = 1_000_000_000
 GEOMETRY = Geometry.paper()

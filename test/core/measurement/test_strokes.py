@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.strokes import find_reversals, find_stroke_pairs
+from qrm_ros.core.measurement.strokes import find_reversals, find_stroke_pairs
 
 PAPER = kin.Geometry.paper()
 

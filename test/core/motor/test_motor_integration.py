@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from qrm_ros.core.motor_integration import ATOL, float_dense, RTOL
+from qrm_ros.core.motor.motor_integration import ATOL, float_dense, RTOL
 
 pytestmark = pytest.mark.bits
 

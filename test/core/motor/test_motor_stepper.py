@@ -25,13 +25,13 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from qrm_ros.core import dynamics as dyn
-from qrm_ros.core import motor_integration
-from qrm_ros.core.geometry import Geometry
+from qrm_ros.core.dynamics import chain as dyn
+from qrm_ros.core.motor import motor_integration
+from qrm_ros.core.kinematics.geometry import Geometry
 from qrm_ros.core.kinematics import input_angle_for_flywheel_angle, reversal_flywheel_angles, state
-from qrm_ros.core.motor_equation import EquationOfMotion
-from qrm_ros.core.drive_kernel_loading import COMPILED_DRIVE_KERNEL
-from qrm_ros.core.motor_stepper import MotorStepper, simulate
+from qrm_ros.core.motor.motor_equation import EquationOfMotion
+from qrm_ros.core.dynamics.drive_kernel_loading import COMPILED_DRIVE_KERNEL
+from qrm_ros.core.motor.motor_stepper import MotorStepper, simulate
 
 GEOMETRY = Geometry.paper()
 MASS = dyn.MassProperties.small_shaper()
@@ -261,7 +261,7 @@ def _chain_fixed(mass):
 
 def _kernel():
     pytest.importorskip('numba')
-    from qrm_ros.core import drive_kernel
+    from qrm_ros.core.dynamics import drive_kernel
     return drive_kernel
 
 
@@ -317,7 +317,7 @@ def test_without_numba_the_stepper_runs_the_python_form(monkeypatch):
 
     def without_numba(name, *arguments, **options):
         if name == 'numba' or name.startswith('numba.') or (
-                name == 'qrm_ros.core' and 'drive_kernel' in (arguments[2] or ())):
+                name == 'qrm_ros.core.dynamics' and 'drive_kernel' in (arguments[2] or ())):
             raise ImportError(f'no module named {name!r} (test)')
         return real_import(name, *arguments, **options)
     monkeypatch.setattr(COMPILED_DRIVE_KERNEL, 'module', None)

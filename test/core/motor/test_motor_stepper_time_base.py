@@ -21,9 +21,9 @@ stamp, not from the segment's start, so that a ramping offset never jumps back.
 import math
 
 import pytest
-from qrm_ros.core import dynamics as dyn
-from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.motor_stepper import MotorStepper
+from qrm_ros.core.dynamics import chain as dyn
+from qrm_ros.core.kinematics.geometry import Geometry
+from qrm_ros.core.motor.motor_stepper import MotorStepper
 
 OFFSET_RATE_LIMIT = 0.01  # m/s: a 10 mm ramp takes a second
 

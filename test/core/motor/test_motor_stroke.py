@@ -30,13 +30,13 @@ import pytest
 from scipy import integrate
 import sympy
 
-from qrm_ros.core import dynamics as dyn
-from qrm_ros.core.geometry import crank_radius_for_stroke, Geometry
-from qrm_ros.core.lean_chain import lean_constants
-from qrm_ros.core.motor_stepper import MotorStepper
-from qrm_ros.core.motor_stroke import moving_radius_motion_of
-from qrm_ros.core.stroke_adjustment import StrokeRamp
-from qrm_ros.core.stroke_efforts import lever_radius_coefficient
+from qrm_ros.core.dynamics import chain as dyn
+from qrm_ros.core.kinematics.geometry import crank_radius_for_stroke, Geometry
+from qrm_ros.core.dynamics.lean_chain import lean_constants
+from qrm_ros.core.motor.motor_stepper import MotorStepper
+from qrm_ros.core.motor.motor_stroke import moving_radius_motion_of
+from qrm_ros.core.stepping.stroke_adjustment import StrokeRamp
+from qrm_ros.core.dynamics.stroke_efforts import lever_radius_coefficient
 
 from lagrange_chain import chain_lagrangian, generalised_forces
 

@@ -23,10 +23,11 @@ import math
 import numpy as np
 import pytest
 
-from qrm_ros.core import dynamics as dyn
-from qrm_ros.core.geometry import Geometry, KinematicsError
-from qrm_ros.core.motor_stepper import simulate
-from qrm_ros.core.steady_running import input_inertia_for_speed_fluctuation, speed_fluctuation
+from qrm_ros.core.dynamics import chain as dyn
+from qrm_ros.core.kinematics.geometry import Geometry, KinematicsError
+from qrm_ros.core.motor.motor_stepper import simulate
+from qrm_ros.core.motor.steady_running import (input_inertia_for_speed_fluctuation,
+                                               speed_fluctuation)
 
 GEOMETRY = Geometry.paper()
 MASS = dyn.MassProperties.small_shaper()

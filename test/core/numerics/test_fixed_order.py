@@ -16,7 +16,7 @@
 import numpy as np
 import pytest
 
-from qrm_ros.core.fixed_order import weighted_sum
+from qrm_ros.core.numerics.fixed_order import weighted_sum
 
 pytestmark = pytest.mark.bits
 

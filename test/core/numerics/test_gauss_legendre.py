@@ -17,7 +17,7 @@ import mpmath
 import numpy as np
 import pytest
 
-from qrm_ros.core.gauss_legendre import gauss_legendre, ORDERS
+from qrm_ros.core.numerics.gauss_legendre import gauss_legendre, ORDERS
 
 pytestmark = pytest.mark.bits
 

@@ -18,7 +18,7 @@ import math
 import numpy as np
 import pytest
 
-from qrm_ros.core import portable_math, portable_math_kernel
+from qrm_ros.core.numerics import portable_math, portable_math_kernel
 
 pytestmark = pytest.mark.bits
 

@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 """
-The speed drive's sample (core.speed_drive_sample) is the core's state, load and efforts.
+The speed drive's sample (core.stepping.speed_drive_sample) is the core's state, load and efforts.
 
 Bit for bit, in the lean form's Python and compiled versions, against what the node computed
 with the general forms: mechanism_state.state, dynamics.ram_load_force and
@@ -24,14 +24,14 @@ stroke screw moves.
 import numpy as np
 import pytest
 
-from qrm_ros.core import dynamics as dyn
-from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.lean_chain import SPEED_DRIVE_SAMPLE_FIELDS
-from qrm_ros.core.drive_kernel_loading import COMPILED_DRIVE_KERNEL
-from qrm_ros.core.speed_drive_sample import speed_drive_sample
-from qrm_ros.core.stepping import ShaperStepper
-from qrm_ros.core.stroke_adjustment import StrokeRamp
-from qrm_ros.core.stroke_efforts import efforts_with_stroke_screw
+from qrm_ros.core.dynamics import chain as dyn
+from qrm_ros.core.kinematics.geometry import Geometry
+from qrm_ros.core.dynamics.lean_chain import SPEED_DRIVE_SAMPLE_FIELDS
+from qrm_ros.core.dynamics.drive_kernel_loading import COMPILED_DRIVE_KERNEL
+from qrm_ros.core.stepping.speed_drive_sample import speed_drive_sample
+from qrm_ros.core.stepping.stepping import ShaperStepper
+from qrm_ros.core.stepping.stroke_adjustment import StrokeRamp
+from qrm_ros.core.dynamics.stroke_efforts import efforts_with_stroke_screw
 
 pytestmark = pytest.mark.bits
 
@@ -83,7 +83,7 @@ def kernel(request, monkeypatch):
         monkeypatch.setattr(COMPILED_DRIVE_KERNEL, 'module', None)
     else:
         pytest.importorskip('numba')
-        from qrm_ros.core import drive_kernel
+        from qrm_ros.core.dynamics import drive_kernel
         monkeypatch.setattr(COMPILED_DRIVE_KERNEL, 'module', drive_kernel)
     return request.param
 

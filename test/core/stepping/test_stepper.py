@@ -25,25 +25,25 @@ import sys
 
 import pytest
 
-from qrm_ros.core import dynamics as dyn
-from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.motor_stepper import MotorStepper
-from qrm_ros.core.stepper import Stepper
-from qrm_ros.core.stepping import ShaperStepper
+from qrm_ros.core.dynamics import chain as dyn
+from qrm_ros.core.kinematics.geometry import Geometry
+from qrm_ros.core.motor.motor_stepper import MotorStepper
+from qrm_ros.core.stepping.stepper import Stepper
+from qrm_ros.core.stepping.stepping import ShaperStepper
 from repo_paths import REPO_ROOT as ROOT
 
 CHECKED = '''
-from qrm_ros.core.motor_stepper import MotorStepper
-from qrm_ros.core.stepper import Stepper
-from qrm_ros.core.stepping import ShaperStepper
+from qrm_ros.core.motor.motor_stepper import MotorStepper
+from qrm_ros.core.stepping.stepper import Stepper
+from qrm_ros.core.stepping.stepping import ShaperStepper
 
 
 def held_by_the_node(shaper: ShaperStepper, motor: MotorStepper) -> list[Stepper]:
     return [shaper, motor]
 '''
 MISSING_A_MEMBER = '''
-from qrm_ros.core.stepper import Stepper
-from qrm_ros.core.stepping import ShaperStepper
+from qrm_ros.core.stepping.stepper import Stepper
+from qrm_ros.core.stepping.stepping import ShaperStepper
 
 
 class WithoutRestore(ShaperStepper):

@@ -24,9 +24,9 @@ import math
 import random
 
 import pytest
-from qrm_ros.core.geometry import Geometry, KinematicsError
+from qrm_ros.core.kinematics.geometry import Geometry, KinematicsError
 from qrm_ros.core.kinematics import state
-from qrm_ros.core.stepping import ShaperStepper, wrap_angle
+from qrm_ros.core.stepping.stepping import ShaperStepper, wrap_angle
 
 GEOMETRY = Geometry.paper()
 # pi to 50 digits, for the exact reference of a wrapped angle.

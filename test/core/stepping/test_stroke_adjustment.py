@@ -27,16 +27,16 @@ import pytest
 from scipy import integrate
 import sympy
 
-from qrm_ros.core import dynamics as dyn
-from qrm_ros.core.geometry import (crank_radius_for_stroke, Geometry, KinematicsError,
-                                   stroke_for_crank_radius)
-from qrm_ros.core.mechanism_state import state
-from qrm_ros.core.motor_stepper import MotorStepper
-from qrm_ros.core.stepping import ShaperStepper
-from qrm_ros.core.stroke_adjustment import (check_stroke, crank_radius_motion,
-                                            largest_stroke, StrokeRamp)
-from qrm_ros.core.stroke_efforts import (efforts_with_stroke_screw,
-                                         lever_radius_coefficient)
+from qrm_ros.core.dynamics import chain as dyn
+from qrm_ros.core.kinematics.geometry import (crank_radius_for_stroke, Geometry, KinematicsError,
+                                              stroke_for_crank_radius)
+from qrm_ros.core.kinematics.mechanism_state import state
+from qrm_ros.core.motor.motor_stepper import MotorStepper
+from qrm_ros.core.stepping.stepping import ShaperStepper
+from qrm_ros.core.stepping.stroke_adjustment import (check_stroke, crank_radius_motion,
+                                                     largest_stroke, StrokeRamp)
+from qrm_ros.core.dynamics.stroke_efforts import (efforts_with_stroke_screw,
+                                                  lever_radius_coefficient)
 
 from lagrange_chain import chain_lagrangian, generalised_forces
 

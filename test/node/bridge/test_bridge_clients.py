@@ -14,8 +14,8 @@
 """The book of the bridge's clients, read from the SDK's log texts, and its diagnostics status."""
 
 from diagnostic_msgs.msg import DiagnosticStatus
-from qrm_ros.core.names import BRIDGE_CLIENTS_STATUS
-from qrm_ros.node.bridge_clients import ClientBook, clients_status, NOTICE_WINDOW
+from qrm_ros.core.common.names import BRIDGE_CLIENTS_STATUS
+from qrm_ros.node.bridge.bridge_clients import ClientBook, clients_status, NOTICE_WINDOW
 
 
 class Clock:

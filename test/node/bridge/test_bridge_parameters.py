@@ -15,7 +15,7 @@
 
 from foxglove import ParameterType as FoxgloveType
 import pytest
-from qrm_ros.node.bridge_parameters import from_ros, ParameterRefusal, split_name, to_ros
+from qrm_ros.node.bridge.bridge_parameters import from_ros, ParameterRefusal, split_name, to_ros
 from rcl_interfaces.msg import ParameterType, ParameterValue
 from rclpy.parameter import Parameter, parameter_value_to_python
 

@@ -26,8 +26,8 @@ import subprocess
 
 from ament_index_python.packages import get_package_share_directory
 import pytest
-from qrm_ros.core.names import PUBLISHED_JOINT_NAMES
-from qrm_ros.node.foxglove_bridge import package_asset
+from qrm_ros.core.common.names import PUBLISHED_JOINT_NAMES
+from qrm_ros.node.bridge.foxglove_bridge import package_asset
 from qrm_ros.recording.rosbag2_formats import DEFINITION_DELIMITER, find_message_definition
 from rcl_interfaces.srv import GetParameters, SetParameters
 import rclpy

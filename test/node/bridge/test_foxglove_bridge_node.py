@@ -19,9 +19,9 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 import pytest
-from qrm_ros.core.names import BRIDGE_CLIENTS_STATUS, DIAGNOSTICS_TOPIC
-from qrm_ros.node.bridge_clients import NOTICE_WINDOW
-from qrm_ros.node.foxglove_bridge import BridgeNode, BridgeSettings
+from qrm_ros.core.common.names import BRIDGE_CLIENTS_STATUS, DIAGNOSTICS_TOPIC
+from qrm_ros.node.bridge.bridge_clients import NOTICE_WINDOW
+from qrm_ros.node.bridge.foxglove_bridge import BridgeNode, BridgeSettings
 import rclpy
 from sensor_msgs.msg import Image
 

@@ -14,8 +14,8 @@
 """
 One truth: a scenario simulated offline is what the recorder records of the live node.
 
-The same scenario runs twice. Offline, through qrm_ros.node.offline_sim. Live: shaper_sim on
-use_sim_time, driven by /clock at the same stamps one tick at a time, its parameters set
+The same scenario runs twice. Offline, through qrm_ros.node.offline.offline_sim. Live: shaper_sim
+on use_sim_time, driven by /clock at the same stamps one tick at a time, its parameters set
 through its parameter service, its speed commanded on input_speed_cmd, reset through its
 service, and recorded by the real mcap_recorder process. The two files then hold bit-identical
 joint states and twists, the same stroke-pair diagnostics key by key, the same parameter
@@ -43,10 +43,10 @@ from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 from diagnostic_msgs.msg import DiagnosticArray
-from qrm_ros.core.names import CUTTING_SPEED_STATUS, PARAMETERS_METADATA, STROKE_PAIR_STATUS
-from qrm_ros.node.offline_sim import Simulation, THEORY_TIMEOUT
-from qrm_ros.node.scenario import scenario_from_mapping, ScenarioError
-from qrm_ros.node.shaper_sim import ShaperSimNode
+from qrm_ros.core.common.names import CUTTING_SPEED_STATUS, PARAMETERS_METADATA, STROKE_PAIR_STATUS
+from qrm_ros.node.offline.offline_sim import Simulation, THEORY_TIMEOUT
+from qrm_ros.node.offline.scenario import scenario_from_mapping, ScenarioError
+from qrm_ros.node.shaper_sim.shaper_sim import ShaperSimNode
 from qrm_ros.recording.bag_reader import open_run
 from ros_probe import BackgroundSpinner, call, installed_executable, stamp_ns, stop_process
 from ros_probe import wait_for

@@ -15,7 +15,8 @@
 
 import pytest
 
-from qrm_ros.node.scenario import Event, load_scenario, scenario_from_mapping, ScenarioError
+from qrm_ros.node.offline.scenario import (Event, load_scenario, scenario_from_mapping,
+                                           ScenarioError)
 
 
 def test_a_scenario_file_is_read_with_its_events_in_time_order(tmp_path):

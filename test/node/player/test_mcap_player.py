@@ -37,7 +37,7 @@ from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
 from qrm_ros.cli import exit_codes
-from qrm_ros.node.mcap_player import CLOCK_QOS, played_qos
+from qrm_ros.node.player.mcap_player import CLOCK_QOS, played_qos
 from qrm_ros.recording.bag_reader import open_run
 from repo_paths import TEST_DATA
 from ros_probe import BackgroundSpinner, call, installed_executable, stop_process, wait_for

@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 """
-The executors the processes spin on (qrm_ros.node.ros_process), over real DDS.
+The executors the processes spin on (qrm_ros.node.process.ros_process), over real DDS.
 
 rclpy's EventsExecutor is experimental in Jazzy; what this package relies on is checked here
 against the SingleThreadedExecutor (the fallback, QRM_ROS_EXECUTOR=single): timers on
@@ -27,10 +27,10 @@ import time
 
 from builtin_interfaces.msg import Time
 import pytest
-from qrm_ros.node.ros_process import (EXECUTOR_VARIABLE, ExecutorChoiceError, executor_kind,
-                                      init_rclpy, MESSAGE_INFO_SIGNATURE, message_and_info,
-                                      new_executor)
-from qrm_ros.node.shaper_sim import ShaperSimNode
+from qrm_ros.node.process.ros_process import (EXECUTOR_VARIABLE, ExecutorChoiceError,
+                                              executor_kind, init_rclpy, MESSAGE_INFO_SIGNATURE,
+                                              message_and_info, new_executor)
+from qrm_ros.node.shaper_sim.shaper_sim import ShaperSimNode
 from rcl_interfaces.srv import DescribeParameters, SetParametersAtomically
 import rclpy
 from rclpy.context import Context
@@ -43,7 +43,7 @@ from std_srvs.srv import SetBool, Trigger
 from visualization_msgs.msg import MarkerArray
 
 from ros_probe import stamp_ns, wait_for
-from test_shaper_sim_process import NS, Process, Probe, wrapped
+from shaper_process import NS, Process, Probe, wrapped
 
 KINDS = ['events', 'single']
 SIM_START_NS = 1000 * NS  # the first /clock value the tests send

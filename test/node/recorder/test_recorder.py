@@ -41,14 +41,14 @@ from mcap_ros2.decoder import DecoderFactory
 import pytest
 from qrm_ros.recording.bag_reader import open_run, RunFileError
 from qrm_ros.recording.mcap_recover import RECOVERY_METADATA, recovered_losses
-from qrm_ros.core.geometry import Geometry
+from qrm_ros.core.kinematics.geometry import Geometry
 import yaml
 
 from ros_probe import BackgroundSpinner, call, installed_executable, stop_process, wait_for
 from repo_paths import TEST_FOLDER
 
 PUBLISHER = os.path.join(TEST_FOLDER, 'stand_in_publisher.py')
-REAL_SIM = importlib.util.find_spec('qrm_ros.node.shaper_sim') is not None
+REAL_SIM = importlib.util.find_spec('qrm_ros.node.shaper_sim.shaper_sim') is not None
 TYPES = {'/joint_states': 'sensor_msgs/msg/JointState',
          '/ram/twist': 'geometry_msgs/msg/TwistStamped',
          '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray',

@@ -29,10 +29,11 @@ from rclpy.qos import QoSProfile
 from visualization_msgs.msg import Marker, MarkerArray
 
 from qrm_ros.core import kinematics as kin
-from qrm_ros.core.linkage import COLOURS, linkage_sizes, workpiece_span
-from qrm_ros.node.linkage_markers import (delete_all_marker_array, LINK_BARS, linkage_marker_array,
-                                          MARKER_KEYS, MOVING_KEYS)
-from qrm_ros.core.names import LINKAGE_MARKERS_TOPIC
+from qrm_ros.core.kinematics.linkage import COLOURS, linkage_sizes, workpiece_span
+from qrm_ros.node.shaper_sim.linkage_markers import (delete_all_marker_array, LINK_BARS,
+                                                     linkage_marker_array, MARKER_KEYS,
+                                                     MOVING_KEYS)
+from qrm_ros.core.common.names import LINKAGE_MARKERS_TOPIC
 from ros_probe import BackgroundSpinner, wait_for
 
 Loads = namedtuple('Loads', 'cutting_force ram_friction cutting_length')

@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 """
-The shaper_sim node's linkage markers (qrm_ros.node.marker_schedule), in-process.
+The shaper_sim node's linkage markers (qrm_ros.node.shaper_sim.marker_schedule), in-process.
 
 What the markers show, when they go out (after the ticks, at their rate, whole or the moving
 part, one marker a tick above MARKER_SLICING_RATE), over real rclpy and DDS.
@@ -23,8 +23,8 @@ import math
 import time
 
 import pytest
-from qrm_ros.node import marker_schedule
-from qrm_ros.node.linkage_markers import linkage_marker_array, MARKER_KEYS, MOVING_KEYS
+from qrm_ros.node.shaper_sim import marker_schedule
+from qrm_ros.node.shaper_sim.linkage_markers import linkage_marker_array, MARKER_KEYS, MOVING_KEYS
 from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message, serialize_message
 from std_srvs.srv import Trigger

@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 """
-The shaper_sim parameters through rclpy (qrm_ros.node.parameter_services), in-process.
+The shaper_sim parameters through rclpy (qrm_ros.node.shaper_sim.parameter_services), in-process.
 
 Declared with descriptors, every change judged by the rules of shaper_parameters before
 rclpy's own checks, malformed requests answered, start-up values refused with a reason; and
@@ -22,9 +22,9 @@ the rclpy internals this relies on, so that an rclpy update that breaks one fail
 import math
 
 import pytest
-from qrm_ros.node.parameter_services import start_up_overrides
-from qrm_ros.node.shaper_parameters import PARAMETERS
-from qrm_ros.node.shaper_sim import ShaperSimNode
+from qrm_ros.node.shaper_sim.parameter_services import start_up_overrides
+from qrm_ros.node.shaper_sim.shaper_parameters import PARAMETERS
+from qrm_ros.node.shaper_sim.shaper_sim import ShaperSimNode
 from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterType, ParameterValue
 from rcl_interfaces.srv import DescribeParameters, SetParameters
 from rclpy.node import Node
@@ -78,7 +78,7 @@ REFUSALS = [
     ('coupling_radius', 0.03, ['read-only']),
     ('frame_id', '', ['non-empty string']),
     ('frame_id', 3.0, ['non-empty string']),
-    # Finite but absurd: every value has a bound no shaper leaves (core.physical_ranges).
+    # Finite but absurd: every value has a bound no shaper leaves (core.dynamics.physical_ranges).
     ('frame_id', 'ab\x00cd', ['without control characters']),
     ('lever_mass', 1e308, ['<= 10000 kg']),
     ('gravity', 1e308, ['<= 100 m/s^2']),

@@ -25,7 +25,7 @@ import time
 
 import pytest
 from qrm_ros.core.kinematics import state
-from qrm_ros.core.names import PUBLISHED_JOINT_NAMES
+from qrm_ros.core.common.names import PUBLISHED_JOINT_NAMES
 import rclpy
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
@@ -196,8 +196,8 @@ def test_published_efforts_balance_the_energy(harness):
 
 def test_one_sample_efforts_equal_the_vectorised_ones():
     # The node's per-tick path (floats, math functions) and the array path agree.
-    from qrm_ros.core.dynamics import efforts, MassProperties
-    from qrm_ros.core.geometry import Geometry
+    from qrm_ros.core.dynamics.chain import efforts, MassProperties
+    from qrm_ros.core.kinematics.geometry import Geometry
     import numpy as np
     geometry, mass = Geometry.paper(), MassProperties.small_shaper()
     angles = np.linspace(-3.0, 3.0, 13)

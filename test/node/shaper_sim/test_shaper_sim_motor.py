@@ -17,12 +17,12 @@ import math
 import time
 
 import pytest
-from qrm_ros.core.effort_theory import THEORY_FIGURES
-from qrm_ros.core.motor_stepper import MotorStepper
-from qrm_ros.core.speed_drive import pair_efforts
-from qrm_ros.core.steady_running import speed_fluctuation
-from qrm_ros.core.names import DRIVE_STATUS, STROKE_PAIR_STATUS
-from qrm_ros.core.stepping import ShaperStepper
+from qrm_ros.core.measurement.effort_theory import THEORY_FIGURES
+from qrm_ros.core.motor.motor_stepper import MotorStepper
+from qrm_ros.core.dynamics.speed_drive import pair_efforts
+from qrm_ros.core.motor.steady_running import speed_fluctuation
+from qrm_ros.core.common.names import DRIVE_STATUS, STROKE_PAIR_STATUS
+from qrm_ros.core.stepping.stepping import ShaperStepper
 from rclpy.parameter import Parameter
 
 from shaper_harness import NS, pair_values, run_ticks

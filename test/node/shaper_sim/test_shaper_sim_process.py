@@ -21,119 +21,26 @@ joints from the kinematics core at the published angle, speed and offset.
 """
 
 import math
-import os
 import signal
 import subprocess
 import sys
-import tempfile
 import time
 
-from ament_index_python.packages import get_package_share_directory
 import numpy as np
 import pytest
-from qrm_ros.core.geometry import Geometry
+from qrm_ros.core.kinematics.geometry import Geometry
 from qrm_ros.core.kinematics import state
 from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterValue
-from rcl_interfaces.srv import GetParameters, SetParameters, SetParametersAtomically
-import rclpy
-from rclpy.context import Context
-from rclpy.node import Node
-from rclpy.parameter import Parameter, parameter_value_to_python
+from rcl_interfaces.srv import SetParameters, SetParametersAtomically
 from rclpy.qos import qos_profile_parameters
-from sensor_msgs.msg import JointState
 from std_srvs.srv import SetBool, Trigger
 
-from ros_probe import (BackgroundSpinner, call, installed_executable, stamp_ns, stop_process,
-                       wait_for)
+from ros_probe import stamp_ns, stop_process
+from shaper_process import NS, Process, Probe, wrapped
 
-
-NS = 1_000_000_000
 RATE = 100.0  # Hz, the default publish_rate
 ACCELERATION_LIMIT = 20.0  # rad/s^2, config/shaper.yaml
 OFFSET_RATE_LIMIT = 0.005  # m/s, config/shaper.yaml
-
-
-def executable():
-    found = installed_executable('shaper_sim')
-    assert found, 'the shaper_sim console script is not installed (lib/qrm_ros nor PATH)'
-    return found
-
-
-class Process:
-    """shaper_sim started from its installed parameter file, output kept in files."""
-
-    def __init__(self, *arguments, environment=None):
-        self.output = tempfile.TemporaryFile(mode='w+')
-        parameters = os.path.join(get_package_share_directory('qrm_ros'), 'config',
-                                  'shaper.yaml')
-        self.process = subprocess.Popen(
-            [executable(), '--ros-args', '--params-file', parameters, *arguments],
-            stdout=self.output, stderr=subprocess.STDOUT, text=True,
-            env=None if environment is None else dict(os.environ, **environment))
-
-    def stop(self, signal_number=signal.SIGINT, timeout=10.0):
-        """Send signal_number (None: just wait) and return (exit code, output)."""
-        if signal_number is not None and self.process.poll() is None:
-            self.process.send_signal(signal_number)
-        try:
-            code = self.process.wait(timeout=timeout)
-        except subprocess.TimeoutExpired:
-            self.process.kill()
-            self.process.wait()
-            raise
-        self.output.seek(0)
-        return code, self.output.read()
-
-
-class Probe:
-    """Subscriber and parameter clients in this process, spun on a background thread."""
-
-    def __init__(self):
-        self.context = Context()
-        rclpy.init(context=self.context)
-        self.node = Node('process_probe', context=self.context)
-        self.messages = []
-        self.joint_states = self.node.create_subscription(
-            JointState, 'joint_states', self.messages.append, 1000)
-        self.set_client = self.node.create_client(SetParameters, '/shaper_sim/set_parameters')
-        self.get_client = self.node.create_client(GetParameters, '/shaper_sim/get_parameters')
-        self.spinner = BackgroundSpinner(self.context, self.node)
-
-    def wait_for(self, predicate, timeout=15.0, what='condition'):
-        wait_for(predicate, timeout, what)
-
-    def wait_for_discovery(self):
-        """
-        Wait until the node's joint states and parameter services are matched here.
-
-        Discovery goes on for a while after a node's first endpoint is seen (a node has
-        dozens), and on a loaded 2-core machine its bursts held a new node's timer back for
-        a quarter of a second: a test that counts samples starts after it.
-        """
-        self.wait_for(lambda: self.joint_states.get_publisher_count() > 0,
-                      what="the node's joint states matched")
-        for client in (self.set_client, self.get_client):
-            assert client.wait_for_service(timeout_sec=15.0), f'{client.srv_name} not found'
-
-    def call(self, client, request):
-        return call(client, request, timeout=15.0)
-
-    def set_parameter(self, name, value):
-        """One parameter per request, as `ros2 param set` sends it."""
-        request = SetParameters.Request(
-            parameters=[Parameter(name, value=value).to_parameter_msg()])
-        result, = self.call(self.set_client, request).results
-        return result
-
-    def get_parameters(self, names):
-        response = self.call(self.get_client, GetParameters.Request(names=names))
-        return {name: parameter_value_to_python(value)
-                for name, value in zip(names, response.values)}
-
-    def close(self):
-        self.spinner.stop()
-        self.node.destroy_node()
-        rclpy.shutdown(context=self.context)
 
 
 @pytest.fixture
@@ -141,10 +48,6 @@ def probe():
     made = Probe()
     yield made
     made.close()
-
-
-def wrapped(angle):
-    return math.remainder(angle, 2 * math.pi)
 
 
 # name, value, text the reason must contain besides "<name> = <value!r> refused: ".
@@ -354,7 +257,7 @@ def test_an_unknown_start_up_parameter_is_reported(probe):
 STALLING_SUBSCRIBER = '''
 import sys
 import rclpy
-from qrm_ros.node.ros_process import init_rclpy, spin_until_stopped, StopRequest
+from qrm_ros.node.process.ros_process import init_rclpy, spin_until_stopped, StopRequest
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import JointState

@@ -20,10 +20,10 @@ that keeps a hand-set offset from fighting a hold judged the start-up value as a
 import math
 
 import pytest
-from qrm_ros.core.cutting_speed_hold import hold_offset
-from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.names import PUBLISHED_JOINT_NAMES
-from qrm_ros.core.offset_inverses import offset_for_time_ratio
+from qrm_ros.core.design.cutting_speed_hold import hold_offset
+from qrm_ros.core.kinematics.geometry import Geometry
+from qrm_ros.core.common.names import PUBLISHED_JOINT_NAMES
+from qrm_ros.core.kinematics.offset_inverses import offset_for_time_ratio
 from rclpy.parameter import Parameter
 
 from shaper_harness import NS

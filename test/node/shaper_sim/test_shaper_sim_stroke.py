@@ -25,12 +25,12 @@ import math
 
 import pytest
 from qrm_ros.analysis import analyse_file, incompleteness
-from qrm_ros.core.cutting_speed_hold import hold_offset
-from qrm_ros.core.geometry import Geometry
-from qrm_ros.core.names import TIME_RATIO_STATUS
-from qrm_ros.core.stroke_timing import time_ratio
-from qrm_ros.node.offline_sim import Simulation
-from qrm_ros.node.scenario import scenario_from_mapping
+from qrm_ros.core.design.cutting_speed_hold import hold_offset
+from qrm_ros.core.kinematics.geometry import Geometry
+from qrm_ros.core.common.names import TIME_RATIO_STATUS
+from qrm_ros.core.kinematics.stroke_timing import time_ratio
+from qrm_ros.node.offline.offline_sim import Simulation
+from qrm_ros.node.offline.scenario import scenario_from_mapping
 from rclpy.parameter import Parameter
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray

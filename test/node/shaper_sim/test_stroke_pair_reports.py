@@ -12,7 +12,8 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 """
-The shaper_sim node's stroke-pair reports on /diagnostics (qrm_ros.node.stroke_pair_reports).
+The shaper_sim node's stroke-pair reports on /diagnostics
+(qrm_ros.node.shaper_sim.stroke_pair_reports).
 
 Driven through ShaperSimNode.publish_at with synthetic 100 Hz stamps (the timer does exactly
 that with the node clock), so the checks are deterministic and fast: the figures against the
@@ -23,8 +24,8 @@ import math
 
 import pytest
 from qrm_ros.core.kinematics import peak_speed_ratio, speed_ratio, time_ratio
-from qrm_ros.core.stroke_monitor import PairReport
-from qrm_ros.node.shaper_diagnostics import stroke_pair_status
+from qrm_ros.core.measurement.stroke_monitor import PairReport
+from qrm_ros.node.shaper_sim.shaper_diagnostics import stroke_pair_status
 from rclpy.parameter import Parameter
 from std_srvs.srv import SetBool
 
