@@ -29,7 +29,7 @@ import os
 from dataclasses import replace
 from typing import Any, Dict, List
 
-from qrm_ros.cli.main_job_plan import short_stroke_plan, STROKE_RATE_LIMIT
+from qrm_ros.cli.main_job_plan import short_stroke_plan, start_up_parameters, STROKE_RATE_LIMIT
 from qrm_ros.cli.qrm_simulate import simulate
 from qrm_ros.core import kinematics as kin
 from qrm_ros.core.kinematics.geometry import crank_radius_for_stroke
@@ -57,14 +57,7 @@ def offline_scenario(options: argparse.Namespace) -> Scenario:
         at += abs(offset - before) / options.offset_rate_limit + hold
     if options.short_stroke_mm:
         at = _short_stroke_events(options, offsets[-1], at, hold, events)
-    parameters = {
-        'stroke_rate_limit': STROKE_RATE_LIMIT,
-        'coupling_offset': offsets[0], 'input_speed': float(options.input_speed),
-        'publish_rate': float(options.publish_rate),
-        'offset_rate_limit': float(options.offset_rate_limit),
-        'cutting_force': float(options.cutting_force),
-        'ram_friction': float(options.ram_friction),
-        'cutting_length': float(options.cutting_length), 'drive': options.drive}
+    parameters = start_up_parameters(options)
     return scenario_from_mapping({'parameters': parameters, 'duration': at, 'events': events})
 
 

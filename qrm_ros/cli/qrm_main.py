@@ -42,8 +42,8 @@ from typing import List, Optional
 
 from qrm_ros import analysis
 from qrm_ros.cli.main_job_offline import simulate_schedule
-from qrm_ros.cli.main_job_plan import (SHORT_STROKE_MM, short_stroke_plan, STROKE_RATE_LIMIT,
-                                       UsageError)
+from qrm_ros.cli.main_job_plan import (check_start_up, SHORT_STROKE_MM, short_stroke_plan,
+                                       start_up_parameters, UsageError)
 from qrm_ros.cli.exit_codes import (EXIT_FAILURE, EXIT_INCOMPLETE, EXIT_INTERRUPTED, EXIT_OK,
                                     exit_code_for_signal)
 from qrm_ros.core import kinematics as kin
@@ -105,6 +105,11 @@ def stop_child(process, timeout=CHILD_STOP_TIMEOUT):
             process.kill()
             process.wait()
     return process.returncode
+
+
+def _parameter_text(value):
+    """Write a value as ``-p name:=value`` takes it (a float's repr keeps every bit)."""
+    return value if isinstance(value, str) else repr(value)
 
 
 def _parser():
@@ -183,6 +188,7 @@ def validate(options):
     if options.short_stroke_mm:
         # Refuses a stroke the node would not take.
         short_stroke_plan(options.short_stroke_mm, options.cutting_length)
+    check_start_up(options)  # the rates and the rest of shaper_sim's start-up values
     for offset_mm in options.offsets_mm:
         try:
             kin.check_offset(geometry, offset_mm / 1e3, geometry.max_safe_offset)
@@ -200,16 +206,9 @@ def record(options, folder, stop):
     env.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     os.environ.update(env)
     sim_log = os.path.join(folder, 'shaper_sim.log')
-    sim = start_child('shaper_sim', [
-        '-p', f'coupling_offset:={offsets[0]!r}', '-p', f'input_speed:={options.input_speed!r}',
-        '-p', f'publish_rate:={float(options.publish_rate)!r}',
-        '-p', f'offset_rate_limit:={float(options.offset_rate_limit)!r}',
-        '-p', f'cutting_force:={float(options.cutting_force)!r}',
-        '-p', f'ram_friction:={float(options.ram_friction)!r}',
-        '-p', f'cutting_length:={float(options.cutting_length)!r}',
-        '-p', f'drive:={options.drive}',
-        '-p', f'stroke_rate_limit:={STROKE_RATE_LIMIT!r}',
-    ], sim_log, env)
+    parameters = [argument for name, value in start_up_parameters(options).items()
+                  for argument in ('-p', f'{name}:={_parameter_text(value)}')]
+    sim = start_child('shaper_sim', parameters, sim_log, env)
     print(f'qrm_main: started shaper_sim (pid {sim.pid})', flush=True)
     recorder = bridge = None
     conductor = Conductor(stop)
@@ -351,7 +350,11 @@ def run(options):
     """Run the experiment (options validated); return the run folder and what it lacks."""
     folder = os.path.join(options.output_dir,
                           datetime.now().strftime('qrm_%Y%m%d_%H%M%S_%f')[:-3])
-    os.makedirs(folder)
+    try:
+        os.makedirs(folder)
+    except OSError as error:  # a file, a read-only or virtual file system, a full disk
+        raise UsageError(f'--output-dir {options.output_dir!r}: cannot make the run folder '
+                         f'there ({error.strerror or error})') from None
     print(f'qrm_main: run folder {folder}', flush=True)
     try:
         with StopRequest() as stop:  # a stop signal ends the schedule; children stop cleanly
@@ -375,6 +378,8 @@ def main(argv: Optional[List[str]] = None) -> int:
         parser.error(str(error))  # exit code 2
     try:
         folder, missing = run(options)
+    except UsageError as error:
+        parser.error(str(error))
     except Interrupted as error:
         print(f'qrm_main: {error}', file=sys.stderr)
         return exit_code_for_signal(error.signal_number)

@@ -29,6 +29,7 @@ from qrm_ros.analysis import linkage_figure
 from qrm_ros.cli import qrm_main
 from qrm_ros.core import kinematics as kin
 from qrm_ros.core.dynamics.chain import Loads
+from qrm_ros.node.process.ros_process import EXECUTOR_VARIABLE
 from qrm_ros.recording.bag_reader import open_run
 
 from ros_probe import installed_executable, stop_process, wait_for
@@ -115,6 +116,13 @@ def test_main_job_runs_a_short_schedule_end_to_end(tmp_path, capsys):
     (['--offsets-mm', '0', '23'],
      '--offsets-mm: 23 mm is outside what shaper_sim accepts, |offset| <= 22.5 mm'),
     (['--pairs', 'three'], "--pairs: invalid int value: 'three'"),
+    # What shaper_sim would refuse at start-up, by its own rules, live or offline.
+    (['--offline', '--offset-rate-limit', '0'], 'shaper_sim would refuse it: '
+     'offset_rate_limit = 0.0 refused: outside the allowed range [1e-06, 1] m/s'),
+    (['--offset-rate-limit', '1e300'], 'offset_rate_limit = 1e+300 refused'),
+    (['--offline', '--publish-rate', '1e-300'], 'shaper_sim would refuse it: '
+     'publish_rate = 1e-300 refused: outside the allowed range [1, 10000] Hz'),
+    (['--publish-rate', '1e300'], 'publish_rate = 1e+300 refused'),
 ])
 def test_main_job_refuses_bad_options_with_exit_code_2(tmp_path, capsys, arguments, words):
     with pytest.raises(SystemExit) as stop:
@@ -124,6 +132,26 @@ def test_main_job_refuses_bad_options_with_exit_code_2(tmp_path, capsys, argumen
               if line.startswith('qrm_main: error:')]
     assert len(errors) == 1 and words in errors[0], errors
     assert not list(tmp_path.iterdir())  # nothing started, nothing written
+
+
+@pytest.mark.parametrize('offline', [True, False], ids=['offline', 'live'])
+@pytest.mark.parametrize('where, words', [
+    ('a file', 'cannot make the run folder there (Not a directory)'),
+    ('/proc/qrm', 'cannot make the run folder there (No such file or directory)'),
+])
+def test_an_output_dir_that_takes_no_folder_is_refused(tmp_path, capsys, offline, where,
+                                                       words):
+    output = tmp_path / 'a file'
+    output.write_text('not a folder')
+    output_dir = str(output) if where == 'a file' else where
+    with pytest.raises(SystemExit) as stop:
+        qrm_main.main(['--offsets-mm', '0', '--pairs', '1', '--output-dir', output_dir]
+                      + (['--offline'] if offline else []))
+    assert stop.value.code == 2
+    errors = [line for line in capsys.readouterr().err.splitlines()
+              if line.startswith('qrm_main: error:')]
+    assert errors == [f'qrm_main: error: --output-dir {output_dir!r}: {words}']
+    assert [p.name for p in tmp_path.iterdir()] == ['a file']
 
 
 def _gone(pid):
@@ -174,15 +202,17 @@ def test_a_stop_signal_stops_the_children_cleanly(tmp_path, signal_number, momen
         assert sum(1 for _ in run.messages(['/joint_states'])) > 0
 
 
-def test_a_failure_while_running_exits_1_with_one_line(tmp_path, capsys):
-    # The main job passes the publish rate on; shaper_sim itself refuses it at start-up.
-    code = qrm_main.main(['--publish-rate', '-5', '--output-dir', str(tmp_path)])
+def test_a_failure_while_running_exits_1_with_one_line(tmp_path, capsys, monkeypatch):
+    # The options are all good (the main job checks shaper_sim's values before it starts);
+    # the child inherits an executor choice it refuses at start-up.
+    monkeypatch.setenv(EXECUTOR_VARIABLE, 'no_such_executor')
+    code = qrm_main.main(['--offsets-mm', '0', '--pairs', '1', '--output-dir', str(tmp_path)])
     err = capsys.readouterr().err
     assert code == 1, err
     errors = [line for line in err.splitlines() if line.startswith('qrm_main: error:')]
     assert len(errors) == 1 and 'shaper_sim exited (2)' in errors[0], err
     (folder,) = tmp_path.iterdir()
-    assert 'publish_rate' in (folder / 'shaper_sim.log').read_text()
+    assert EXECUTOR_VARIABLE in (folder / 'shaper_sim.log').read_text()
 
 
 def test_the_report_says_figures_the_sampling_cannot_support(tmp_path, capsys):
