@@ -22,13 +22,14 @@ environment cannot import is not played, with a warning.
 """
 
 import argparse
+import math
 import sys
 import threading
-from typing import List, Optional
+from typing import Callable, List, Optional
 
 from qrm_ros.cli.exit_codes import EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_INCOMPLETE, EXIT_OK
-from qrm_ros.node.player.mcap_player import (DEFAULT_CLOCK_RATE, McapPlayer, PLAYER_NODE_NAME,
-                                             PlaybackError, PlayOptions)
+from qrm_ros.node.player.mcap_player import (DEFAULT_CLOCK_RATE, McapPlayer, OPTION_RANGES,
+                                             PLAYER_NODE_NAME, PlaybackError, PlayOptions)
 from qrm_ros.node.process.ros_process import (executor_kind, ExecutorChoiceError, init_rclpy,
                                               new_executor, own_arguments_of, RCLError,
                                               rcl_error_text, spin_until_stopped, StopRequest)
@@ -38,18 +39,20 @@ from rclpy.utilities import try_shutdown
 __all__ = ['main', 'what_was_not_played']
 
 
-def _positive(text: str) -> float:
-    value = float(text)
-    if not 0.0 < value < float('inf'):
-        raise argparse.ArgumentTypeError(f'{text} is not a finite number > 0')
-    return value
+def _in_range(field: str, unit: str = '') -> Callable[[str], float]:
+    """Return an argparse type taking a number within OPTION_RANGES[field] (unit: ' s')."""
+    low, high = OPTION_RANGES[field]
 
-
-def _not_negative(text: str) -> float:
-    value = float(text)
-    if not 0.0 <= value < float('inf'):
-        raise argparse.ArgumentTypeError(f'{text} s is not a finite number of seconds >= 0')
-    return value
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(
+                f'{text}{unit} is not a number in [{low:.10g}, {high:.10g}]{unit}')
+        return value
+    return parse
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -62,18 +65,20 @@ def _parser() -> argparse.ArgumentParser:
         epilog='Exit status: 0 played (or stopped by Ctrl-C/SIGTERM); 1 a failure; 2 bad '
                'options or not a recording; 3 played, but parts were damaged.')
     parser.add_argument('run', help='recorded run (.mcap)')
-    parser.add_argument('--rate', type=_positive, default=1.0,
+    parser.add_argument('--rate', type=_in_range('rate'), default=1.0,
                         help='playback speed factor (default: %(default)s)')
     parser.add_argument('--loop', action='store_true', help='play again from the start, '
                         'until stopped')
     parser.add_argument('--topics', nargs='+', metavar='TOPIC',
                         help='play only these topics (default: all)')
-    parser.add_argument('--start-offset', type=_not_negative, default=0.0, metavar='SECONDS',
+    parser.add_argument('--start-offset', type=_in_range('start_offset', ' s'), default=0.0,
+                        metavar='SECONDS',
                         help='start this far into the recording [s]')
-    parser.add_argument('--delay', type=_not_negative, default=0.0, metavar='SECONDS',
+    parser.add_argument('--delay', type=_in_range('delay', ' s'), default=0.0, metavar='SECONDS',
                         help='wait this long before the first message, so that late '
                              'subscribers are matched [s]')
-    parser.add_argument('--clock', type=_positive, nargs='?', const=DEFAULT_CLOCK_RATE,
+    parser.add_argument('--clock', type=_in_range('clock_rate', ' Hz'), nargs='?',
+                        const=DEFAULT_CLOCK_RATE,
                         metavar='HZ', help='publish /clock from the recorded time at HZ '
                         f'(default when given: {DEFAULT_CLOCK_RATE:g} Hz)')
     parser.add_argument('--start-paused', action='store_true',

@@ -45,8 +45,9 @@ from std_srvs.srv import Trigger
 import yaml
 
 __all__ = ['ACK_TIMEOUT', 'BUSY_WAIT_NS', 'CLOCK_QOS', 'DEFAULT_CLOCK_RATE',
-           'GIL_SWITCH_INTERVAL', 'McapPlayer', 'PLAYER_DEPTH', 'PLAYER_NODE_NAME', 'PlayOptions',
-           'PlaybackError', 'TIMING_SAMPLES', 'message_class', 'played_qos']
+           'GIL_SWITCH_INTERVAL', 'McapPlayer', 'OPTION_RANGES', 'PLAYER_DEPTH',
+           'PLAYER_NODE_NAME', 'PlayOptions', 'PlaybackError', 'TIMING_SAMPLES', 'message_class',
+           'played_qos']
 
 PLAYER_NODE_NAME = 'mcap_player'
 # The last stretch of a wait (ns) is spun, not slept: a sleep overshoots by up to a
@@ -72,6 +73,14 @@ CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
 
 class PlaybackError(Exception):
     """Options the player cannot follow (a one-line reason; exit code 2)."""
+
+
+# The ranges of PlayOptions' numbers (the command refuses others): times in s up to the
+# largest ROS time (builtin_interfaces/Time.sec is an int32); the rate within a million
+# either way (beyond, a gap of the run in ns overflows, or nothing is timed any more);
+# /clock from one message in 100 s to 10 kHz.
+OPTION_RANGES = {'rate': (1e-6, 1e6), 'start_offset': (0.0, 2.0 ** 31 - 1),
+                 'delay': (0.0, 2.0 ** 31 - 1), 'clock_rate': (0.01, 1e4)}
 
 
 class PlayOptions(NamedTuple):

@@ -230,6 +230,16 @@ def test_a_damaged_file_plays_what_is_readable_and_says_what_was_not(tmp_path):
     ([GOLDEN, '--topics', '/nothing'], 'topics /nothing are not in'),
     ([GOLDEN, '--rate', '0'], 'argument --rate'),
     ([GOLDEN, '--delay', '-1'], 'argument --delay'),
+    # Finite extremes: a time or a rate whose nanoseconds overflow was an OverflowError.
+    ([GOLDEN, '--delay', '1e300'],
+     'argument --delay: 1e300 s is not a number in [0, 2147483647] s'),
+    ([GOLDEN, '--start-offset', '1e300'], 'argument --start-offset: 1e300 s is not'),
+    ([GOLDEN, '--rate', '1e-300'], 'argument --rate: 1e-300 is not a number in [1e-06, 1000000]'),
+    ([GOLDEN, '--rate', '1e300'], 'argument --rate: 1e300 is not'),
+    ([GOLDEN, '--clock', '1e-300'],
+     'argument --clock: 1e-300 Hz is not a number in [0.01, 10000] Hz'),
+    ([GOLDEN, '--clock', '1e300'], 'argument --clock: 1e300 Hz is not'),
+    ([GOLDEN, '--rate', 'nan'], 'argument --rate: nan is not'),
 ])
 def test_bad_input_is_refused_in_one_line(tmp_path, args, message):
     result = subprocess.run([installed_executable('mcap_player'), *map(str, args)],
