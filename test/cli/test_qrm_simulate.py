@@ -32,7 +32,10 @@ from qrm_ros.analysis.recorded_run import read_recording
 from qrm_ros.cli import exit_codes, qrm_simulate
 from qrm_ros.core import kinematics as kin
 from damaged_runs import put_together, take_apart
+from repo_paths import TEST_DATA
 from ros_probe import installed_executable
+
+GOLDEN_RUN = os.path.join(TEST_DATA, 'steady_positive_offset.mcap')
 
 
 def _simulate(*args):
@@ -136,6 +139,7 @@ def test_an_unreadable_parameter_event_leaves_the_drive_unknown_and_is_said(tmp_
     (['--duration', 1, '-p', 'coupling_offset'], 'write NAME:=VALUE'),
     (['-p', 'coupling_offset:=0.0'], 'no duration'),
     (['--duration', -1], 'duration = -1.0 s'),
+    ([GOLDEN_RUN], 'is not a text file (YAML, UTF-8): byte 0 is 0x89'),  # a run, by mistake
 ])
 def test_bad_input_is_refused_in_one_line_and_leaves_no_file(tmp_path, args, message):
     path = tmp_path / 'run.mcap'

@@ -183,6 +183,9 @@ def load_scenario(path: str, duration: Optional[float] = None,
             data = yaml.safe_load(handle)
     except OSError as error:
         raise ScenarioError(f'cannot read scenario {path!r}: {error.strerror}') from None
+    except UnicodeDecodeError as error:  # a recording or another binary file, say
+        raise ScenarioError(f'scenario {path!r} is not a text file (YAML, UTF-8): byte '
+                            f'{error.start} is 0x{error.object[error.start]:02x}') from None
     except yaml.YAMLError as error:
         mark = getattr(error, 'problem_mark', None)
         place = f' at line {mark.line + 1}' if mark is not None else ''

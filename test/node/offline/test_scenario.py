@@ -82,3 +82,12 @@ def test_a_file_that_is_no_yaml_is_named(tmp_path):
         load_scenario(str(path))
     with pytest.raises(ScenarioError, match='cannot read scenario'):
         load_scenario(str(tmp_path / 'missing.yaml'))
+
+
+def test_a_file_that_is_not_text_is_named(tmp_path):
+    # A recording given as the scenario by mistake: its first byte is MCAP's magic (0x89).
+    path = tmp_path / 'run.mcap'
+    path.write_bytes(b'\x89MCAP0\r\n' + bytes(range(256)))
+    with pytest.raises(ScenarioError, match=r"scenario '.*run.mcap' is not a text file "
+                                            r'\(YAML, UTF-8\): byte 0 is 0x89'):
+        load_scenario(str(path))
