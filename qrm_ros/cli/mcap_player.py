@@ -16,9 +16,10 @@
 
 ROS arguments after ``--ros-args``. Exit codes (qrm_ros.cli.exit_codes): 0 played to the end
 or stopped by Ctrl-C or SIGTERM; 1 a failure while running; 2 bad options or a file that is
-no recording (one line says why); 3 played, but part of the file was damaged (stderr says
-what was not played, as qrm_analyze reports such files). A topic whose message type this
-environment cannot import is not played, with a warning.
+no recording (one line says why); 3 played, but part of the file was damaged or refused by
+DDS (bytes that do not fit their type; stderr says what was not played, as qrm_analyze
+reports such files). A topic whose message type this environment cannot import is not
+played, with a warning.
 """
 
 import argparse
@@ -63,7 +64,7 @@ def _parser() -> argparse.ArgumentParser:
                     'timing. Services: ~/pause, ~/resume, ~/toggle_paused, ~/play_next '
                     '(std_srvs/Trigger).',
         epilog='Exit status: 0 played (or stopped by Ctrl-C/SIGTERM); 1 a failure; 2 bad '
-               'options or not a recording; 3 played, but parts were damaged.')
+               'options or not a recording; 3 played, but parts were damaged or refused by DDS.')
     parser.add_argument('run', help='recorded run (.mcap)')
     parser.add_argument('--rate', type=_in_range('rate'), default=1.0,
                         help='playback speed factor (default: %(default)s)')
@@ -96,6 +97,9 @@ def what_was_not_played(run: Run, player: McapPlayer) -> List[str]:
         lines.append(f'{count} messages not played: {loss.reason}')
     for topic, why in sorted(player.skipped.items()):
         lines.append(f'{topic} not played: {why}')
+    for topic, (count, why) in sorted(player.refused.items()):
+        lines.append(f'{count} messages on {topic} not played: DDS refused them ({why}); their '
+                     'bytes do not fit the type')
     return lines
 
 
@@ -153,8 +157,9 @@ def _play(argv: List[str], args: argparse.Namespace, run: Run) -> int:
           + (f'; {timing}' if timing else ''))
     for line in what_was_not_played(run, player):
         print(f'{PLAYER_NODE_NAME}: warning: {line}', file=sys.stderr)
-    # Damage makes the playback incomplete; a type this environment lacks only warns.
-    return EXIT_INCOMPLETE if run.problem or player.losses else EXIT_OK
+    # Damage, or messages DDS refused, make the playback incomplete; a type this environment
+    # lacks only warns.
+    return EXIT_INCOMPLETE if run.problem or player.losses or player.refused else EXIT_OK
 
 
 def main(argv: Optional[List[str]] = None) -> int:

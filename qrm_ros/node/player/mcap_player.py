@@ -36,6 +36,7 @@ from typing import Any, Dict, Iterator, List, NamedTuple, Optional, Sequence
 from builtin_interfaces.msg import Time as TimeMessage
 from qrm_ros.core.common.names import absolute_topic
 from qrm_ros.core.common.units import NANOSECONDS_PER_SECOND
+from qrm_ros.node.process.ros_process import RCLError
 from qrm_ros.recording.bag_reader import Loss, MessageTuple, Run
 from rclpy.duration import Duration
 from rclpy.node import Node
@@ -142,6 +143,8 @@ class McapPlayer(Node):
         self.options = options
         self.losses: List[Loss] = []
         self.skipped: Dict[str, str] = {}  # topic -> why it is not played
+        # topic -> [messages DDS refused to publish (bytes that do not fit the type), why]
+        self.refused: Dict[str, List[Any]] = {}
         self.published = 0
         # ns each message was handed to its publisher after its due time (the first
         # TIMING_SAMPLES): the player's own timing, apart from the transport's and the
@@ -297,7 +300,11 @@ class McapPlayer(Node):
                 if len(self.lateness_ns) < TIMING_SAMPLES:  # against the target a pause moved
                     self.lateness_ns.append(time.perf_counter_ns() - origin[0] - round(
                         (message.log_time - first_log_ns) / rate))
-                self._topic_publishers[message.topic].publish(message.data)
+                try:
+                    self._topic_publishers[message.topic].publish(message.data)
+                except RCLError as error:  # e.g. a message longer than its fixed-size type
+                    self._note_refusal(message, error)
+                    continue
                 self.published += 1
             if not self.options.loop or first_log_ns is None or stop:
                 if not stop:
@@ -305,6 +312,16 @@ class McapPlayer(Node):
                 return not stop
             origin[0] = time.perf_counter_ns()
             self.losses = []  # counted once, not per loop
+
+    def _note_refusal(self, message: MessageTuple, error: Exception) -> None:
+        """Count a message DDS refused; say so once per topic (the rest plays on)."""
+        refused = self.refused.setdefault(message.topic, [0, str(error).strip()])
+        refused[0] += 1
+        if refused[0] == 1:
+            self.get_logger().warning(
+                f'a message on {message.topic} (log time {message.log_time} ns) was refused '
+                f'by DDS ({refused[1]}): its bytes do not fit the type; it and any others like '
+                'it are skipped')
 
     def timing_summary(self) -> Optional[str]:
         """Say how late the messages were sent (median, 99th percentile, ms); None if none."""

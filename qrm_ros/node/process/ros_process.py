@@ -47,7 +47,7 @@ import signal
 from typing import Callable, List, Mapping, Optional, Sequence, Tuple, Type, TypeVar, Union
 
 import rclpy
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
@@ -128,7 +128,10 @@ def spin_until_stopped(executor, stop, idle_wakeup=IDLE_WAKEUP):
     gc.collect()
     gc.freeze()
     while not stop and executor.context.ok():
-        executor.spin_once(timeout_sec=idle_wakeup)
+        try:
+            executor.spin_once(timeout_sec=idle_wakeup)
+        except ExternalShutdownException:  # the context was shut down from another thread
+            return
 
 
 def executor_kind(environ=None):

@@ -225,6 +225,26 @@ def test_a_damaged_file_plays_what_is_readable_and_says_what_was_not(tmp_path):
     assert 0 < played == sum(1 for _ in open_run(cut).messages())
 
 
+def test_a_message_dds_refuses_is_skipped_and_said(tmp_path):
+    """A Float64 with a trailing byte: DDS refuses to publish it; the rest plays (exit 3)."""
+    store = get_typestore(Stores.ROS2_JAZZY)
+    kind = store.types['std_msgs/msg/Float64']
+    bag = tmp_path / 'bag'
+    with Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        connection = writer.add_connection('/value', 'std_msgs/msg/Float64', typestore=store)
+        for index in range(20):
+            data = bytes(store.serialize_cdr(kind(data=float(index)), 'std_msgs/msg/Float64'))
+            writer.write(connection, 1_000_000_000 + index * 10_000_000,
+                         data + (b'\0' if index in (5, 9) else b''))
+    result = subprocess.run([installed_executable('mcap_player'), str(next(bag.glob('*.mcap')))],
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == exit_codes.EXIT_INCOMPLETE, result.stderr
+    assert 'Traceback' not in result.stderr
+    assert result.stdout.startswith('played 18 messages on 1 topics')
+    assert 'mcap_player: warning: 2 messages on /value not played: DDS refused them' in (
+        result.stderr)
+
+
 @pytest.mark.parametrize('args, message', [
     (['missing.mcap'], 'does not exist'),
     ([GOLDEN, '--topics', '/nothing'], 'topics /nothing are not in'),
