@@ -33,6 +33,7 @@ import sys
 import threading
 from typing import Any, Callable, Dict, Iterable, Iterator, List, NamedTuple, Optional, Sequence
 
+from qrm_ros.analysis.dask_scheduler import connect_to_scheduler
 from qrm_ros.analysis.measurement import Analysis, finite_or_none
 from qrm_ros.analysis.recorded_drive import drive_values
 from qrm_ros.analysis.recorded_run import AnalysisError
@@ -164,10 +165,11 @@ def run_on_cluster(paths: Sequence[str], overrides: Optional[Dict[str, Optional[
     """
     Analyse the files on the Dask cluster whose scheduler is at scheduler (tcp://HOST:PORT).
 
-    Leaving the iteration early cancels the tasks not yet done.
+    Leaving the iteration early cancels the tasks not yet done. SchedulerError
+    (dask_scheduler) when the scheduler cannot be reached or does not speak Dask.
     """
-    from distributed import as_completed, Client
-    with Client(scheduler, timeout='20s') as client:
+    from distributed import as_completed
+    with connect_to_scheduler(scheduler) as client:
         futures = client.map(analyse_run, list(paths), geometry_overrides=overrides,
                              pure=False)
         try:

@@ -34,6 +34,7 @@ import sys
 from typing import List, Optional, Sequence
 
 from qrm_ros.analysis import fleet
+from qrm_ros.analysis.dask_scheduler import scheduler_address_problem, SchedulerError
 from qrm_ros.analysis.recorded_run import AnalysisError, usable_cores
 from qrm_ros.analysis.report import format_table, shortfalls, write_outputs
 from qrm_ros.analysis.streamed_run import analyse_file
@@ -134,9 +135,8 @@ def _refusal(args: argparse.Namespace) -> Optional[str]:
         return f'--jobs must be a whole number of processes >= 1, got {args.jobs}'
     if args.scheduler is not None and args.jobs is not None:
         return '--jobs is for local processes; the --scheduler\'s cluster has its own workers'
-    if args.scheduler is not None and '://' not in args.scheduler:
-        return (f'--scheduler must be a Dask scheduler address such as tcp://HOST:8786, got '
-                f'{args.scheduler!r}')
+    if args.scheduler is not None and scheduler_address_problem(args.scheduler):
+        return scheduler_address_problem(args.scheduler)
     missing = [path for path in args.run if not os.path.exists(path)]
     if missing:
         return f'run file or folder {missing[0]!r} does not exist'
@@ -172,7 +172,10 @@ def _fleet_main(args: argparse.Namespace) -> int:
         return EXIT_BAD_INPUT
     try:
         results = _fleet_results(args, paths)
-    except OSError as error:  # the scheduler cannot be reached, say
+    except SchedulerError as error:  # said before any file is sent: the address, not a run
+        print(f'qrm_analyze: error: {error}', file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except OSError as error:  # the cluster went away while it worked, say
         print(f'qrm_analyze: error: the fleet could not be analysed: {error}', file=sys.stderr)
         return EXIT_FAILURE
     document = fleet.fleet_document(results)

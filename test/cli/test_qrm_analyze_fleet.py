@@ -21,6 +21,7 @@ that file alone; a damaged file is reported in its row and sets the exit status 
 stopping the others; Ctrl-C stops every worker.
 """
 
+import contextlib
 import glob
 import io
 import json
@@ -28,12 +29,15 @@ import os
 import re
 import shutil
 import signal
+import socket
 import subprocess
 import sys
+import threading
 import time
 
 import pytest
 
+from qrm_ros.analysis import dask_scheduler
 from qrm_ros.analysis import fleet
 from qrm_ros.analysis import fleet_figure
 from qrm_ros.analysis import streamed_run
@@ -188,6 +192,73 @@ def test_bad_fleet_options_are_refused_in_one_line(options, expected, tmp_path, 
     assert code == exit_codes.EXIT_BAD_INPUT
     assert err.strip() == f'qrm_analyze: error: {err.strip()[20:]}'
     assert expected in err and len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize('address, expected', [
+    ('tcp://127.0.0.1:99999', "--scheduler 'tcp://127.0.0.1:99999': the port must be in 1-65535"),
+    ('tcp://:8786', "--scheduler 'tcp://:8786' names no host (tcp://HOST:PORT)"),
+    ('http://127.0.0.1:8786', '--scheduler must be a Dask scheduler address such as'),
+    ('tcp://no-such-host.invalid:8786', "the scheduler host 'no-such-host.invalid' does not "
+     'resolve'),
+])
+def test_a_scheduler_address_that_cannot_be_one_is_refused_at_once(address, expected, capsys):
+    started = time.monotonic()
+    code, _, err = run_main([*GOLDEN[:2], '--scheduler', address], capsys)
+    assert code == exit_codes.EXIT_BAD_INPUT, err
+    assert err.strip().splitlines() == [err.strip()] and expected in err
+    assert time.monotonic() - started < 10.0  # not Dask's 20 s connection time-out
+
+
+class _FakeScheduler:
+    """A TCP server on loopback that is no Dask scheduler: it sends junk, or says nothing."""
+
+    def __init__(self, junk):
+        self.server = socket.create_server(('127.0.0.1', 0))
+        self.address = 'tcp://127.0.0.1:%d' % self.server.getsockname()[1]
+        self.junk, self.connections = junk, []
+        self.thread = threading.Thread(target=self._serve, daemon=True)
+        self.thread.start()
+
+    def _serve(self):
+        with contextlib.suppress(OSError):
+            while True:
+                connection, _ = self.server.accept()
+                self.connections.append(connection)
+                if self.junk:
+                    connection.sendall(b'\xff' * 64)
+
+    def close(self):
+        self.server.close()
+        for connection in self.connections:
+            connection.close()
+
+
+@pytest.mark.parametrize('junk, expected', [
+    (True, 'does not answer as a Dask scheduler (ValueError'),
+    (False, 'accepted the connection but no Dask scheduler answered within 2 s'),
+], ids=['junk', 'silent'])
+def test_a_server_that_is_no_scheduler_is_said_and_blames_no_run(junk, expected, capsys,
+                                                                 monkeypatch):
+    monkeypatch.setattr(dask_scheduler, 'SCHEDULER_TIMEOUT', 2.0)
+    fake = _FakeScheduler(junk)
+    try:
+        code, _, err = run_main([*GOLDEN[:2], '--scheduler', fake.address], capsys)
+    finally:
+        fake.close()
+    assert code == exit_codes.EXIT_BAD_INPUT, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(
+        f'qrm_analyze: error: {fake.address} {expected}'), err
+    assert '.mcap' not in lines[0]
+
+
+def test_nothing_listening_is_said(capsys):
+    with socket.create_server(('127.0.0.1', 0)) as placeholder:
+        port = placeholder.getsockname()[1]  # free once closed: nothing listens there
+    code, _, err = run_main([*GOLDEN[:2], '--scheduler', f'tcp://127.0.0.1:{port}'], capsys)
+    assert code == exit_codes.EXIT_BAD_INPUT
+    assert err.strip() == (f'qrm_analyze: error: nothing answers at tcp://127.0.0.1:{port} '
+                           '(Connection refused)')
 
 
 def test_a_folder_without_runs_is_refused(tmp_path, capsys):
