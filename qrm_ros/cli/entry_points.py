@@ -19,27 +19,40 @@ machine; a Ctrl-C or a launch system's SIGTERM in that moment would otherwise en
 KeyboardInterrupt traceback (or a bare kill). So each script first makes both signals a quiet
 exit, then imports its module; the long-running commands replace these handlers with their
 own clean-stop handling (qrm_ros.node.process.ros_process) once they are up.
+
+A stop while starting exits as a stop at any other moment would: 128 + the signal's number
+for a batch command (so that ``qrm_simulate … && next`` does not go on), 0 for the nodes,
+whose stop is a clean finish. A command started with SIGINT ignored (``cmd &`` from a
+script) has Ctrl-C's default restored, as the long-running ones do.
 """
 
 import importlib
 import os
 import signal
 import sys
-from typing import List
+from typing import Callable, List
 
-from qrm_ros.cli.exit_codes import EXIT_INTERRUPTED
+from qrm_ros.cli.exit_codes import EXIT_INTERRUPTED, EXIT_OK, exit_code_for_signal
 
 __all__ = ['mcap_recorder', 'qrm_analyze', 'qrm_animate', 'qrm_bridge', 'qrm_design', 'qrm_main',
-           'qrm_urdf', 'shaper_sim', 'qrm_simulate', 'mcap_player']
+           'qrm_urdf', 'run_command', 'shaper_sim', 'STOP_IS_A_FINISH', 'qrm_simulate',
+           'mcap_player']
 
 
 _STOP_REQUESTS: List[int] = []  # the stop signals received while starting
+# The commands for which a stop is a clean finish (exit 0) at any moment: the nodes.
+STOP_IS_A_FINISH = ('qrm_ros.cli.shaper_sim', 'qrm_ros.cli.mcap_recorder',
+                    'qrm_ros.cli.mcap_player', 'qrm_ros.cli.qrm_bridge')
 
 
 def _stopped_while_starting(signal_number, frame):
     del frame
     _STOP_REQUESTS.append(signal_number)
-    raise SystemExit(0)  # nothing was started: a clean, quiet stop
+    raise SystemExit(_STOP_STATUS[0](signal_number))  # nothing was started: nothing to undo
+
+
+# How the command being started exits on a stop (set by run_command).
+_STOP_STATUS: List[Callable[[int], int]] = [exit_code_for_signal]
 
 
 def _ament_index_of_this_python() -> None:
@@ -58,6 +71,8 @@ def _ament_index_of_this_python() -> None:
 def run_command(module_name: str) -> int:
     """Import the command's module with stop signals made quiet, then run its main."""
     _ament_index_of_this_python()
+    _STOP_STATUS[0] = ((lambda signal_number: EXIT_OK) if module_name in STOP_IS_A_FINISH
+                       else exit_code_for_signal)
     previous = {number: signal.signal(number, _stopped_while_starting)
                 for number in (signal.SIGINT, signal.SIGTERM)}
     try:
@@ -66,10 +81,12 @@ def run_command(module_name: str) -> int:
         # The SystemExit raised inside a C extension's initialisation (scipy's, say) comes
         # out as its ImportError: still the stop asked for, not a failure to report.
         if _STOP_REQUESTS:
-            raise SystemExit(0) from None
+            raise SystemExit(_STOP_STATUS[0](_STOP_REQUESTS[0])) from None
         raise
     for number, handler in previous.items():
-        signal.signal(number, handler)
+        # An ignored SIGINT (a background job of a script) gets Ctrl-C's default back.
+        signal.signal(number, signal.default_int_handler
+                      if number == signal.SIGINT and handler == signal.SIG_IGN else handler)
     try:
         return module.main()
     except KeyboardInterrupt:  # a batch command (analysis, design table) cut short

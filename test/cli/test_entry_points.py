@@ -17,12 +17,15 @@ traceback, even one that arrives inside a C extension's initialisation.
 """
 
 import os
+import signal
 import subprocess
 import sys
 
 from mcap.reader import make_reader
+import pytest
+from qrm_ros.cli.exit_codes import EXIT_INTERRUPTED, EXIT_OK, exit_code_for_signal
 
-from ros_probe import installed_executable
+from ros_probe import installed_executable, wait_for
 
 
 _STOP_INSIDE_AN_EXTENSION = """
@@ -48,12 +51,66 @@ print('not stopped')
 """
 
 
-def test_a_stop_inside_an_extensions_initialisation_is_quiet():
-    """A stop that a C extension's import turns into ImportError still exits 0, quietly."""
-    result = subprocess.run([sys.executable, '-c', _STOP_INSIDE_AN_EXTENSION],
+@pytest.mark.parametrize('node, status', [(False, EXIT_INTERRUPTED), (True, EXIT_OK)],
+                         ids=['batch', 'node'])
+def test_a_stop_inside_an_extensions_initialisation_is_quiet(node, status):
+    """A stop that a C extension's import turns into ImportError exits as a stop, quietly."""
+    script = _STOP_INSIDE_AN_EXTENSION.replace(
+        'entry_points.run_command', "entry_points.STOP_IS_A_FINISH = ('fake_extension',)\n"
+        'entry_points.run_command') if node else _STOP_INSIDE_AN_EXTENSION
+    result = subprocess.run([sys.executable, '-c', script],
                             capture_output=True, text=True, timeout=60)
-    assert result.returncode == 0, result.stderr
+    assert result.returncode == status, result.stderr
     assert result.stdout == '' and 'Traceback' not in result.stderr, result.stderr
+
+
+def _catches(pid, signal_number):
+    """Whether the process has a handler of its own for the signal (/proc's SigCgt)."""
+    try:
+        with open(f'/proc/{pid}/status') as handle:
+            caught = next(line for line in handle if line.startswith('SigCgt:'))
+    except (FileNotFoundError, StopIteration):
+        return False
+    return bool(int(caught.split()[1], 16) >> (signal_number - 1) & 1)
+
+
+@pytest.mark.parametrize('signal_number', [signal.SIGINT, signal.SIGTERM],
+                         ids=['SIGINT', 'SIGTERM'])
+def test_a_batch_command_stopped_while_starting_exits_as_stopped(tmp_path, signal_number):
+    """qrm_simulate ... && next must not go on: 130 / 143 whenever the stop comes."""
+    output = tmp_path / 'run.mcap'
+    process = subprocess.Popen([installed_executable('qrm_simulate'), '--duration', '60', '-o',
+                                str(output)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True)
+    # Its stop handlers are in place from the first moments of its start-up on.
+    wait_for(lambda: _catches(process.pid, signal.SIGTERM) or process.poll() is not None,
+             30.0, 'the stop handlers of qrm_simulate')
+    process.send_signal(signal_number)
+    _, err = process.communicate(timeout=60)
+    assert process.returncode == exit_code_for_signal(signal_number), err
+    assert 'Traceback' not in err
+    if output.exists():  # the stop came once it ran: the file is finished, summary and all
+        with open(output, 'rb') as stream:
+            assert make_reader(stream).get_summary() is not None
+
+
+_IGNORED_SIGINT = """
+import signal, sys
+from qrm_ros.cli import entry_points
+sys.modules['probe_signals'] = type(sys)('probe_signals')
+sys.modules['probe_signals'].main = lambda: print(
+    signal.getsignal(signal.SIGINT) is signal.default_int_handler) or 0
+raise SystemExit(entry_points.run_command('probe_signals'))
+"""
+
+
+def test_a_command_started_with_sigint_ignored_gets_ctrl_c_back():
+    """A script's background job (cmd &) inherits SIGINT ignored; a command stops on it."""
+    result = subprocess.run(
+        [sys.executable, '-c', _IGNORED_SIGINT], capture_output=True, text=True, timeout=60,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == 'True'
 
 
 _PROBE = """
