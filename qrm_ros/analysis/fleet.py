@@ -108,6 +108,9 @@ def analyse_run(path: str, geometry_overrides: Optional[Dict[str, Optional[float
 def _ignore_interrupts() -> None:
     """Leave Ctrl-C to the parent, which stops the pool (a worker would die mid-pickle)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # The pool ends its workers with SIGTERM: not the parent's handler (a forked worker
+    # inherits it), which would raise inside the worker's loop.
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def _analyse_task(task: Any) -> Any:

@@ -30,8 +30,9 @@ too coarsely to support a figure to 1e-3 (stderr names the figure and its bound)
 
 import argparse
 import os
+import signal
 import sys
-from typing import List, Optional, Sequence
+from typing import Any, List, Optional, Sequence
 
 from qrm_ros.analysis import fleet
 from qrm_ros.analysis.dask_scheduler import scheduler_address_problem, SchedulerError
@@ -40,7 +41,7 @@ from qrm_ros.analysis.report import format_table, shortfalls, write_outputs
 from qrm_ros.analysis.streamed_run import analyse_file
 from qrm_ros.cli.arguments import add_geometry_override_arguments, geometry_overrides
 from qrm_ros.cli.exit_codes import (EXIT_BAD_INPUT, EXIT_FAILURE, EXIT_INCOMPLETE,
-                                    EXIT_INTERRUPTED, EXIT_OK)
+                                    EXIT_INTERRUPTED, EXIT_OK, EXIT_TERMINATED)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -72,18 +73,32 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where Ctrl-C's KeyboardInterrupt would be: the same clean stop."""
+
+
+def _raise_terminated(signal_number: int, frame: Any) -> None:
+    del signal_number, frame
+    raise _Terminated()
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run qrm_analyze; return the exit status (see the module's docstring)."""
     args = _parser().parse_args(argv)
+    # SIGTERM stops as Ctrl-C does: the pool's workers (or the cluster's tasks) with it,
+    # nothing half-written; the default would end this process alone, its workers going on.
+    previous = signal.signal(signal.SIGTERM, _raise_terminated)
     try:
         return _main(args)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as stop:
         print('qrm_analyze: interrupted; no output file was written', file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return EXIT_TERMINATED if isinstance(stop, _Terminated) else EXIT_INTERRUPTED
     except Exception as error:  # a last resort: a bug must not print a traceback either
         print(f'qrm_analyze: error: internal failure ({type(error).__name__}: {error}); '
               'please report it with the file', file=sys.stderr)
         return EXIT_FAILURE
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _is_fleet(args: argparse.Namespace) -> bool:

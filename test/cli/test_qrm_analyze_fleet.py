@@ -282,7 +282,9 @@ def _alive(pid):
         return False
 
 
-def test_ctrl_c_stops_every_worker(tmp_path):
+@pytest.mark.parametrize('signal_number', [signal.SIGINT, signal.SIGTERM],
+                         ids=['SIGINT', 'SIGTERM'])
+def test_a_stop_signal_stops_every_worker(tmp_path, signal_number):
     folder = tmp_path / 'many'
     folder.mkdir()
     for copy in range(12):
@@ -296,9 +298,9 @@ def test_ctrl_c_stops_every_worker(tmp_path):
         workers = _children(command.pid)
         time.sleep(0.05)
     assert len(workers) >= 2, 'the pool never started'
-    command.send_signal(signal.SIGINT)
+    command.send_signal(signal_number)
     _, err = command.communicate(timeout=60.0)
-    assert command.returncode == exit_codes.EXIT_INTERRUPTED, err
+    assert command.returncode == exit_codes.exit_code_for_signal(signal_number), err
     assert 'Traceback' not in err and 'interrupted' in err
     deadline = time.monotonic() + 30.0
     while time.monotonic() < deadline and any(_alive(pid) for pid in workers):
