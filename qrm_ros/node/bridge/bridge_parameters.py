@@ -156,10 +156,25 @@ class ParameterBridge:
             raise ParameterRefusal(f'no node {node_name} in the graph')
         return clients
 
-    def _values(self, node_name: str, names: Sequence[str]) -> List[FoxgloveParameter]:
-        answer = _answer(self._clients(node_name).get, GetParameters.Request(names=list(names)))
+    def _values(self, node_name: str, names: Sequence[str],
+                report: Optional[Callable[[str], None]] = None) -> List[FoxgloveParameter]:
+        report = self._report if report is None else report
+        clients = self._clients(node_name)
+        values = list(_answer(clients.get, GetParameters.Request(names=list(names))).values)
+        if len(values) != len(names):
+            # rclpy answers nothing at all when one name is unknown: ask name by name, and
+            # say which the node does not have.
+            known, values = [], []
+            for name in names:
+                alone = list(_answer(clients.get, GetParameters.Request(names=[name])).values)
+                if alone:
+                    known.append(name)
+                    values += alone
+                else:
+                    report(f'no parameter {name} on node {node_name}')
+            names = known
         result = []
-        for name, value in zip(names, answer.values):
+        for name, value in zip(names, values):
             full = node_name + NODE_SEPARATOR + name
             self._types[full] = value.type
             result.append(from_ros(full, value))
@@ -189,7 +204,7 @@ class ParameterBridge:
         result = []
         for node_name, parameters in by_node.items():
             try:
-                result += self._values(node_name, parameters)
+                result += self._values(node_name, parameters, report)
             except ParameterRefusal as refusal:
                 if names:
                     report(str(refusal))

@@ -200,6 +200,19 @@ def test_a_parameter_set_from_the_client_is_the_nodes_to_refuse(running, client)
     assert {OFFSET, '/shaper_sim.input_speed', '/shaper_sim.publish_rate'} <= every
 
 
+def test_an_unknown_parameter_of_a_known_node_spoils_not_the_others(running, client):
+    """rclpy answers nothing when one name is unknown: the known ones are answered anyway."""
+    viewer = client()
+    unknown = '/shaper_sim.no_such_parameter'
+    viewer.send(op='getParameters', names=[OFFSET, unknown], id='mixed')
+    answered = viewer.wait_event('parameterValues', id='mixed')['parameters']
+    assert [p['name'] for p in answered] == [OFFSET]
+    said = viewer.wait(lambda events: [e for e in events if e['event'] == 'status'
+                                       and 'no_such_parameter' in e['message']],
+                       what='the unknown parameter said')
+    assert 'no parameter no_such_parameter on node /shaper_sim' in said[0]['message']
+
+
 def test_pause_and_reset_are_called_from_the_client(running, client):
     _, probe = running
     viewer = client()
