@@ -35,7 +35,7 @@ from rclpy.publisher import Publisher
 from rclpy.serialization import deserialize_message, serialize_message
 
 from qrm_ros.node.bridge.bridge_topics import CDR, message_class, ROS2MSG
-from qrm_ros.node.process.ros_process import rcl_error_text
+from qrm_ros.node.process.ros_process import rcl_error_text, RCLError
 from qrm_ros.recording.rosbag2_formats import find_service_definitions
 
 __all__ = ['ClientPublishers', 'PublishRefusal', 'SERVICE_CALL_TIMEOUT', 'ServiceBridge',
@@ -157,7 +157,11 @@ class ClientPublishers:
             kind = message_class(schema_name)
         except LookupError as error:
             raise PublishRefusal(f'client channel {topic}: {error}') from None
-        resolved = self._node.resolve_topic_name(topic)
+        try:
+            resolved = self._node.resolve_topic_name(topic)
+        except Exception as error:  # rclpy raises several kinds on a name it cannot take
+            raise PublishRefusal(f'client channel {topic!r}: not a valid ROS topic name '
+                                 f'({rcl_error_text(error)})') from None
         existing = self._topic_types(resolved)
         wanted = f'{kind.__module__.split(".")[0]}/msg/{kind.__name__}'
         if existing and existing != [wanted]:
@@ -201,7 +205,12 @@ class ClientPublishers:
                                  ) from None
         if not channel.ready.wait(PUBLISHER_WAIT) or channel.publisher is None:
             raise PublishRefusal(f'{channel.topic}: no publisher yet, message dropped')
-        channel.publisher.publish(bytes(data))
+        try:
+            channel.publisher.publish(bytes(data))
+        except RCLError as error:  # bytes that read as the type but do not fit it (trailing)
+            raise PublishRefusal(f'{channel.topic}: DDS refused a {len(data)}-byte '
+                                 f'{channel.kind.__name__} ({rcl_error_text(error)}); '
+                                 'message dropped') from None
 
 
 def call_from_thread(client: Client, request, timeout: float,

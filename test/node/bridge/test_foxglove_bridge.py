@@ -248,6 +248,26 @@ def test_the_node_follows_a_speed_command_published_by_the_client(running, clien
     other.wait_event('message', topic='/joint_states')
 
 
+def test_what_dds_refuses_from_a_client_is_said_to_it(running, client):
+    """A Float64 with a trailing byte reads as one but DDS refuses it; a bad topic name."""
+    viewer = client()
+    viewer.send(op='advertise', topic='input_speed_cmd', schemaName='std_msgs/msg/Float64',
+                schema=FLOAT64)
+    # A CDR header and 3.0, then one byte too many.
+    viewer.send(op='publishBytes', topic='input_speed_cmd', hex='00010000' '0000000000000840'
+                '00')
+    refused = viewer.wait(lambda events: [e for e in events if e['event'] == 'status'
+                                          and 'DDS refused' in e['message']],
+                          what='the refusal said to the client')
+    assert refused[0]['level'] == 2 and '13-byte Float64' in refused[0]['message']
+    viewer.send(op='advertise', topic='bad topic!!', schemaName='std_msgs/msg/Float64',
+                schema=FLOAT64)
+    bad = viewer.wait(lambda events: [e for e in events if e['event'] == 'status'
+                                      and 'not a valid ROS topic name' in e['message']],
+                      what='the bad topic name said to the client')
+    assert "client channel 'bad topic!!'" in bad[0]['message'] and bad[0]['level'] == 2
+
+
 def test_a_malformed_protocol_message_gets_an_error_for_that_client_only(running, client):
     sender, bystander = client(), client()
     sender.send(op='raw', text='{"op": "subscribe", "subscriptions": "not a list"')
