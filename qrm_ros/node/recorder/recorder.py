@@ -49,7 +49,8 @@ from qrm_ros.core.common.names import (DIAGNOSTICS_TOPIC, GEOMETRY_METADATA, JOI
                                        JOINT_STATES_TOPIC, PARAMETER_EVENTS_TOPIC,
                                        PARAMETERS_METADATA, RAM_TWIST_TOPIC, RECORDER_NODE_NAME,
                                        SPEED_COMMAND_TOPIC)
-from qrm_ros.node.process.ros_process import MESSAGE_INFO_SIGNATURE, message_and_info
+from qrm_ros.node.process.ros_process import (MESSAGE_INFO_SIGNATURE, message_and_info,
+                                              rcl_error_text, RCLError)
 from qrm_ros.core.common.units import NANOSECONDS_PER_SECOND
 
 DEFAULT_TOPICS = [JOINT_STATES_TOPIC, RAM_TWIST_TOPIC, SPEED_COMMAND_TOPIC, DIAGNOSTICS_TOPIC,
@@ -165,8 +166,7 @@ class Recorder(Node):
                                     COMPRESSIONS[self.settings['compression']], chunk_duration_ns)
         self.machine = MachineChannels(self.run_file)
         preload_typestore()
-        self._wanted = {self.resolve_topic_name(topic): topic
-                        for topic in self.settings['topics']}
+        self._wanted = self.settings['wanted']  # resolved name -> as given
         self._recorded_topics = {}
         self._requested = {}
         self._warned = set()
@@ -202,6 +202,14 @@ class Recorder(Node):
                 or not all(isinstance(t, str) and t for t in topics)):
             raise SettingsError(f'parameter topics={topics!r} must be a non-empty list of topic '
                                 'names')
+        value['wanted'] = {}
+        for topic in topics:
+            try:
+                value['wanted'][self.resolve_topic_name(topic)] = topic
+            except RCLError as error:  # a regular expression, a space: no ROS name at all
+                raise SettingsError(f'parameter topics: {topic!r} is not a ROS topic name '
+                                    f'({rcl_error_text(error)}); topics are names, not '
+                                    'patterns') from None
         value['sim_wait_timeout'] = _seconds_in('sim_wait_timeout', value['sim_wait_timeout'],
                                                 *SIM_WAIT_TIMEOUT_RANGE)
         return value

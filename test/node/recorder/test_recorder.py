@@ -686,6 +686,10 @@ def test_existing_output_is_refused_as_a_configuration_error(tmp_path):
     ('sim_wait_timeout:=-1.0', ['sim_wait_timeout=-1.0', '[0, 3600] s']),
     ('compression:=gzip', ["compression='gzip'", 'zstd, lz4, none']),
     ('topics:=5', ['topics']),
+    # A pattern is no topic name: it was a traceback, exit 1 and a 50-byte stub file that
+    # then blocked a rerun ("already exists").
+    ("topics:=['/joint_.*']", ["parameter topics: '/joint_.*' is not a ROS topic name",
+                               'topics are names, not patterns']),
 ])
 def test_bad_settings_are_refused_naming_the_allowed_values(tmp_path, parameter, words):
     output = tmp_path / 'run.mcap'
