@@ -73,12 +73,10 @@ def connect_to_scheduler(address: str, timeout: Optional[float] = None) -> Any:
     if problem is not None:
         raise SchedulerError(problem)
     try:
-        socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
+        socket.create_connection((host, port), timeout=timeout).close()
     except socket.gaierror as error:
         raise SchedulerError(f'the scheduler host {host!r} does not resolve '
                              f'({error.strerror})') from None
-    try:
-        socket.create_connection((host, port), timeout=timeout).close()
     except socket.timeout:
         raise SchedulerError(f'nothing answered at {address} within {timeout:g} s') from None
     except OSError as error:

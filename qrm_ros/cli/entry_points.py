@@ -30,7 +30,7 @@ import importlib
 import os
 import signal
 import sys
-from typing import Callable, List
+from typing import List
 
 from qrm_ros.cli.exit_codes import EXIT_INTERRUPTED, EXIT_OK, exit_code_for_signal
 
@@ -45,14 +45,9 @@ STOP_IS_A_FINISH = ('qrm_ros.cli.shaper_sim', 'qrm_ros.cli.mcap_recorder',
                     'qrm_ros.cli.mcap_player', 'qrm_ros.cli.qrm_bridge')
 
 
-def _stopped_while_starting(signal_number, frame):
-    del frame
-    _STOP_REQUESTS.append(signal_number)
-    raise SystemExit(_STOP_STATUS[0](signal_number))  # nothing was started: nothing to undo
-
-
-# How the command being started exits on a stop (set by run_command).
-_STOP_STATUS: List[Callable[[int], int]] = [exit_code_for_signal]
+def _stop_status(module_name: str, signal_number: int) -> int:
+    """How a command exits on a stop: 0 for a node, 128 + the signal's number for the rest."""
+    return EXIT_OK if module_name in STOP_IS_A_FINISH else exit_code_for_signal(signal_number)
 
 
 def _ament_index_of_this_python() -> None:
@@ -71,9 +66,13 @@ def _ament_index_of_this_python() -> None:
 def run_command(module_name: str) -> int:
     """Import the command's module with stop signals made quiet, then run its main."""
     _ament_index_of_this_python()
-    _STOP_STATUS[0] = ((lambda signal_number: EXIT_OK) if module_name in STOP_IS_A_FINISH
-                       else exit_code_for_signal)
-    previous = {number: signal.signal(number, _stopped_while_starting)
+
+    def stopped_while_starting(signal_number, frame):
+        del frame
+        _STOP_REQUESTS.append(signal_number)
+        # Nothing was started: nothing to undo.
+        raise SystemExit(_stop_status(module_name, signal_number))
+    previous = {number: signal.signal(number, stopped_while_starting)
                 for number in (signal.SIGINT, signal.SIGTERM)}
     try:
         module = importlib.import_module(module_name)
@@ -81,7 +80,7 @@ def run_command(module_name: str) -> int:
         # The SystemExit raised inside a C extension's initialisation (scipy's, say) comes
         # out as its ImportError: still the stop asked for, not a failure to report.
         if _STOP_REQUESTS:
-            raise SystemExit(_STOP_STATUS[0](_STOP_REQUESTS[0])) from None
+            raise SystemExit(_stop_status(module_name, _STOP_REQUESTS[0])) from None
         raise
     for number, handler in previous.items():
         # An ignored SIGINT (a background job of a script) gets Ctrl-C's default back.

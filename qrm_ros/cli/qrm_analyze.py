@@ -150,8 +150,8 @@ def _refusal(args: argparse.Namespace) -> Optional[str]:
         return f'--jobs must be a whole number of processes >= 1, got {args.jobs}'
     if args.scheduler is not None and args.jobs is not None:
         return '--jobs is for local processes; the --scheduler\'s cluster has its own workers'
-    if args.scheduler is not None and scheduler_address_problem(args.scheduler):
-        return scheduler_address_problem(args.scheduler)
+    if args.scheduler is not None and (problem := scheduler_address_problem(args.scheduler)):
+        return problem
     missing = [path for path in args.run if not os.path.exists(path)]
     if missing:
         return f'run file or folder {missing[0]!r} does not exist'
